@@ -1,0 +1,62 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#pragma once
+
+#include <atomic>
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <string_view>
+
+#include "core/features/features.h"
+#include "core/mesh/mesh.h"
+#include "core/schemes/scheme.h"
+
+namespace stlrefine {
+
+//! What a refinement request asks for. Every field has its range next to it.
+struct RefineParams {
+  std::string scheme = "butterfly";  //!< one of scheme_names()
+  int levels = 1;                    //!< [0, 8]
+  FeatureParams features;
+  std::uint64_t max_faces = 20'000'000;  //!< [1, 2^31): refuse before work above this
+  int threads = 0;                       //!< [0, 256]; 0 = every core
+
+  //! \throw Error(InvalidParameter) naming the field.
+  void validate() const;
+};
+
+//! Progress sink: fraction in [0, 1] and a short stage name ("level 2/3").
+using ProgressFn = std::function<void(double fraction, std::string_view stage)>;
+
+struct RefineReport {
+  std::string scheme;
+  int levels = 0;
+  std::size_t input_vertices = 0, input_faces = 0;
+  std::size_t output_vertices = 0, output_faces = 0;
+  std::size_t sharp_edges_in = 0, sharp_edges_out = 0;
+  std::size_t corners = 0, creases = 0, darts = 0;
+  std::size_t fold_fallbacks = 0;
+  //! Largest distance any input vertex moved (0 for interpolating schemes).
+  double max_input_displacement = 0;
+  double seconds = 0;
+};
+
+struct RefineResult {
+  Mesh mesh;
+  RefineReport report;
+};
+
+//! Predicted face count; \throw Error(BudgetExceeded, field "max_faces") with the
+//! number in the message when it exceeds params.max_faces.
+std::uint64_t check_face_budget(std::size_t faces, const RefineParams& params);
+
+//! Applies params.scheme params.levels times. Checks the face budget before any work,
+//! the cancel flag between and inside levels.
+//! \throw Error(InvalidParameter | BudgetExceeded | Cancelled)
+RefineResult refine(const Mesh& mesh, const RefineParams& params,
+                    const ProgressFn& progress = {},
+                    const std::atomic<bool>* cancel = nullptr);
+
+}  // namespace stlrefine

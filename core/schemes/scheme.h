@@ -1,0 +1,48 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string_view>
+
+#include "core/features/features.h"
+#include "core/mesh/mesh.h"
+
+namespace stlrefine {
+
+//! One subdivision level: connectivity and positions plus the sharp features on it.
+struct Level {
+  Mesh mesh;
+  Features features;
+};
+
+//! Counters a step adds to, reported to the user.
+struct StepStats {
+  //! Edge points pulled back towards the chord because a child face would have turned
+  //! more than 90 degrees from its parent (the fold guard of interpolatory schemes).
+  std::size_t fold_fallbacks = 0;
+};
+
+//! A subdivision scheme: a topology host (1-to-4, sqrt3) combined with a stencil.
+class Scheme {
+ public:
+  virtual ~Scheme() = default;
+  virtual std::string_view name() const = 0;
+  //! True when every old vertex keeps its position bit-identically.
+  virtual bool interpolating() const = 0;
+  //! Face count after `levels` steps from `faces` faces (exact, so budgets hold).
+  virtual std::uint64_t predict_faces(std::uint64_t faces, int levels) const = 0;
+  //! Refines one level. Reads only `coarse` (double buffer).
+  virtual Level refine_once(const Level& coarse, StepStats& stats) const = 0;
+};
+
+//! Names accepted by make_scheme, in a stable order ("loop", "butterfly", ...).
+std::span<const std::string_view> scheme_names();
+
+//! \throw Error(InvalidParameter, field "scheme") for an unknown name.
+std::unique_ptr<Scheme> make_scheme(std::string_view name);
+
+}  // namespace stlrefine
