@@ -44,9 +44,9 @@ class Features {
   const std::array<VertexId, 2>& curve_neighbours(VertexId v) const {
     return curve_neighbours_[v.idx];
   }
-  //! Along the sharp polyline through edge (from(h) -> to(h)): the curve vertex before
-  //! from(h), or invalid when from(h) ends the polyline (corner, dart).
-  VertexId curve_predecessor(const Mesh& mesh, HalfedgeId h) const;
+  //! Along the sharp polyline through the sharp edge (x, other): the curve vertex beyond x,
+  //! or invalid when x ends the polyline (it is a corner or a dart).
+  VertexId curve_beyond(VertexId x, VertexId other) const;
 
   std::span<const std::uint8_t> sharp_edges() const { return sharp_edge_; }
   std::size_t num_sharp_edges() const { return num_sharp_; }

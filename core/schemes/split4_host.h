@@ -2,7 +2,9 @@
 // Copyright (c) 2026 stlrefine authors
 #pragma once
 
+#include <memory>
 #include <span>
+#include <string_view>
 
 #include "core/schemes/scheme.h"
 
@@ -26,5 +28,23 @@ class Split4Stencil {
 //! For interpolating stencils the fold guard runs: an edge point whose child faces would
 //! turn more than 90 degrees from their parent is moved back towards its chord midpoint.
 Level split4(const Level& coarse, const Split4Stencil& stencil, StepStats& stats);
+
+//! A Scheme made of the 1-to-4 host and one stencil.
+class Split4Scheme final : public Scheme {
+ public:
+  Split4Scheme(std::string_view name, std::unique_ptr<Split4Stencil> stencil)
+      : name_(name), stencil_(std::move(stencil)) {}
+  std::string_view name() const override { return name_; }
+  bool interpolating() const override { return stencil_->interpolating(); }
+  std::uint64_t predict_faces(std::uint64_t faces, int levels) const override;
+  Level refine_once(const Level& coarse, StepStats& stats) const override {
+    return split4(coarse, *stencil_, stats);
+  }
+  const Split4Stencil& stencil() const { return *stencil_; }
+
+ private:
+  std::string_view name_;
+  std::unique_ptr<Split4Stencil> stencil_;
+};
 
 }  // namespace stlrefine

@@ -1,0 +1,98 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#include "core/features/features.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "core/error.h"
+#include "core/parallel.h"
+
+namespace stlrefine {
+
+void FeatureParams::validate() const {
+  require_in_range("crease_angle", crease_angle_deg, 0.0, 180.0);
+}
+
+const char* to_string(VertexKind kind) {
+  switch (kind) {
+    case VertexKind::Smooth: return "smooth";
+    case VertexKind::Dart: return "dart";
+    case VertexKind::Crease: return "crease";
+    case VertexKind::Corner: return "corner";
+  }
+  return "smooth";
+}
+
+Features::Features(const Mesh& mesh, std::vector<std::uint8_t> sharp_edge)
+    : sharp_edge_(std::move(sharp_edge)) {
+  if (sharp_edge_.size() != mesh.num_edges())
+    throw Error(ErrorCode::Internal, "feature_size", "sharp flags do not match the edges");
+  for (std::size_t e = 0; e < sharp_edge_.size(); ++e) {
+    if (mesh.is_boundary(EdgeId(e))) sharp_edge_[e] = 1;
+    num_sharp_ += sharp_edge_[e];
+  }
+  const std::size_t nv = mesh.num_vertices();
+  kind_.assign(nv, VertexKind::Smooth);
+  curve_neighbours_.assign(nv, {VertexId(), VertexId()});
+  parallel_for_each_index(nv, [&](std::size_t i) {
+    const VertexId v(static_cast<std::uint32_t>(i));
+    int sharp = 0;
+    std::array<VertexId, 2> ends{};
+    auto note = [&](HalfedgeId h, VertexId far) {
+      if (!is_sharp(mesh.edge(h))) return;
+      if (sharp < 2) ends[sharp] = far;
+      ++sharp;
+    };
+    HalfedgeId last;
+    for_each_outgoing(mesh, v, [&](HalfedgeId h) {
+      note(h, mesh.to(h));
+      last = h;
+    });
+    // The incoming boundary half-edge closing an open fan is an edge of v too.
+    if (last.valid() && mesh.is_boundary(v)) note(Mesh::prev(last), mesh.from(Mesh::prev(last)));
+    kind_[i] = sharp == 0   ? VertexKind::Smooth
+               : sharp == 1 ? VertexKind::Dart
+               : sharp == 2 ? VertexKind::Crease
+                            : VertexKind::Corner;
+    if (sharp == 2) curve_neighbours_[i] = ends;
+  });
+}
+
+VertexId Features::curve_beyond(VertexId x, VertexId other) const {
+  if (kind(x) != VertexKind::Crease) return VertexId();
+  const auto& n = curve_neighbours_[x.idx];
+  // Both sharp edges of x may end at `other` (a two-edge loop): then there is no distinct
+  // vertex beyond and the end condition applies.
+  if (n[0] == other) return n[1] == other ? VertexId() : n[1];
+  if (n[1] == other) return n[0];
+  return VertexId();  // (x, other) is not one of x's sharp edges
+}
+
+std::size_t Features::count(VertexKind k) const {
+  return static_cast<std::size_t>(std::count(kind_.begin(), kind_.end(), k));
+}
+
+double dihedral_angle_deg(const Mesh& mesh, EdgeId e) {
+  const HalfedgeId h = mesh.halfedge(e);
+  const HalfedgeId t = mesh.twin(h);
+  if (!t.valid()) return 0.0;
+  const Vec3 n1 = normalized(mesh.face_normal(Mesh::face(h)));
+  const Vec3 n2 = normalized(mesh.face_normal(Mesh::face(t)));
+  if (n1 == Vec3{} || n2 == Vec3{}) return 0.0;  // no direction on a zero-area face
+  // atan2 of |n1 x n2| and n1.n2 is accurate for small and large angles alike.
+  return std::atan2(norm(cross(n1, n2)), dot(n1, n2)) * 180.0 / std::numbers::pi;
+}
+
+Features detect_features(const Mesh& mesh, const FeatureParams& params) {
+  params.validate();
+  std::vector<std::uint8_t> sharp(mesh.num_edges(), 0);
+  parallel_for_each_index(mesh.num_edges(), [&](std::size_t e) {
+    sharp[e] = dihedral_angle_deg(mesh, EdgeId(static_cast<std::uint32_t>(e))) >
+               params.crease_angle_deg;
+  });
+  return Features(mesh, std::move(sharp));
+}
+
+}  // namespace stlrefine

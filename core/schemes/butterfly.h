@@ -1,0 +1,33 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#pragma once
+
+#include <vector>
+
+#include "core/schemes/split4_host.h"
+
+namespace stlrefine {
+
+//! Zorin, Schroeder and Sweldens' modified butterfly ("Interpolating subdivision for meshes
+//! with arbitrary topology", SIGGRAPH 1996), with the crease handling of spec section 2:
+//! the 4-point rule along sharp polylines and virtual points where a stencil would cross
+//! a sharp edge. Interpolating: old vertices never move.
+class ButterflyStencil final : public Split4Stencil {
+ public:
+  ButterflyStencil();
+  void edge_points(const Level& coarse, std::span<Vec3> out) const override;
+  bool interpolating() const override { return true; }
+
+  //! Weight s_j of ring vertex j (offset from the edge's other end) in the rule around an
+  //! extraordinary vertex of valence k; the centre weighs 3/4 and sum_j s_j = 1/4.
+  static double extraordinary_weight(int k, int j);
+
+ private:
+  //! Edge point from the 1-ring of the extraordinary vertex from(h) alone.
+  Vec3 one_sided_point(const Mesh& mesh, HalfedgeId h, int valence) const;
+  //! Rows of s_j for valences below kCachedValences; larger ones are computed on the fly.
+  static constexpr int kCachedValences = 64;
+  std::vector<std::vector<double>> weights_;
+};
+
+}  // namespace stlrefine

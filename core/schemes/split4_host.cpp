@@ -1,0 +1,196 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#include "core/schemes/split4_host.h"
+
+#include <algorithm>
+#include <array>
+
+#include "core/parallel.h"
+
+namespace stlrefine {
+
+void Split4Stencil::vertex_points(const Level& coarse, std::span<Vec3> out) const {
+  const auto p = coarse.mesh.positions();
+  std::copy(p.begin(), p.end(), out.begin());
+}
+
+namespace {
+
+// Connectivity of the 1-to-4 split, derived arithmetically from the coarse mesh.
+//
+//              v2                    coarse face f = (v0, v1, v2), half-edge k: v_k -> v_k+1
+//             /  \                   m_k = midpoint vertex of half-edge k = V + edge(3f+k)
+//           m2 -- m1                 child 4f+k = (v_k, m_k, m_k-1), child 4f+3 = (m0, m1, m2)
+//          /  \  /  \                child half-edge 0: first half of coarse half-edge k
+//        v0 -- m0 -- v1                              1: inner edge m_k -> m_k-1
+//                                                    2: second half of coarse half-edge k-1
+// Child edges: coarse edge e -> 2e (first half of its canonical half-edge), 2e+1 (second
+// half); the inner edge of corner child k -> 2E + 3f + k.
+struct Split4Topology {
+  std::vector<VertexId> corner_vertex;
+  std::vector<HalfedgeId> twin;
+  std::vector<EdgeId> edge_of;
+  std::vector<HalfedgeId> edge_halfedge;
+  std::vector<HalfedgeId> vertex_halfedge;
+  std::vector<std::uint8_t> sharp;
+};
+
+constexpr std::uint32_t first_half(std::uint32_t f, std::uint32_t k) { return 12 * f + 3 * k; }
+constexpr std::uint32_t second_half(std::uint32_t f, std::uint32_t k) {
+  return 12 * f + 3 * ((k + 1) % 3) + 2;
+}
+
+Split4Topology split4_topology(const Mesh& m, const Features& features) {
+  const std::uint32_t nv = static_cast<std::uint32_t>(m.num_vertices());
+  const std::uint32_t ne = static_cast<std::uint32_t>(m.num_edges());
+  const std::uint32_t nf = static_cast<std::uint32_t>(m.num_faces());
+  Split4Topology t;
+  t.corner_vertex.resize(12 * std::size_t(nf));
+  t.twin.resize(12 * std::size_t(nf));
+  t.edge_of.resize(12 * std::size_t(nf));
+  t.edge_halfedge.resize(2 * std::size_t(ne) + 3 * std::size_t(nf));
+  t.vertex_halfedge.resize(std::size_t(nv) + ne);
+  t.sharp.assign(t.edge_halfedge.size(), 0);
+
+  parallel_for_each_index(nf, [&](std::size_t fi) {
+    const std::uint32_t f = static_cast<std::uint32_t>(fi);
+    std::array<VertexId, 3> v, mid;
+    for (std::uint32_t k = 0; k < 3; ++k) {
+      v[k] = m.from(HalfedgeId(3 * f + k));
+      mid[k] = VertexId(nv + m.edge(HalfedgeId(3 * f + k)).idx);
+    }
+    for (std::uint32_t k = 0; k < 3; ++k) {
+      const std::uint32_t km1 = (k + 2) % 3;
+      const std::uint32_t c = 12 * f + 3 * k;  // corner child 4f+k
+      t.corner_vertex[c] = v[k];
+      t.corner_vertex[c + 1] = mid[k];
+      t.corner_vertex[c + 2] = mid[km1];
+      t.corner_vertex[12 * f + 9 + k] = mid[k];  // middle child
+      // Inner edge m_k -> m_k-1 pairs with the middle child's m_k-1 -> m_k.
+      t.twin[c + 1] = HalfedgeId(12 * f + 9 + km1);
+      t.twin[12 * f + 9 + km1] = HalfedgeId(c + 1);
+      const std::uint32_t inner_edge = 2 * ne + 3 * f + k;
+      t.edge_of[c + 1] = t.edge_of[12 * f + 9 + km1] = EdgeId(inner_edge);
+      t.edge_halfedge[inner_edge] = HalfedgeId(c + 1);
+
+      // Halves of coarse half-edge k pair with the swapped halves of its twin.
+      const HalfedgeId coarse(3 * f + k);
+      const HalfedgeId ct = m.twin(coarse);
+      const EdgeId e = m.edge(coarse);
+      const bool canonical = m.halfedge(e) == coarse;
+      if (ct.valid()) {
+        const std::uint32_t g = ct.idx / 3, j = ct.idx % 3;
+        t.twin[first_half(f, k)] = HalfedgeId(second_half(g, j));
+        t.twin[second_half(f, k)] = HalfedgeId(first_half(g, j));
+      } else {
+        t.twin[first_half(f, k)] = t.twin[second_half(f, k)] = HalfedgeId();
+      }
+      t.edge_of[first_half(f, k)] = EdgeId(2 * e.idx + (canonical ? 0 : 1));
+      t.edge_of[second_half(f, k)] = EdgeId(2 * e.idx + (canonical ? 1 : 0));
+      if (canonical) {
+        t.edge_halfedge[2 * e.idx] = HalfedgeId(first_half(f, k));
+        t.edge_halfedge[2 * e.idx + 1] = HalfedgeId(second_half(f, k));
+        t.sharp[2 * e.idx] = t.sharp[2 * e.idx + 1] = features.is_sharp(e);
+        // The second half leaves the midpoint with no twin on a boundary: most clockwise.
+        t.vertex_halfedge[nv + e.idx] = HalfedgeId(second_half(f, k));
+      }
+    }
+  });
+  parallel_for_each_index(nv, [&](std::size_t v) {
+    const HalfedgeId h = m.halfedge(VertexId(static_cast<std::uint32_t>(v)));
+    // The first half of v's most clockwise half-edge is most clockwise at v again.
+    t.vertex_halfedge[v] = h.valid() ? HalfedgeId(first_half(h.idx / 3, h.idx % 3)) : HalfedgeId();
+  });
+  return t;
+}
+
+// Fold guard. An interpolating stencil can push an edge point so far that a child turns
+// over (the butterfly does on long thin CAD triangles). Where a child's normal is more
+// than 90 degrees from its parent's, the offending edge points are pulled towards their
+// chord midpoints in steps (1/2, 1/4, then the midpoint itself). With all three edge points
+// at their midpoints the children are parallel to the parent, so the loop ends.
+std::size_t guard_folds(const Mesh& m, std::vector<Vec3>& pos) {
+  const std::uint32_t nv = static_cast<std::uint32_t>(m.num_vertices());
+  const std::uint32_t nf = static_cast<std::uint32_t>(m.num_faces());
+  constexpr std::array<double, 4> kScale = {1.0, 0.5, 0.25, 0.0};
+  std::vector<std::uint8_t> stage(m.num_edges(), 0);
+  std::vector<Vec3> original;  // filled lazily: most meshes never fold
+
+  auto edge_point = [&](std::uint32_t f, std::uint32_t k) -> const Vec3& {
+    return pos[nv + m.edge(HalfedgeId(3 * f + k)).idx];
+  };
+  auto folds = [&](std::uint32_t f) {
+    const Vec3 n = m.face_normal(FaceId(f));
+    if (dot(n, n) == 0) return false;
+    const Vec3 m0 = edge_point(f, 0), m1 = edge_point(f, 1), m2 = edge_point(f, 2);
+    const auto [v0, v1, v2] = m.face_vertices(FaceId(f));
+    const Vec3 &p0 = pos[v0.idx], &p1 = pos[v1.idx], &p2 = pos[v2.idx];
+    return dot(triangle_normal(p0, m0, m2), n) < 0 || dot(triangle_normal(p1, m1, m0), n) < 0 ||
+           dot(triangle_normal(p2, m2, m1), n) < 0 || dot(triangle_normal(m0, m1, m2), n) < 0;
+  };
+
+  std::vector<std::uint8_t> folding(nf, 0);
+  parallel_for_each_index(nf, [&](std::size_t f) { folding[f] = folds(static_cast<std::uint32_t>(f)); });
+  std::vector<std::uint32_t> todo;
+  for (std::uint32_t f = 0; f < nf; ++f)
+    if (folding[f]) todo.push_back(f);
+  std::size_t moved_edges = 0;
+  while (!todo.empty()) {
+    if (original.empty()) original.assign(pos.begin() + nv, pos.end());
+    std::vector<std::uint32_t> touched;
+    for (std::uint32_t f : todo) {
+      for (std::uint32_t k = 0; k < 3; ++k) {
+        const HalfedgeId h(3 * f + k);
+        const EdgeId e = m.edge(h);
+        if (stage[e.idx] + 1u >= kScale.size()) continue;
+        if (stage[e.idx] == 0) ++moved_edges;
+        ++stage[e.idx];
+        const Vec3 mid = 0.5 * (pos[m.from(h).idx] + pos[m.to(h).idx]);
+        pos[nv + e.idx] = mid + kScale[stage[e.idx]] * (original[e.idx] - mid);
+        touched.push_back(f);
+        if (m.twin(h).valid()) touched.push_back(m.twin(h).idx / 3);
+      }
+    }
+    std::sort(touched.begin(), touched.end());
+    touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+    todo.clear();
+    for (std::uint32_t f : touched) {
+      if (!folds(f)) continue;
+      // Stop when every edge of a folding face is already at its midpoint (degenerate
+      // parent geometry): nothing further can be done there.
+      bool movable = false;
+      for (std::uint32_t k = 0; k < 3; ++k)
+        movable |= stage[m.edge(HalfedgeId(3 * f + k)).idx] + 1u < kScale.size();
+      if (movable) todo.push_back(f);
+    }
+  }
+  return moved_edges;
+}
+
+}  // namespace
+
+std::uint64_t Split4Scheme::predict_faces(std::uint64_t faces, int levels) const {
+  // Saturates instead of overflowing, so absurd requests still compare as too large.
+  for (int i = 0; i < levels; ++i) faces = faces > (UINT64_MAX >> 2) ? UINT64_MAX : faces * 4;
+  return faces;
+}
+
+Level split4(const Level& coarse, const Split4Stencil& stencil, StepStats& stats) {
+  const Mesh& m = coarse.mesh;
+  const std::size_t nv = m.num_vertices();
+  std::vector<Vec3> positions(nv + m.num_edges());
+  stencil.vertex_points(coarse, std::span<Vec3>(positions.data(), nv));
+  stencil.edge_points(coarse, std::span<Vec3>(positions.data() + nv, m.num_edges()));
+  if (stencil.interpolating()) stats.fold_fallbacks += guard_folds(m, positions);
+
+  Split4Topology t = split4_topology(m, coarse.features);
+  Level fine;
+  fine.mesh = Mesh::from_parts_with_edges(std::move(positions), std::move(t.corner_vertex),
+                                          std::move(t.twin), std::move(t.edge_of),
+                                          std::move(t.edge_halfedge),
+                                          std::move(t.vertex_halfedge));
+  fine.features = Features(fine.mesh, std::move(t.sharp));
+  return fine;
+}
+
+}  // namespace stlrefine
