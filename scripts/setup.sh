@@ -1,0 +1,67 @@
+#!/usr/bin/env bash
+# stlrefine set-up for a fresh Debian 12 machine: installs the Debian packages that are
+# missing, builds (Release, -Wall -Wextra) into build/, then
+#   scripts/setup.sh demo   starts stlrefined on 127.0.0.1:8080 and refines examples/fandisk.stl
+#   scripts/setup.sh test   runs every test (ctest)
+#   scripts/setup.sh build  only builds
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+mode=${1:-demo}
+build_dir=${STLREFINE_BUILD_DIR:-build}
+jobs=$(nproc 2>/dev/null || echo 2)
+
+packages=(build-essential cmake pkg-config curl ca-certificates
+  libcgal-dev libeigen3-dev libcpp-httplib-dev nlohmann-json3-dev libcli11-dev libtbb-dev
+  libgtest-dev libgmock-dev libbenchmark-dev libopenmesh-dev)
+
+install_missing() {
+  local missing=()
+  for p in "${packages[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+  done
+  [ ${#missing[@]} -eq 0 ] && return 0
+  echo "installing: ${missing[*]}"
+  local sudo=""
+  [ "$(id -u)" -ne 0 ] && sudo="sudo"
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+}
+
+build() {
+  cmake -S . -B "$build_dir" -DCMAKE_BUILD_TYPE=Release -DSTLREFINE_STRICT=ON
+  cmake --build "$build_dir" -j"$jobs"
+}
+
+demo() {
+  local port=8080 log="$build_dir/stlrefined.log"
+  if curl -fsS "http://127.0.0.1:$port/healthz" >/dev/null 2>&1; then
+    echo "something already answers on 127.0.0.1:$port; using it"
+  else
+    nohup "$build_dir/bin/stlrefined" --host 127.0.0.1 --port "$port" >"$log" 2>&1 &
+    echo $! >"$build_dir/stlrefined.pid"
+    for _ in $(seq 1 100); do
+      curl -fsS "http://127.0.0.1:$port/healthz" >/dev/null 2>&1 && break
+      sleep 0.1
+    done
+  fi
+  mkdir -p out
+  curl -fsS --data-binary @examples/fandisk.stl -H 'Content-Type: model/stl' \
+    -D out/fandisk_refined.headers \
+    "http://127.0.0.1:$port/v1/refine?scheme=butterfly&levels=2" -o out/fandisk_refined.stl
+  echo "refined examples/fandisk.stl -> out/fandisk_refined.stl ($(stat -c %s out/fandisk_refined.stl) bytes)"
+  grep -i '^x-stlrefine-report:' out/fandisk_refined.headers | cut -d' ' -f2- || true
+  echo
+  echo "stlrefined is running on http://127.0.0.1:$port (pid $(cat "$build_dir/stlrefined.pid" 2>/dev/null || echo '?'), log $log)."
+  echo "Try:  curl --data-binary @examples/fandisk.stl 'http://127.0.0.1:$port/v1/refine?scheme=butterfly&levels=2' -o out.stl"
+  echo "Stop: kill \$(cat $build_dir/stlrefined.pid)"
+}
+
+install_missing
+build
+case "$mode" in
+  demo) demo ;;
+  test) ctest --test-dir "$build_dir" --output-on-failure -j"$jobs" ;;
+  build) ;;
+  *) echo "usage: $0 [demo|test|build]" >&2; exit 2 ;;
+esac
