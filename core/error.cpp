@@ -6,12 +6,18 @@ namespace stlrefine {
 
 const char* to_string(ErrorCode code) {
   switch (code) {
-    case ErrorCode::InvalidParameter: return "invalid_parameter";
-    case ErrorCode::MalformedStl: return "malformed_stl";
-    case ErrorCode::NotTriangleMesh: return "not_triangle_mesh";
-    case ErrorCode::BudgetExceeded: return "budget_exceeded";
-    case ErrorCode::Cancelled: return "cancelled";
-    case ErrorCode::Internal: return "internal";
+    case ErrorCode::InvalidParameter:
+      return "invalid_parameter";
+    case ErrorCode::MalformedStl:
+      return "malformed_stl";
+    case ErrorCode::NotTriangleMesh:
+      return "not_triangle_mesh";
+    case ErrorCode::BudgetExceeded:
+      return "budget_exceeded";
+    case ErrorCode::Cancelled:
+      return "cancelled";
+    case ErrorCode::Internal:
+      return "internal";
   }
   return "internal";
 }

@@ -40,7 +40,7 @@ void throw_if_cancelled(const std::atomic<bool>* cancel) {
     throw Error(ErrorCode::Cancelled, "cancelled", "refinement cancelled");
 }
 
-RefineResult run_levels(const Mesh& mesh, const RefineParams& params, const Scheme& scheme,
+RefineResult run_levels(Mesh mesh, const RefineParams& params, const Scheme& scheme,
                         const ProgressFn& progress, const std::atomic<bool>* cancel) {
   const auto start = std::chrono::steady_clock::now();
   RefineResult result;
@@ -49,8 +49,12 @@ RefineResult run_levels(const Mesh& mesh, const RefineParams& params, const Sche
   r.levels = params.levels;
   r.input_vertices = mesh.num_vertices();
   r.input_faces = mesh.num_faces();
+  const std::size_t input_faces = mesh.num_faces();
+  // Old vertices keep their ids at every level, so input vertex v is output vertex v.
+  const BigVector<Vec3> input_positions(mesh.positions().begin(), mesh.positions().end());
 
-  Level level{mesh, detect_features(mesh, params.features)};
+  Features features = detect_features(mesh, params.features);
+  Level level{std::move(mesh), std::move(features)};
   r.sharp_edges_in = level.features.num_sharp_edges();
   r.corners = level.features.count(VertexKind::Corner);
   r.creases = level.features.count(VertexKind::Crease);
@@ -59,7 +63,7 @@ RefineResult run_levels(const Mesh& mesh, const RefineParams& params, const Sche
   StepStats stats;
   // Work per level grows 4x (3x for sqrt3), so weight progress by output faces.
   std::uint64_t total = 0;
-  for (int i = 1; i <= params.levels; ++i) total += scheme.predict_faces(mesh.num_faces(), i);
+  for (int i = 1; i <= params.levels; ++i) total += scheme.predict_faces(input_faces, i);
   std::uint64_t done = 0;
   for (int i = 1; i <= params.levels; ++i) {
     throw_if_cancelled(cancel);
@@ -71,11 +75,10 @@ RefineResult run_levels(const Mesh& mesh, const RefineParams& params, const Sche
   }
   throw_if_cancelled(cancel);
 
-  // Old vertices keep their ids at every level, so input vertex v is output vertex v.
-  for (std::size_t v = 0; v < mesh.num_vertices(); ++v) {
-    const VertexId id(static_cast<std::uint32_t>(v));
-    r.max_input_displacement =
-        std::max(r.max_input_displacement, distance(mesh.position(id), level.mesh.position(id)));
+  for (std::size_t v = 0; v < input_positions.size(); ++v) {
+    r.max_input_displacement = std::max(
+        r.max_input_displacement,
+        distance(input_positions[v], level.mesh.position(VertexId(static_cast<std::uint32_t>(v)))));
   }
   r.output_vertices = level.mesh.num_vertices();
   r.output_faces = level.mesh.num_faces();
@@ -89,15 +92,16 @@ RefineResult run_levels(const Mesh& mesh, const RefineParams& params, const Sche
 
 }  // namespace
 
-RefineResult refine(const Mesh& mesh, const RefineParams& params, const ProgressFn& progress,
+RefineResult refine(Mesh mesh, const RefineParams& params, const ProgressFn& progress,
                     const std::atomic<bool>* cancel) {
   params.validate();
   check_face_budget(mesh.num_faces(), params);
   const auto scheme = make_scheme(params.scheme);
-  if (params.threads == 0) return run_levels(mesh, params, *scheme, progress, cancel);
+  if (params.threads == 0) return run_levels(std::move(mesh), params, *scheme, progress, cancel);
   // A dedicated arena caps this request's threads without touching the global pool.
   tbb::task_arena arena(params.threads);
-  return arena.execute([&] { return run_levels(mesh, params, *scheme, progress, cancel); });
+  return arena.execute(
+      [&] { return run_levels(std::move(mesh), params, *scheme, progress, cancel); });
 }
 
 }  // namespace stlrefine

@@ -53,10 +53,9 @@ struct RefineResult {
 std::uint64_t check_face_budget(std::size_t faces, const RefineParams& params);
 
 //! Applies params.scheme params.levels times. Checks the face budget before any work,
-//! the cancel flag between and inside levels.
+//! the cancel flag between levels. Takes the mesh by value: move it in to save a copy.
 //! \throw Error(InvalidParameter | BudgetExceeded | Cancelled)
-RefineResult refine(const Mesh& mesh, const RefineParams& params,
-                    const ProgressFn& progress = {},
+RefineResult refine(Mesh mesh, const RefineParams& params, const ProgressFn& progress = {},
                     const std::atomic<bool>* cancel = nullptr);
 
 }  // namespace stlrefine

@@ -17,15 +17,19 @@ void FeatureParams::validate() const {
 
 const char* to_string(VertexKind kind) {
   switch (kind) {
-    case VertexKind::Smooth: return "smooth";
-    case VertexKind::Dart: return "dart";
-    case VertexKind::Crease: return "crease";
-    case VertexKind::Corner: return "corner";
+    case VertexKind::Smooth:
+      return "smooth";
+    case VertexKind::Dart:
+      return "dart";
+    case VertexKind::Crease:
+      return "crease";
+    case VertexKind::Corner:
+      return "corner";
   }
   return "smooth";
 }
 
-Features::Features(const Mesh& mesh, std::vector<std::uint8_t> sharp_edge)
+Features::Features(const Mesh& mesh, BigVector<std::uint8_t> sharp_edge)
     : sharp_edge_(std::move(sharp_edge)) {
   if (sharp_edge_.size() != mesh.num_edges())
     throw Error(ErrorCode::Internal, "feature_size", "sharp flags do not match the edges");
@@ -34,8 +38,8 @@ Features::Features(const Mesh& mesh, std::vector<std::uint8_t> sharp_edge)
     num_sharp_ += sharp_edge_[e];
   }
   const std::size_t nv = mesh.num_vertices();
-  kind_.assign(nv, VertexKind::Smooth);
-  curve_neighbours_.assign(nv, {VertexId(), VertexId()});
+  kind_.resize(nv);
+  curve_neighbours_.resize(nv);
   parallel_for_each_index(nv, [&](std::size_t i) {
     const VertexId v(static_cast<std::uint32_t>(i));
     int sharp = 0;
@@ -56,7 +60,7 @@ Features::Features(const Mesh& mesh, std::vector<std::uint8_t> sharp_edge)
                : sharp == 1 ? VertexKind::Dart
                : sharp == 2 ? VertexKind::Crease
                             : VertexKind::Corner;
-    if (sharp == 2) curve_neighbours_[i] = ends;
+    curve_neighbours_[i] = sharp == 2 ? ends : std::array<VertexId, 2>{};
   });
 }
 
@@ -87,10 +91,18 @@ double dihedral_angle_deg(const Mesh& mesh, EdgeId e) {
 
 Features detect_features(const Mesh& mesh, const FeatureParams& params) {
   params.validate();
-  std::vector<std::uint8_t> sharp(mesh.num_edges(), 0);
+  BigVector<std::uint8_t> sharp(mesh.num_edges());
+  // angle > theta  <=>  n1.n2 < cos(theta) |n1| |n2|: no normalisation, no atan2.
+  const double cos_limit = std::cos(params.crease_angle_deg * std::numbers::pi / 180.0);
+  const bool disabled = params.crease_angle_deg >= 180.0;
   parallel_for_each_index(mesh.num_edges(), [&](std::size_t e) {
-    sharp[e] = dihedral_angle_deg(mesh, EdgeId(static_cast<std::uint32_t>(e))) >
-               params.crease_angle_deg;
+    const HalfedgeId h = mesh.halfedge(EdgeId(static_cast<std::uint32_t>(e)));
+    const HalfedgeId t = mesh.twin(h);
+    sharp[e] = 0;
+    if (!t.valid() || disabled) return;
+    const Vec3 n1 = mesh.face_normal(Mesh::face(h)), n2 = mesh.face_normal(Mesh::face(t));
+    const double scale = std::sqrt(dot(n1, n1) * dot(n2, n2));
+    sharp[e] = scale > 0 && dot(n1, n2) < cos_limit * scale;
   });
   return Features(mesh, std::move(sharp));
 }

@@ -33,7 +33,7 @@ class Features {
  public:
   Features() = default;
   //! Classifies vertices from per-edge sharp flags (boundary edges are forced sharp).
-  Features(const Mesh& mesh, std::vector<std::uint8_t> sharp_edge);
+  Features(const Mesh& mesh, BigVector<std::uint8_t> sharp_edge);
 
   bool is_sharp(EdgeId e) const { return sharp_edge_[e.idx] != 0; }
   bool is_sharp(const Mesh& mesh, HalfedgeId h) const { return is_sharp(mesh.edge(h)); }
@@ -53,9 +53,9 @@ class Features {
   std::size_t count(VertexKind kind) const;
 
  private:
-  std::vector<std::uint8_t> sharp_edge_;
-  std::vector<VertexKind> kind_;
-  std::vector<std::array<VertexId, 2>> curve_neighbours_;
+  BigVector<std::uint8_t> sharp_edge_;
+  BigVector<VertexKind> kind_;
+  BigVector<std::array<VertexId, 2>> curve_neighbours_;
   std::size_t num_sharp_ = 0;
 };
 

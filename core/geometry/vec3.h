@@ -36,12 +36,18 @@ struct Vec3 {
   friend constexpr bool operator!=(const Vec3& a, const Vec3& b) { return !(a == b); }
 };
 
-constexpr double dot(const Vec3& a, const Vec3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+constexpr double dot(const Vec3& a, const Vec3& b) {
+  return a.x * b.x + a.y * b.y + a.z * b.z;
+}
 constexpr Vec3 cross(const Vec3& a, const Vec3& b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
-inline double norm(const Vec3& a) { return std::sqrt(dot(a, a)); }
-inline double distance(const Vec3& a, const Vec3& b) { return norm(a - b); }
+inline double norm(const Vec3& a) {
+  return std::sqrt(dot(a, a));
+}
+inline double distance(const Vec3& a, const Vec3& b) {
+  return norm(a - b);
+}
 inline bool is_finite(const Vec3& a) {
   return std::isfinite(a.x) && std::isfinite(a.y) && std::isfinite(a.z);
 }

@@ -16,8 +16,8 @@ constexpr std::uint32_t kNone = HalfedgeId::kInvalid;
 
 // Triangles over compacted vertex ids, index-degenerate facets removed.
 struct CleanSoup {
-  std::vector<Vec3> positions;
-  std::vector<VertexId> corners;  // 3 per face
+  BigVector<Vec3> positions;
+  BigVector<VertexId> corners;  // 3 per face
 };
 
 CleanSoup drop_degenerate_and_unused(const IndexedSoup& soup, IngestReport& report) {
@@ -144,8 +144,7 @@ Pairing pair_halfedges(const CleanSoup& s, IngestReport& report) {
 // Chooses a winding per face so every paired edge runs both ways. Breadth-first over each
 // connected sheet; the winding most of the sheet's facets already had wins. A pair that
 // cannot be made consistent (non-orientable sheet) is cut.
-std::vector<std::uint8_t> orient_faces(const CleanSoup& s, Pairing& pairing,
-                                       IngestReport& report) {
+std::vector<std::uint8_t> orient_faces(const CleanSoup& s, Pairing& pairing, IngestReport& report) {
   const std::size_t nf = s.corners.size() / 3;
   std::vector<std::uint8_t> flip(nf, 0), seen(nf, 0);
   std::vector<std::uint32_t> component;
@@ -191,8 +190,8 @@ std::vector<std::uint8_t> orient_faces(const CleanSoup& s, Pairing& pairing,
 
 // Splits every vertex whose corners form more than one fan: the first fan keeps the id,
 // each other fan gets a copy of the position.
-void split_fans(std::vector<Vec3>& positions, std::vector<VertexId>& corners,
-                const std::vector<HalfedgeId>& twin, IngestReport& report) {
+void split_fans(BigVector<Vec3>& positions, BigVector<VertexId>& corners,
+                const BigVector<HalfedgeId>& twin, IngestReport& report) {
   const std::size_t nh = corners.size();
   auto ccw = [&](std::uint32_t h) { return twin[h % 3 == 0 ? h + 2 : h - 1].idx; };
   auto cw = [&](std::uint32_t h) {
@@ -236,9 +235,8 @@ IngestResult build_mesh(const IndexedSoup& soup) {
   CleanSoup clean = drop_degenerate_and_unused(soup, report);
   if (clean.corners.empty()) {
     throw Error(ErrorCode::NotTriangleMesh, "no_faces",
-                soup.triangles.empty()
-                    ? "the mesh has no triangles"
-                    : "every triangle is degenerate (two identical corners)");
+                soup.triangles.empty() ? "the mesh has no triangles"
+                                       : "every triangle is degenerate (two identical corners)");
   }
 
   Pairing pairing = pair_halfedges(clean, report);
@@ -249,14 +247,14 @@ IngestResult build_mesh(const IndexedSoup& soup) {
   auto moved = [&](std::uint32_t h) { return flip[h / 3] ? 3 * (h / 3) + (2 - h % 3) : h; };
   for (std::size_t f = 0; f < flip.size(); ++f)
     if (flip[f]) std::swap(clean.corners[3 * f + 1], clean.corners[3 * f + 2]);
-  std::vector<HalfedgeId> twin(nh);
+  BigVector<HalfedgeId> twin(nh);
   for (std::uint32_t h = 0; h < nh; ++h) {
     if (pairing.partner[h] != kNone) twin[moved(h)] = HalfedgeId(moved(pairing.partner[h]));
   }
 
   split_fans(clean.positions, clean.corners, twin, report);
-  result.mesh = Mesh::from_parts(std::move(clean.positions), std::move(clean.corners),
-                                 std::move(twin));
+  result.mesh =
+      Mesh::from_parts(std::move(clean.positions), std::move(clean.corners), std::move(twin));
   for (std::size_t f = 0; f < result.mesh.num_faces(); ++f) {
     if (dot(result.mesh.face_normal(FaceId(f)), result.mesh.face_normal(FaceId(f))) == 0)
       ++report.zero_area_faces;

@@ -12,8 +12,8 @@ namespace {
 
 // Edge ids in half-edge order: an edge is numbered when its first half-edge is met
 // (a boundary half-edge, or the lower-numbered half of a twin pair).
-void derive_edges(const std::vector<HalfedgeId>& twin, std::vector<EdgeId>& edge_of,
-                  std::vector<HalfedgeId>& edge_halfedge) {
+void derive_edges(const BigVector<HalfedgeId>& twin, BigVector<EdgeId>& edge_of,
+                  BigVector<HalfedgeId>& edge_halfedge) {
   edge_of.assign(twin.size(), EdgeId());
   edge_halfedge.clear();
   edge_halfedge.reserve(twin.size() / 2 + 1);
@@ -30,10 +30,10 @@ void derive_edges(const std::vector<HalfedgeId>& twin, std::vector<EdgeId>& edge
 
 // Most clockwise outgoing half-edge per vertex: any outgoing one, then rotate clockwise
 // until a boundary is hit or the fan closes.
-std::vector<HalfedgeId> derive_vertex_halfedges(std::size_t num_vertices,
-                                                const std::vector<VertexId>& corner_vertex,
-                                                const std::vector<HalfedgeId>& twin) {
-  std::vector<HalfedgeId> vh(num_vertices);
+BigVector<HalfedgeId> derive_vertex_halfedges(std::size_t num_vertices,
+                                              const BigVector<VertexId>& corner_vertex,
+                                              const BigVector<HalfedgeId>& twin) {
+  BigVector<HalfedgeId> vh(num_vertices);
   for (std::uint32_t h = 0; h < corner_vertex.size(); ++h) {
     HalfedgeId& slot = vh[corner_vertex[h].idx];
     // Prefer an outgoing boundary half-edge: it is the most clockwise one of its fan.
@@ -44,28 +44,27 @@ std::vector<HalfedgeId> derive_vertex_halfedges(std::size_t num_vertices,
 
 }  // namespace
 
-Mesh Mesh::from_parts(std::vector<Vec3> positions, std::vector<VertexId> corner_vertex,
-                      std::vector<HalfedgeId> twin) {
-  std::vector<EdgeId> edge_of;
-  std::vector<HalfedgeId> edge_halfedge;
+Mesh Mesh::from_parts(BigVector<Vec3> positions, BigVector<VertexId> corner_vertex,
+                      BigVector<HalfedgeId> twin) {
+  BigVector<EdgeId> edge_of;
+  BigVector<HalfedgeId> edge_halfedge;
   derive_edges(twin, edge_of, edge_halfedge);
   auto vh = derive_vertex_halfedges(positions.size(), corner_vertex, twin);
   return from_parts_with_edges(std::move(positions), std::move(corner_vertex), std::move(twin),
                                std::move(edge_of), std::move(edge_halfedge), std::move(vh));
 }
 
-Mesh Mesh::from_parts_with_edges(std::vector<Vec3> positions, std::vector<VertexId> corner_vertex,
-                                 std::vector<HalfedgeId> twin, std::vector<EdgeId> edge_of,
-                                 std::vector<HalfedgeId> edge_halfedge,
-                                 std::vector<HalfedgeId> vertex_halfedge) {
+Mesh Mesh::from_parts_with_edges(BigVector<Vec3> positions, BigVector<VertexId> corner_vertex,
+                                 BigVector<HalfedgeId> twin, BigVector<EdgeId> edge_of,
+                                 BigVector<HalfedgeId> edge_halfedge,
+                                 BigVector<HalfedgeId> vertex_halfedge) {
   if (corner_vertex.size() % 3 != 0 || twin.size() != corner_vertex.size() ||
       edge_of.size() != corner_vertex.size() || vertex_halfedge.size() != positions.size()) {
     throw Error(ErrorCode::Internal, "mesh_arrays", "mesh arrays have inconsistent sizes");
   }
   if (corner_vertex.size() / 3 >= HalfedgeId::kInvalid / 3 ||
       positions.size() >= VertexId::kInvalid) {
-    throw Error(ErrorCode::BudgetExceeded, "index_overflow",
-                "mesh too large for 32-bit indices");
+    throw Error(ErrorCode::BudgetExceeded, "index_overflow", "mesh too large for 32-bit indices");
   }
   Mesh m;
   m.positions_ = std::move(positions);
@@ -99,11 +98,13 @@ std::string Mesh::check_invariants() const {
   for (std::uint32_t h = 0; h < nh; ++h) {
     const HalfedgeId hh(h);
     const VertexId v = from(hh);
-    if (!v.valid() || v.idx >= num_vertices()) return "half-edge " + std::to_string(h) + ": bad vertex";
+    if (!v.valid() || v.idx >= num_vertices())
+      return "half-edge " + std::to_string(h) + ": bad vertex";
     if (from(hh) == to(hh)) return "half-edge " + std::to_string(h) + ": degenerate";
     const HalfedgeId t = twin(hh);
     if (t.valid()) {
-      if (t.idx >= nh || twin(t) != hh) return "half-edge " + std::to_string(h) + ": twin not symmetric";
+      if (t.idx >= nh || twin(t) != hh)
+        return "half-edge " + std::to_string(h) + ": twin not symmetric";
       if (from(t) != to(hh) || to(t) != from(hh))
         return "half-edge " + std::to_string(h) + ": twin not opposite";
     }
@@ -125,7 +126,8 @@ std::string Mesh::check_invariants() const {
       if (corners[v] != 0) return "vertex " + std::to_string(v) + ": corners but no half-edge";
       continue;
     }
-    if (from(start) != VertexId(v)) return "vertex " + std::to_string(v) + ": half-edge not outgoing";
+    if (from(start) != VertexId(v))
+      return "vertex " + std::to_string(v) + ": half-edge not outgoing";
     std::uint32_t seen = 0;
     HalfedgeId h = start;
     do {

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "core/geometry/vec3.h"
+#include "core/mesh/big_vector.h"
 #include "core/mesh/handles.h"
 
 namespace stlrefine {
@@ -27,21 +28,19 @@ namespace stlrefine {
 //! level makes a new Mesh from a const one.
 class Mesh {
  public:
-
   Mesh() = default;
 
   //! Builds the derived arrays (edges, vertex half-edges) from positions, corners and twins.
   //! \pre twins are symmetric, opposite in direction, and every vertex is one fan.
-  static Mesh from_parts(std::vector<Vec3> positions, std::vector<VertexId> corner_vertex,
-                         std::vector<HalfedgeId> twin);
+  static Mesh from_parts(BigVector<Vec3> positions, BigVector<VertexId> corner_vertex,
+                         BigVector<HalfedgeId> twin);
 
   //! Builds a mesh whose edges and vertex half-edges the caller already knows (hosts do:
   //! they derive them arithmetically from the coarse level).
-  static Mesh from_parts_with_edges(std::vector<Vec3> positions,
-                                    std::vector<VertexId> corner_vertex,
-                                    std::vector<HalfedgeId> twin, std::vector<EdgeId> edge_of,
-                                    std::vector<HalfedgeId> edge_halfedge,
-                                    std::vector<HalfedgeId> vertex_halfedge);
+  static Mesh from_parts_with_edges(BigVector<Vec3> positions, BigVector<VertexId> corner_vertex,
+                                    BigVector<HalfedgeId> twin, BigVector<EdgeId> edge_of,
+                                    BigVector<HalfedgeId> edge_halfedge,
+                                    BigVector<HalfedgeId> vertex_halfedge);
 
   std::size_t num_vertices() const { return positions_.size(); }
   std::size_t num_faces() const { return corner_vertex_.size() / 3; }
@@ -51,7 +50,7 @@ class Mesh {
   // --- geometry
   const Vec3& position(VertexId v) const { return positions_[v.idx]; }
   std::span<const Vec3> positions() const { return positions_; }
-  std::vector<Vec3>& mutable_positions() { return positions_; }
+  BigVector<Vec3>& mutable_positions() { return positions_; }
   //! Area-weighted (unnormalised) normal of face f; zero for a degenerate face.
   Vec3 face_normal(FaceId f) const;
 
@@ -111,12 +110,12 @@ class Mesh {
   std::size_t memory_bytes() const;
 
  private:
-  std::vector<Vec3> positions_;
-  std::vector<VertexId> corner_vertex_;
-  std::vector<HalfedgeId> twin_;
-  std::vector<EdgeId> edge_of_;
-  std::vector<HalfedgeId> edge_halfedge_;
-  std::vector<HalfedgeId> vertex_halfedge_;
+  BigVector<Vec3> positions_;
+  BigVector<VertexId> corner_vertex_;
+  BigVector<HalfedgeId> twin_;
+  BigVector<EdgeId> edge_of_;
+  BigVector<HalfedgeId> edge_halfedge_;
+  BigVector<HalfedgeId> vertex_halfedge_;
 };
 
 //! Calls fn(h) for every outgoing half-edge of v, counter-clockwise from the most

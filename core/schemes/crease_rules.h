@@ -23,8 +23,7 @@ namespace stlrefine {
 inline Vec3 tip_across(const Mesh& mesh, const Features& features, HalfedgeId h) {
   const HalfedgeId t = mesh.twin(h);
   if (t.valid() && !features.is_sharp(mesh.edge(h))) return mesh.position(mesh.opposite(t));
-  return mesh.position(mesh.from(h)) + mesh.position(mesh.to(h)) -
-         mesh.position(mesh.opposite(h));
+  return mesh.position(mesh.from(h)) + mesh.position(mesh.to(h)) - mesh.position(mesh.opposite(h));
 }
 
 //! Along the sharp polyline through edge (x, other): the curve vertex beyond x, or the

@@ -24,8 +24,10 @@ bool is_regular_crease_vertex(const Mesh& mesh, const Features& features, Vertex
   for_each_outgoing(mesh, v, [&](HalfedgeId h) {
     ++valence;
     if (features.is_sharp(mesh.edge(h))) {
-      if (first_run < 0) first_run = smooth_run;
-      else ok &= smooth_run == 2;
+      if (first_run < 0)
+        first_run = smooth_run;
+      else
+        ok &= smooth_run == 2;
       smooth_run = 0;
     } else {
       ++smooth_run;
@@ -105,8 +107,8 @@ void LoopStencil::vertex_points(const Level& coarse, std::span<Vec3> out) const 
           return;
         }
         Vec3 sum;
-        const int n = for_each_ring_vertex_from(
-            m, m.halfedge(v), [&](int, VertexId w) { sum += m.position(w); });
+        const int n = for_each_ring_vertex_from(m, m.halfedge(v),
+                                                [&](int, VertexId w) { sum += m.position(w); });
         const double beta = loop_beta(n);
         out[i] = (1.0 - n * beta) * p + beta * sum;
         return;

@@ -39,7 +39,9 @@ constexpr std::array<std::string_view, kSchemes.size()> kNames = [] {
 
 }  // namespace
 
-std::span<const std::string_view> scheme_names() { return kNames; }
+std::span<const std::string_view> scheme_names() {
+  return kNames;
+}
 
 std::unique_ptr<Scheme> make_scheme(std::string_view name) {
   for (const SchemeEntry& entry : kSchemes)

@@ -27,15 +27,17 @@ namespace {
 // Child edges: coarse edge e -> 2e (first half of its canonical half-edge), 2e+1 (second
 // half); the inner edge of corner child k -> 2E + 3f + k.
 struct Split4Topology {
-  std::vector<VertexId> corner_vertex;
-  std::vector<HalfedgeId> twin;
-  std::vector<EdgeId> edge_of;
-  std::vector<HalfedgeId> edge_halfedge;
-  std::vector<HalfedgeId> vertex_halfedge;
-  std::vector<std::uint8_t> sharp;
+  BigVector<VertexId> corner_vertex;
+  BigVector<HalfedgeId> twin;
+  BigVector<EdgeId> edge_of;
+  BigVector<HalfedgeId> edge_halfedge;
+  BigVector<HalfedgeId> vertex_halfedge;
+  BigVector<std::uint8_t> sharp;
 };
 
-constexpr std::uint32_t first_half(std::uint32_t f, std::uint32_t k) { return 12 * f + 3 * k; }
+constexpr std::uint32_t first_half(std::uint32_t f, std::uint32_t k) {
+  return 12 * f + 3 * k;
+}
 constexpr std::uint32_t second_half(std::uint32_t f, std::uint32_t k) {
   return 12 * f + 3 * ((k + 1) % 3) + 2;
 }
@@ -50,7 +52,7 @@ Split4Topology split4_topology(const Mesh& m, const Features& features) {
   t.edge_of.resize(12 * std::size_t(nf));
   t.edge_halfedge.resize(2 * std::size_t(ne) + 3 * std::size_t(nf));
   t.vertex_halfedge.resize(std::size_t(nv) + ne);
-  t.sharp.assign(t.edge_halfedge.size(), 0);
+  t.sharp.resize(t.edge_halfedge.size());
 
   parallel_for_each_index(nf, [&](std::size_t fi) {
     const std::uint32_t f = static_cast<std::uint32_t>(fi);
@@ -85,6 +87,7 @@ Split4Topology split4_topology(const Mesh& m, const Features& features) {
       } else {
         t.twin[first_half(f, k)] = t.twin[second_half(f, k)] = HalfedgeId();
       }
+      t.sharp[inner_edge] = 0;
       t.edge_of[first_half(f, k)] = EdgeId(2 * e.idx + (canonical ? 0 : 1));
       t.edge_of[second_half(f, k)] = EdgeId(2 * e.idx + (canonical ? 1 : 0));
       if (canonical) {
@@ -109,7 +112,7 @@ Split4Topology split4_topology(const Mesh& m, const Features& features) {
 // than 90 degrees from its parent's, the offending edge points are pulled towards their
 // chord midpoints in steps (1/2, 1/4, then the midpoint itself). With all three edge points
 // at their midpoints the children are parallel to the parent, so the loop ends.
-std::size_t guard_folds(const Mesh& m, std::vector<Vec3>& pos) {
+std::size_t guard_folds(const Mesh& m, BigVector<Vec3>& pos) {
   const std::uint32_t nv = static_cast<std::uint32_t>(m.num_vertices());
   const std::uint32_t nf = static_cast<std::uint32_t>(m.num_faces());
   constexpr std::array<double, 4> kScale = {1.0, 0.5, 0.25, 0.0};
@@ -130,7 +133,8 @@ std::size_t guard_folds(const Mesh& m, std::vector<Vec3>& pos) {
   };
 
   std::vector<std::uint8_t> folding(nf, 0);
-  parallel_for_each_index(nf, [&](std::size_t f) { folding[f] = folds(static_cast<std::uint32_t>(f)); });
+  parallel_for_each_index(
+      nf, [&](std::size_t f) { folding[f] = folds(static_cast<std::uint32_t>(f)); });
   std::vector<std::uint32_t> todo;
   for (std::uint32_t f = 0; f < nf; ++f)
     if (folding[f]) todo.push_back(f);
@@ -178,7 +182,7 @@ std::uint64_t Split4Scheme::predict_faces(std::uint64_t faces, int levels) const
 Level split4(const Level& coarse, const Split4Stencil& stencil, StepStats& stats) {
   const Mesh& m = coarse.mesh;
   const std::size_t nv = m.num_vertices();
-  std::vector<Vec3> positions(nv + m.num_edges());
+  BigVector<Vec3> positions(nv + m.num_edges());
   stencil.vertex_points(coarse, std::span<Vec3>(positions.data(), nv));
   stencil.edge_points(coarse, std::span<Vec3>(positions.data() + nv, m.num_edges()));
   if (stencil.interpolating()) stats.fold_fallbacks += guard_folds(m, positions);
@@ -187,8 +191,7 @@ Level split4(const Level& coarse, const Split4Stencil& stencil, StepStats& stats
   Level fine;
   fine.mesh = Mesh::from_parts_with_edges(std::move(positions), std::move(t.corner_vertex),
                                           std::move(t.twin), std::move(t.edge_of),
-                                          std::move(t.edge_halfedge),
-                                          std::move(t.vertex_halfedge));
+                                          std::move(t.edge_halfedge), std::move(t.vertex_halfedge));
   fine.features = Features(fine.mesh, std::move(t.sharp));
   return fine;
 }
