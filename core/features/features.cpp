@@ -64,6 +64,17 @@ Features::Features(const Mesh& mesh, BigVector<std::uint8_t> sharp_edge)
   });
 }
 
+Features Features::from_parts(BigVector<std::uint8_t> sharp_edge, BigVector<VertexKind> kind,
+                              BigVector<std::array<VertexId, 2>> curve_neighbours) {
+  Features f;
+  f.sharp_edge_ = std::move(sharp_edge);
+  f.kind_ = std::move(kind);
+  f.curve_neighbours_ = std::move(curve_neighbours);
+  f.num_sharp_ = static_cast<std::size_t>(
+      std::count_if(f.sharp_edge_.begin(), f.sharp_edge_.end(), [](std::uint8_t s) { return s; }));
+  return f;
+}
+
 VertexId Features::curve_beyond(VertexId x, VertexId other) const {
   if (kind(x) != VertexKind::Crease) return VertexId();
   const auto& n = curve_neighbours_[x.idx];

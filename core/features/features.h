@@ -34,6 +34,9 @@ class Features {
   Features() = default;
   //! Classifies vertices from per-edge sharp flags (boundary edges are forced sharp).
   Features(const Mesh& mesh, BigVector<std::uint8_t> sharp_edge);
+  //! For hosts that derive the next level's kinds directly. \pre consistent with a mesh.
+  static Features from_parts(BigVector<std::uint8_t> sharp_edge, BigVector<VertexKind> kind,
+                             BigVector<std::array<VertexId, 2>> curve_neighbours);
 
   bool is_sharp(EdgeId e) const { return sharp_edge_[e.idx] != 0; }
   bool is_sharp(const Mesh& mesh, HalfedgeId h) const { return is_sharp(mesh.edge(h)); }

@@ -6,6 +6,7 @@
 #include <array>
 
 #include "core/parallel.h"
+#include "core/schemes/crease_rules.h"
 
 namespace stlrefine {
 
@@ -171,6 +172,37 @@ std::size_t guard_folds(const Mesh& m, BigVector<Vec3>& pos) {
   return moved_edges;
 }
 
+// Vertex kinds of the fine level without walking any ring: old vertices keep their kind
+// (each sharp edge at them is halved, not removed); a new vertex is a crease vertex
+// between the two endpoints' halves when its edge is sharp, smooth otherwise. Curve
+// neighbours of an old crease vertex become the midpoints of its two sharp edges.
+Features split4_features(const Mesh& m, const Features& coarse, BigVector<std::uint8_t> sharp) {
+  const std::uint32_t nv = static_cast<std::uint32_t>(m.num_vertices());
+  const std::size_t ne = m.num_edges();
+  BigVector<VertexKind> kind(nv + ne);
+  BigVector<std::array<VertexId, 2>> curve(nv + ne);
+  parallel_for_each_index(nv, [&](std::size_t i) {
+    const VertexId v(static_cast<std::uint32_t>(i));
+    kind[i] = coarse.kind(v);
+    curve[i] = {};
+    if (kind[i] != VertexKind::Crease) return;
+    for (int s = 0; s < 2; ++s) {
+      const VertexId w = coarse.curve_neighbours(v)[s];
+      HalfedgeId h = halfedge_to(m, v, w);
+      if (!h.valid()) h = halfedge_to(m, w, v);  // a boundary edge only runs w -> v
+      curve[i][s] = VertexId(nv + m.edge(h).idx);
+    }
+  });
+  parallel_for_each_index(ne, [&](std::size_t e) {
+    const bool sharp_edge = coarse.is_sharp(EdgeId(static_cast<std::uint32_t>(e)));
+    kind[nv + e] = sharp_edge ? VertexKind::Crease : VertexKind::Smooth;
+    const HalfedgeId h = m.halfedge(EdgeId(static_cast<std::uint32_t>(e)));
+    curve[nv + e] =
+        sharp_edge ? std::array<VertexId, 2>{m.from(h), m.to(h)} : std::array<VertexId, 2>{};
+  });
+  return Features::from_parts(std::move(sharp), std::move(kind), std::move(curve));
+}
+
 }  // namespace
 
 std::uint64_t Split4Scheme::predict_faces(std::uint64_t faces, int levels) const {
@@ -192,7 +224,7 @@ Level split4(const Level& coarse, const Split4Stencil& stencil, StepStats& stats
   fine.mesh = Mesh::from_parts_with_edges(std::move(positions), std::move(t.corner_vertex),
                                           std::move(t.twin), std::move(t.edge_of),
                                           std::move(t.edge_halfedge), std::move(t.vertex_halfedge));
-  fine.features = Features(fine.mesh, std::move(t.sharp));
+  fine.features = split4_features(m, coarse.features, std::move(t.sharp));
   return fine;
 }
 
