@@ -1,0 +1,32 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+
+#include "core/io/stl.h"
+#include "core/mesh/build_mesh.h"
+
+namespace stlrefine::api {
+
+//! An STL file read, welded and turned into a Mesh (steps 1-2 of the request path),
+//! with what the report needs to know about the file itself.
+struct Ingested {
+  StlFormat format = StlFormat::Binary;
+  std::size_t triangles = 0;         //!< facets in the file
+  std::uint64_t trailing_bytes = 0;  //!< ignored bytes after the last binary facet
+  std::size_t welded_vertices = 0;   //!< distinct positions after welding
+  double weld_tolerance = 0;
+  IngestResult result;  //!< the mesh and what ingest repaired
+  double seconds = 0;   //!< wall time of read + weld + build
+};
+
+//! bytes -> read_stl -> weld -> build_mesh.
+//! \throw Error(MalformedStl) with byte offset or line; Error(NotTriangleMesh);
+//! Error(InvalidParameter) for a bad tolerance.
+Ingested ingest_stl(std::span<const std::uint8_t> bytes, double weld_tolerance,
+                    const StlReadOptions& options = {});
+
+}  // namespace stlrefine::api

@@ -1,0 +1,153 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#include "api/params.h"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <limits>
+#include <set>
+#include <system_error>
+
+#include "core/error.h"
+
+namespace stlrefine::api {
+
+namespace {
+
+Error invalid(std::string_view field, std::string reason, const std::string& message) {
+  return Error(ErrorCode::InvalidParameter, std::move(reason), message)
+      .with_field(std::string(field));
+}
+
+// Values are echoed in messages; a query string may carry up to 8 KiB, so cut them short.
+std::string shown(std::string_view text) {
+  constexpr std::size_t kMax = 64;
+  return "'" + std::string(text.substr(0, kMax)) + (text.size() > kMax ? "...'" : "'");
+}
+
+template <class T>
+T parse_whole(std::string_view field, std::string_view text, const char* what) {
+  T value{};
+  const char* const end = text.data() + text.size();
+  const auto [ptr, ec] = std::from_chars(text.data(), end, value);
+  if (ec == std::errc::result_out_of_range)
+    throw invalid(field, "out_of_range",
+                  std::string(field) + " = " + shown(text) + " does not fit in " + what);
+  if (text.empty() || ec != std::errc() || ptr != end)
+    throw invalid(field, "not_a_number",
+                  std::string(field) + " = " + shown(text) + " is not " + what);
+  return value;
+}
+
+// Rejects names outside `allowed` and names given twice: a typo must never be ignored.
+void check_names(const RawParams& params, const std::vector<std::string_view>& allowed) {
+  std::set<std::string_view> seen;
+  for (const auto& [name, value] : params) {
+    if (std::find(allowed.begin(), allowed.end(), name) == allowed.end()) {
+      std::string known;
+      for (std::string_view n : allowed) known += (known.empty() ? "" : ", ") + std::string(n);
+      throw invalid(name, "unknown_parameter",
+                    "unknown parameter " + shown(name) + " (accepted: " + known + ")");
+    }
+    if (!seen.insert(name).second)
+      throw invalid(name, "duplicate_parameter", "parameter '" + name + "' is given twice");
+  }
+}
+
+// Any int: the range check is RefineParams::validate's, so the limits live in one place.
+int parse_int(std::string_view field, std::string_view text) {
+  return static_cast<int>(
+      parse_integer(field, text, std::numeric_limits<int>::min(), std::numeric_limits<int>::max()));
+}
+
+double parse_weld_tolerance(std::string_view text) {
+  const double t = parse_number("weld_tolerance", text);
+  if (t < 0)
+    throw invalid("weld_tolerance", "out_of_range",
+                  "weld_tolerance = " + shown(text) + " must not be negative");
+  return t;
+}
+
+}  // namespace
+
+long long parse_integer(std::string_view field, std::string_view text, long long lo, long long hi) {
+  const long long value = parse_whole<long long>(field, text, "an integer");
+  require_in_range(std::string(field).c_str(), value, lo, hi);
+  return value;
+}
+
+std::uint64_t parse_unsigned(std::string_view field, std::string_view text, std::uint64_t lo,
+                             std::uint64_t hi) {
+  // from_chars accepts no sign for unsigned types, so "-1" is not_a_number, as it should be.
+  const std::uint64_t value = parse_whole<std::uint64_t>(field, text, "a non-negative integer");
+  require_in_range(std::string(field).c_str(), value, lo, hi);
+  return value;
+}
+
+double parse_number(std::string_view field, std::string_view text) {
+  // from_chars(double) reads "nan", "inf" and "infinity"; a parameter is never one.
+  const double value = parse_whole<double>(field, text, "a number");
+  if (!std::isfinite(value))
+    throw invalid(field, "not_a_number",
+                  std::string(field) + " = " + shown(text) + " is not a finite number");
+  return value;
+}
+
+const std::vector<std::string_view>& info_param_names() {
+  static const std::vector<std::string_view> kNames{"crease_angle", "weld_tolerance"};
+  return kNames;
+}
+
+std::vector<std::string_view> refine_param_names(const RequestLimits& limits) {
+  std::vector<std::string_view> names{"scheme", "levels", "crease_angle", "max_faces",
+                                      "weld_tolerance"};
+  if (limits.accept_threads) names.push_back("threads");
+  return names;
+}
+
+InfoRequest parse_info_params(const RawParams& params) {
+  check_names(params, info_param_names());
+  InfoRequest request;
+  for (const auto& [name, value] : params) {
+    if (name == "crease_angle") {
+      request.features.crease_angle_deg = parse_number(name, value);
+    } else if (name == "weld_tolerance") {
+      request.weld_tolerance = parse_weld_tolerance(value);
+    }
+  }
+  request.features.validate();
+  return request;
+}
+
+RefineRequest parse_refine_params(const RawParams& params, const RequestLimits& limits) {
+  check_names(params, refine_param_names(limits));
+  RefineRequest request;
+  RefineParams& p = request.refine;
+  p.max_faces = limits.default_max_faces != 0 ? std::min(limits.default_max_faces, limits.max_faces)
+                                              : limits.max_faces;
+  for (const auto& [name, value] : params) {
+    if (name == "scheme") {
+      p.scheme = value;
+    } else if (name == "levels") {
+      p.levels = parse_int(name, value);
+    } else if (name == "crease_angle") {
+      p.features.crease_angle_deg = parse_number(name, value);
+    } else if (name == "max_faces") {
+      p.max_faces = parse_unsigned(name, value, 1, std::numeric_limits<std::uint64_t>::max());
+      if (p.max_faces > limits.max_faces)
+        throw invalid(name, "above_server_cap",
+                      "max_faces = " + value + " is above this server's cap of " +
+                          std::to_string(limits.max_faces) + " (a request may only lower it)");
+    } else if (name == "threads") {
+      p.threads = parse_int(name, value);
+    } else if (name == "weld_tolerance") {
+      request.weld_tolerance = parse_weld_tolerance(value);
+    }
+  }
+  // The ranges live in core (RefineParams::validate); this names the same fields.
+  p.validate();
+  return request;
+}
+
+}  // namespace stlrefine::api

@@ -1,0 +1,72 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "core/features/features.h"
+#include "core/io/stl.h"
+#include "core/refine.h"
+
+namespace stlrefine::api {
+
+//! Parameters as they arrive, by their API names (`crease_angle`, `max_faces`, ...), in
+//! arrival order. Duplicates are kept so that they can be rejected.
+using RawParams = std::vector<std::pair<std::string, std::string>>;
+
+//! Limits the front end imposes on every request.
+struct RequestLimits {
+  //! The face cap. A request's `max_faces` may lower it, never raise it.
+  std::uint64_t max_faces = 20'000'000;
+  //! `max_faces` when the request gives none; 0 = the cap. (The daemon's default is its
+  //! cap; the CLI's cap is the core's maximum and its default the core's default.)
+  std::uint64_t default_max_faces = 0;
+  //! Accept `threads` (the CLI does; the daemon decides threads itself).
+  bool accept_threads = false;
+};
+
+//! What `info` needs besides the STL bytes.
+struct InfoRequest {
+  FeatureParams features;     //!< `crease_angle`, degrees [0, 180], default 35
+  double weld_tolerance = 0;  //!< `weld_tolerance`, model units, >= 0; 0 = exact welding
+};
+
+//! What `refine` needs besides the STL bytes.
+struct RefineRequest {
+  RefineParams refine;        //!< `scheme`, `levels`, `crease_angle`, `max_faces`, `threads`
+  double weld_tolerance = 0;  //!< as in InfoRequest
+  StlFormat output_format = StlFormat::Binary;  //!< not a parameter: the CLI's --ascii
+};
+
+//! Names `parse_info_params` accepts.
+const std::vector<std::string_view>& info_param_names();
+//! Names `parse_refine_params` accepts (`threads` only with RequestLimits::accept_threads).
+std::vector<std::string_view> refine_param_names(const RequestLimits& limits);
+
+//! Parses and validates `info` parameters. Numbers must be complete and finite ("2x",
+//! "", "1e400" and "nan" are rejected).
+//! \throw Error(InvalidParameter) naming the field (reasons: unknown_parameter,
+//! duplicate_parameter, not_a_number, out_of_range, unknown_scheme, above_server_cap).
+InfoRequest parse_info_params(const RawParams& params);
+
+//! Parses and validates `refine` parameters; absent ones keep their RefineParams
+//! defaults, except `max_faces` (RequestLimits::default_max_faces). \throw Error(InvalidParameter)
+//! as above.
+RefineRequest parse_refine_params(const RawParams& params, const RequestLimits& limits);
+
+// --- the number parsers both functions use, exposed for the CLI and the tests
+
+//! The whole of `text` as a decimal integer in [lo, hi].
+//! \throw Error(InvalidParameter, "not_a_number" | "out_of_range") naming `field`.
+long long parse_integer(std::string_view field, std::string_view text, long long lo, long long hi);
+//! The whole of `text` as an unsigned decimal integer in [lo, hi].
+std::uint64_t parse_unsigned(std::string_view field, std::string_view text, std::uint64_t lo,
+                             std::uint64_t hi);
+//! The whole of `text` as a finite decimal number ("nan", "inf" and overflow rejected).
+double parse_number(std::string_view field, std::string_view text);
+
+}  // namespace stlrefine::api

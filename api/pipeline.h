@@ -1,0 +1,35 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <span>
+#include <string>
+
+#include "api/params.h"
+#include "core/refine.h"
+
+namespace stlrefine::api {
+
+//! `info`: bytes -> read_stl -> weld -> build_mesh -> compute_stats + detect_features.
+//! Returns the report (see info_report).
+//! \throw Error(MalformedStl | NotTriangleMesh | InvalidParameter)
+nlohmann::ordered_json run_info(std::span<const std::uint8_t> bytes, const InfoRequest& request);
+
+struct RefineOutcome {
+  std::string stl;                //!< the refined mesh as STL bytes (request.output_format)
+  nlohmann::ordered_json report;  //!< see refine_report
+};
+
+//! `refine`, the one path both the CLI and the daemon take:
+//! bytes -> read_stl -> weld -> build_mesh -> face budget -> refine -> write_stl.
+//! The face budget is checked right after ingest, before any refinement work.
+//! \throw Error(MalformedStl | NotTriangleMesh | InvalidParameter | Cancelled | Internal);
+//! FaceBudgetError (an Error with code BudgetExceeded) with the predicted face count.
+RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineRequest& request,
+                         const ProgressFn& progress = {},
+                         const std::atomic<bool>* cancel = nullptr);
+
+}  // namespace stlrefine::api

@@ -1,0 +1,106 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#include "api/report.h"
+
+namespace stlrefine::api {
+
+namespace {
+
+using Json = nlohmann::ordered_json;
+
+Json vec3_json(const Vec3& v) {
+  return Json::array({v.x, v.y, v.z});
+}
+
+Json input_json(const Ingested& in) {
+  Json j;
+  j["format"] = to_string(in.format);
+  j["triangles"] = in.triangles;
+  j["trailing_bytes"] = in.trailing_bytes;
+  j["vertices_before_weld"] = 3 * in.triangles;
+  j["vertices_after_weld"] = in.welded_vertices;
+  j["weld_tolerance"] = in.weld_tolerance;
+  return j;
+}
+
+}  // namespace
+
+Json ingest_report_json(const IngestReport& r) {
+  Json j;
+  j["input_triangles"] = r.input_triangles;
+  j["input_vertices"] = r.input_vertices;
+  j["index_degenerate_removed"] = r.index_degenerate_removed;
+  j["zero_area_faces"] = r.zero_area_faces;
+  j["isolated_vertices_removed"] = r.isolated_vertices_removed;
+  j["non_manifold_edges"] = r.non_manifold_edges;
+  j["non_manifold_vertices"] = r.non_manifold_vertices;
+  j["vertices_duplicated"] = r.vertices_duplicated;
+  j["faces_reoriented"] = r.faces_reoriented;
+  j["non_orientable_cuts"] = r.non_orientable_cuts;
+  j["inconsistent_edges"] = r.inconsistent_edges;
+  return j;
+}
+
+Json info_report(const Ingested& in, const MeshStats& s, const Features& features,
+                 const InfoRequest& request) {
+  Json mesh;
+  mesh["vertices"] = s.vertices;
+  mesh["edges"] = s.edges;
+  mesh["faces"] = s.faces;
+  mesh["boundary_edges"] = s.boundary_edges;
+  mesh["boundary_loops"] = s.boundary_loops;
+  mesh["components"] = s.components;
+  mesh["zero_area_faces"] = s.zero_area_faces;
+  mesh["euler_characteristic"] = s.euler_characteristic;
+  mesh["watertight"] = s.watertight;
+  mesh["genus"] = s.genus ? Json(*s.genus) : Json(nullptr);
+  mesh["bbox"] = {{"min", vec3_json(s.bbox_min)}, {"max", vec3_json(s.bbox_max)}};
+  mesh["area"] = s.area;
+  mesh["volume"] = s.volume;
+
+  Json feat;
+  feat["crease_angle_deg"] = request.features.crease_angle_deg;
+  feat["sharp_edges"] = features.num_sharp_edges();
+  feat["corners"] = features.count(VertexKind::Corner);
+  feat["creases"] = features.count(VertexKind::Crease);
+  feat["darts"] = features.count(VertexKind::Dart);
+
+  Json j;
+  j["input"] = input_json(in);
+  j["ingest"] = ingest_report_json(in.result.report);
+  j["mesh"] = std::move(mesh);
+  j["features"] = std::move(feat);
+  return j;
+}
+
+Json refine_report(const Ingested& in, const RefineReport& r, const RefineRequest& request,
+                   std::size_t output_bytes, const RefineTimes& times) {
+  Json input = input_json(in);
+  input["vertices"] = r.input_vertices;
+  input["faces"] = r.input_faces;
+
+  Json j;
+  j["scheme"] = r.scheme;
+  j["levels"] = r.levels;
+  j["crease_angle_deg"] = request.refine.features.crease_angle_deg;
+  j["input"] = std::move(input);
+  j["output"] = {{"format", to_string(request.output_format)},
+                 {"vertices", r.output_vertices},
+                 {"faces", r.output_faces},
+                 {"bytes", output_bytes}};
+  j["features"] = {{"sharp_edges_in", r.sharp_edges_in},
+                   {"sharp_edges_out", r.sharp_edges_out},
+                   {"corners", r.corners},
+                   {"creases", r.creases},
+                   {"darts", r.darts}};
+  j["fold_fallbacks"] = r.fold_fallbacks;
+  j["max_input_displacement"] = r.max_input_displacement;
+  j["seconds"] = {{"ingest", times.ingest},
+                  {"refine", times.refine},
+                  {"write", times.write},
+                  {"total", times.total}};
+  j["ingest"] = ingest_report_json(in.result.report);
+  return j;
+}
+
+}  // namespace stlrefine::api

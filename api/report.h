@@ -1,0 +1,44 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include "api/ingest.h"
+#include "api/params.h"
+#include "core/features/features.h"
+#include "core/mesh/build_mesh.h"
+#include "core/mesh/mesh_stats.h"
+#include "core/refine.h"
+
+namespace stlrefine::api {
+
+//! Every IngestReport counter, by its field name.
+nlohmann::ordered_json ingest_report_json(const IngestReport& report);
+
+//! The `info` report:
+//! - `input`: format, triangles, trailing_bytes, vertices_before_weld (3 per facet),
+//!   vertices_after_weld, weld_tolerance;
+//! - `ingest`: ingest_report_json;
+//! - `mesh`: vertices, edges, faces, boundary_edges, boundary_loops, components,
+//!   zero_area_faces, euler_characteristic, watertight, genus (null unless watertight),
+//!   bbox {min, max}, area, volume;
+//! - `features`: crease_angle_deg, sharp_edges, corners, creases, darts.
+nlohmann::ordered_json info_report(const Ingested& in, const MeshStats& stats,
+                                   const Features& features, const InfoRequest& request);
+
+//! Wall times of the refine request's phases, in seconds.
+struct RefineTimes {
+  double ingest = 0, refine = 0, write = 0, total = 0;
+};
+
+//! The `refine` report: scheme, levels, crease_angle_deg, `input` (as in info plus the
+//! mesh's vertices and faces), `output` {format, vertices, faces, bytes}, `features`
+//! {sharp_edges_in, sharp_edges_out (sharp edges kept), corners, creases, darts},
+//! fold_fallbacks, max_input_displacement, `seconds` {ingest, refine, write, total}, and
+//! `ingest`. Compact enough for a response header.
+nlohmann::ordered_json refine_report(const Ingested& in, const RefineReport& report,
+                                     const RefineRequest& request, std::size_t output_bytes,
+                                     const RefineTimes& times);
+
+}  // namespace stlrefine::api
