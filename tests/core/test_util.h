@@ -1,0 +1,57 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#pragma once
+
+// GoogleTest helpers for the core suite: vector comparisons that print all three
+// coordinates, and a one-call "refine one level" for a scheme name.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+#include <string_view>
+
+#include "core/schemes/scheme.h"
+#include "tests/support/mesh_queries.h"
+
+namespace stlrefine::test {
+
+inline std::string str(const Vec3& p) {
+  char buf[128];
+  std::snprintf(buf, sizeof buf, "(%.17g, %.17g, %.17g)", p.x, p.y, p.z);
+  return buf;
+}
+
+inline ::testing::AssertionResult vec_near(const char* a_expr, const char* b_expr,
+                                           const char* /*tol_expr*/, const Vec3& a, const Vec3& b,
+                                           double tol) {
+  const double d = std::max({std::abs(a.x - b.x), std::abs(a.y - b.y), std::abs(a.z - b.z)});
+  if (d <= tol) return ::testing::AssertionSuccess();
+  return ::testing::AssertionFailure() << a_expr << " = " << str(a) << "\n"
+                                       << b_expr << " = " << str(b) << "\n"
+                                       << "max coordinate difference " << d << " > " << tol;
+}
+
+#define EXPECT_VEC_NEAR(a, b, tol) EXPECT_PRED_FORMAT3(::stlrefine::test::vec_near, a, b, tol)
+#define ASSERT_VEC_NEAR(a, b, tol) ASSERT_PRED_FORMAT3(::stlrefine::test::vec_near, a, b, tol)
+
+//! One step of the named scheme; the StepStats are returned through `stats`.
+inline Level refine_level(std::string_view scheme, const Level& coarse,
+                          StepStats* stats = nullptr) {
+  StepStats local;
+  auto s = make_scheme(scheme);
+  Level fine = s->refine_once(coarse, stats ? *stats : local);
+  return fine;
+}
+
+//! `levels` steps of the named scheme from `coarse`, accumulating the fold fallbacks.
+inline Level refine_levels(std::string_view scheme, Level level, int levels,
+                           std::size_t* fold_fallbacks = nullptr) {
+  auto s = make_scheme(scheme);
+  StepStats stats;
+  for (int i = 0; i < levels; ++i) level = s->refine_once(level, stats);
+  if (fold_fallbacks) *fold_fallbacks = stats.fold_fallbacks;
+  return level;
+}
+
+}  // namespace stlrefine::test
