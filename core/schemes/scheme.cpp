@@ -8,6 +8,7 @@
 #include "core/error.h"
 #include "core/schemes/butterfly.h"
 #include "core/schemes/loop.h"
+#include "core/schemes/lsf.h"
 #include "core/schemes/split4_host.h"
 
 namespace stlrefine {
@@ -20,7 +21,7 @@ struct SchemeEntry {
 };
 
 // The one table of schemes: name -> factory. No static self-registration.
-constexpr std::array<SchemeEntry, 2> kSchemes = {{
+constexpr std::array<SchemeEntry, 3> kSchemes = {{
     {"butterfly",
      []() -> std::unique_ptr<Scheme> {
        return std::make_unique<Split4Scheme>("butterfly", std::make_unique<ButterflyStencil>());
@@ -28,6 +29,10 @@ constexpr std::array<SchemeEntry, 2> kSchemes = {{
     {"loop",
      []() -> std::unique_ptr<Scheme> {
        return std::make_unique<Split4Scheme>("loop", std::make_unique<LoopStencil>());
+     }},
+    {"lsf",
+     []() -> std::unique_ptr<Scheme> {
+       return std::make_unique<Split4Scheme>("lsf", std::make_unique<LsfStencil>());
      }},
 }};
 

@@ -1,0 +1,59 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#pragma once
+
+#include <array>
+#include <span>
+
+#include "core/schemes/split4_host.h"
+
+namespace stlrefine {
+
+//! A quadric s(u,v) = V + c1 u + c2 v + c3 u^2/2 + c4 uv + c5 v^2/2 fitted to a vertex's
+//! ring (or one sector of it) in Welch-Witkin polar parameters.
+struct QuadricFit {
+  Vec3 origin;              //!< c0 = V
+  std::array<Vec3, 5> c{};  //!< c1..c5
+  bool valid = false;       //!< false when the sample was too degenerate to fit
+
+  Vec3 evaluate(double u, double v) const {
+    return origin + u * c[0] + v * c[1] + (0.5 * u * u) * c[2] + (u * v) * c[3] +
+           (0.5 * v * v) * c[4];
+  }
+};
+
+//! Fits the quadric to ring points with parameters (u_i, v_i) by damped least squares:
+//! (S^T S + mu h^4 diag(0,0,1,1,1)) c = S^T q, h the mean parameter radius (spec 5 gap 1).
+QuadricFit fit_quadric(const Vec3& origin, std::span<const Vec3> points,
+                       std::span<const std::array<double, 2>> params, double mu = 1e-9);
+
+//! Polar parameters of ring points around `origin` (Welch-Witkin): angles between
+//! consecutive points scaled so they sum to `total_angle` (2 pi for a closed ring, pi for
+//! a crease sector, 0 = keep the natural angles), radius = distance. `closed` means the
+//! last point is followed by the first.
+void polar_parameters(const Vec3& origin, std::span<const Vec3> points, bool closed,
+                      double total_angle, std::span<std::array<double, 2>> params);
+
+//! Local Surface Fitting (Suzuki, Yamamoto, Kanai, Kimura et al.; spec section 5), on the
+//! 1-to-4 host. Each edge point is the average of the two endpoint fits evaluated at half
+//! the edge's parameter. Creases and boundaries: one-sided sector fits (angles scaled to
+//! pi at crease vertices, natural at corners), and the 1-D chord-length quadratic along
+//! sharp edges, so the angle across a crease is kept. Interpolating.
+class LsfStencil final : public Split4Stencil {
+ public:
+  void edge_points(const Level& coarse, std::span<Vec3> out) const override;
+  bool interpolating() const override { return true; }
+
+  //! The fitted surface of v evaluated at half of each outgoing half-edge's parameter,
+  //! indexed by half-edge (sharp half-edges are left untouched). One fit per vertex and
+  //! sector, so each vertex is fitted once per level, not once per edge.
+  static void half_edge_estimates(const Mesh& mesh, const Features& features, VertexId v,
+                                  std::span<Vec3> per_halfedge);
+};
+
+//! 1-D analogue on a sharp edge a-b (spec 5 gap 3): for each endpoint, the quadratic
+//! through its curve neighbours in chord-length parameters evaluated at the edge's
+//! half-parameter (linear at polyline ends), averaged over both endpoints.
+Vec3 lsf_curve_point(const Mesh& mesh, const Features& features, HalfedgeId h);
+
+}  // namespace stlrefine
