@@ -1,0 +1,295 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+//
+// stlrefine: the command-line front end. It validates parameters with the daemon's code
+// (api/params) and runs the daemon's pipeline (api/pipeline), on files.
+//
+//   stlrefine info IN.stl [--crease-angle 35] [--weld-tolerance T]
+//   stlrefine refine IN.stl -o OUT.stl [--scheme butterfly] [--levels 1] [--crease-angle 35]
+//                    [--max-faces N] [--threads N] [--weld-tolerance T] [--ascii]
+//                    [--report R.json]
+//
+// Exit codes (kExit* below): 0 success; 2 bad usage or parameter; 3 the input file cannot
+// be read or is not a usable STL; 4 the face budget would be exceeded; 1 anything else
+// (an internal error, or the output cannot be written).
+
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <iterator>
+#include <mutex>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "api/params.h"
+#include "api/pipeline.h"
+#include "core/error.h"
+#include "core/schemes/scheme.h"
+
+namespace {
+
+using stlrefine::Error;
+using stlrefine::ErrorCode;
+namespace api = stlrefine::api;
+
+constexpr int kExitOk = 0;
+constexpr int kExitInternal = 1;
+constexpr int kExitUsage = 2;
+constexpr int kExitBadInput = 3;
+constexpr int kExitBudget = 4;
+
+//! A failure with its exit code, thrown inside a command and reported by main.
+struct Failure {
+  int exit_code;
+  std::string message;
+};
+
+int exit_code(ErrorCode code) {
+  switch (code) {
+    case ErrorCode::InvalidParameter:
+      return kExitUsage;
+    case ErrorCode::MalformedStl:
+      return kExitBadInput;
+    case ErrorCode::NotTriangleMesh:
+      return kExitBadInput;
+    case ErrorCode::BudgetExceeded:
+      return kExitBudget;
+    case ErrorCode::Cancelled:
+      return kExitInternal;
+    case ErrorCode::Internal:
+      return kExitInternal;
+  }
+  return kExitInternal;
+}
+
+// "crease_angle" -> "--crease-angle": errors name the option the user typed.
+std::string option_name(std::string field) {
+  for (char& c : field)
+    if (c == '_') c = '-';
+  return "--" + field;
+}
+
+Failure failure_from_error(const Error& e, const std::string& input) {
+  std::string message;
+  if (e.code() == ErrorCode::InvalidParameter && !e.field().empty()) {
+    message = option_name(e.field()) + ": " + e.what();
+  } else if (e.code() == ErrorCode::MalformedStl || e.code() == ErrorCode::NotTriangleMesh) {
+    message = input;
+    if (e.line()) message += ":" + std::to_string(*e.line());
+    message += ": ";
+    message += (e.code() == ErrorCode::MalformedStl ? "malformed STL" : "not a triangle mesh");
+    if (!e.reason().empty()) message += " (" + e.reason() + ")";
+    if (e.byte_offset()) message += " at byte " + std::to_string(*e.byte_offset());
+    message += ": " + std::string(e.what());
+  } else {
+    message = e.what();
+  }
+  return {exit_code(e.code()), message};
+}
+
+std::vector<std::uint8_t> read_file(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec))
+    throw Failure{kExitBadInput, path + " is a directory, not an STL file"};
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Failure{kExitBadInput, "cannot open " + path + ": " + std::strerror(errno)};
+  std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)),
+                                  std::istreambuf_iterator<char>());
+  if (in.bad()) throw Failure{kExitBadInput, "cannot read " + path};
+  return bytes;
+}
+
+// Written next to the target and renamed over it: a failed run never leaves half a file.
+void write_file(const std::string& path, const std::string& bytes) {
+  const std::filesystem::path target(path);
+  std::filesystem::path tmp = target;
+  tmp += ".tmp-" + std::to_string(::getpid());
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out)
+      throw Failure{kExitInternal, "cannot create " + tmp.string() + ": " + std::strerror(errno)};
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    out.close();
+    if (!out) {
+      std::error_code ignored;
+      std::filesystem::remove(tmp, ignored);
+      throw Failure{kExitInternal, "cannot write " + tmp.string()};
+    }
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, target, ec);
+  if (ec) {
+    std::filesystem::remove(tmp, ec);
+    throw Failure{kExitInternal, "cannot write " + path + ": " + ec.message()};
+  }
+}
+
+//! The progress line: only when stderr is a terminal, redrawn in place, at most once per
+//! percent.
+class ProgressLine {
+ public:
+  ProgressLine() : enabled_(::isatty(STDERR_FILENO) == 1) {}
+  ~ProgressLine() { finish(); }
+
+  stlrefine::ProgressFn sink() {
+    if (!enabled_) return {};
+    return [this](double fraction, std::string_view stage) {
+      std::lock_guard lock(mutex_);
+      const int percent = static_cast<int>(std::lround(100 * std::clamp(fraction, 0.0, 1.0)));
+      if (percent == last_percent_ && stage == last_stage_) return;
+      last_percent_ = percent;
+      last_stage_ = stage;
+      std::fprintf(stderr, "\r\033[Krefining: %3d%%  %.*s", percent, static_cast<int>(stage.size()),
+                   stage.data());
+      std::fflush(stderr);
+      drawn_ = true;
+    };
+  }
+
+  void finish() {
+    std::lock_guard lock(mutex_);
+    if (drawn_) std::fputs("\r\033[K", stderr);
+    drawn_ = false;
+  }
+
+ private:
+  bool enabled_;
+  std::mutex mutex_;
+  int last_percent_ = -1;
+  std::string last_stage_;
+  bool drawn_ = false;
+};
+
+struct InfoOptions {
+  std::string input;
+  std::string crease_angle, weld_tolerance;
+};
+
+struct RefineOptions {
+  std::string input, output, report;
+  std::string scheme, levels, crease_angle, max_faces, threads, weld_tolerance;
+  bool ascii = false;
+};
+
+// Options given on the command line, as (API name, text) pairs: api/params validates them
+// exactly as the daemon validates a query string.
+void add_if_given(api::RawParams& raw, const CLI::App& cmd, const char* option, const char* name,
+                  const std::string& value) {
+  if (cmd.get_option(option)->count() > 0) raw.emplace_back(name, value);
+}
+
+int run_info(const CLI::App& cmd, const InfoOptions& o) {
+  api::RawParams raw;
+  add_if_given(raw, cmd, "--crease-angle", "crease_angle", o.crease_angle);
+  add_if_given(raw, cmd, "--weld-tolerance", "weld_tolerance", o.weld_tolerance);
+  try {
+    const api::InfoRequest request = api::parse_info_params(raw);
+    const std::vector<std::uint8_t> bytes = read_file(o.input);
+    std::cout << api::run_info(bytes, request).dump(2) << std::endl;
+    return kExitOk;
+  } catch (const Error& e) {
+    throw failure_from_error(e, o.input);
+  }
+}
+
+int run_refine(const CLI::App& cmd, const RefineOptions& o) {
+  api::RawParams raw;
+  add_if_given(raw, cmd, "--scheme", "scheme", o.scheme);
+  add_if_given(raw, cmd, "--levels", "levels", o.levels);
+  add_if_given(raw, cmd, "--crease-angle", "crease_angle", o.crease_angle);
+  add_if_given(raw, cmd, "--max-faces", "max_faces", o.max_faces);
+  add_if_given(raw, cmd, "--threads", "threads", o.threads);
+  add_if_given(raw, cmd, "--weld-tolerance", "weld_tolerance", o.weld_tolerance);
+  api::RequestLimits limits;
+  limits.max_faces = (std::uint64_t{1} << 31) - 1;  // the core's maximum
+  limits.default_max_faces = stlrefine::RefineParams{}.max_faces;
+  limits.accept_threads = true;
+  try {
+    api::RefineRequest request = api::parse_refine_params(raw, limits);
+    request.output_format = o.ascii ? stlrefine::StlFormat::Ascii : stlrefine::StlFormat::Binary;
+    const std::vector<std::uint8_t> bytes = read_file(o.input);
+    ProgressLine progress;
+    api::RefineOutcome out = api::run_refine(bytes, request, progress.sink());
+    progress.finish();
+    write_file(o.output, out.stl);
+    if (!o.report.empty()) write_file(o.report, out.report.dump(2) + "\n");
+    std::cerr << "stlrefine: " << out.report["input"]["faces"] << " -> "
+              << out.report["output"]["faces"] << " faces (" << request.refine.scheme << ", "
+              << request.refine.levels << " levels) in " << out.report["seconds"]["total"]
+              << " s -> " << o.output << std::endl;
+    return kExitOk;
+  } catch (const Error& e) {
+    throw failure_from_error(e, o.input);
+  }
+}
+
+std::string scheme_list() {
+  std::string list;
+  for (std::string_view name : stlrefine::scheme_names())
+    list += (list.empty() ? "" : ", ") + std::string(name);
+  return list;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"stlrefine: refine coarse STL files with interpolatory subdivision"};
+  app.set_version_flag("--version", std::string(STLREFINE_VERSION));
+  app.require_subcommand(1);
+  app.footer(
+      "Exit codes: 0 ok, 2 bad usage or parameter, 3 unreadable or unusable input file,\n"
+      "4 face budget exceeded, 1 internal error or output not writable.");
+
+  InfoOptions info;
+  CLI::App* info_cmd = app.add_subcommand("info", "Print a JSON report on an STL file");
+  info_cmd->add_option("input", info.input, "STL file (binary or ASCII)")->required();
+  info_cmd->add_option("--crease-angle", info.crease_angle,
+                       "Dihedral angle in degrees above which an edge is sharp [0, 180] (35)");
+  info_cmd->add_option("--weld-tolerance", info.weld_tolerance,
+                       "Merge corners closer than this (model units; 0 = exact, default)");
+
+  RefineOptions refine;
+  CLI::App* refine_cmd = app.add_subcommand("refine", "Refine an STL file");
+  refine_cmd->add_option("input", refine.input, "STL file (binary or ASCII)")->required();
+  refine_cmd->add_option("-o,--output", refine.output, "Output STL file")->required();
+  refine_cmd->add_option("--scheme", refine.scheme,
+                         "Subdivision scheme: " + scheme_list() + " (butterfly)");
+  refine_cmd->add_option("--levels", refine.levels, "Subdivision steps [0, 8] (1)");
+  refine_cmd->add_option("--crease-angle", refine.crease_angle,
+                         "Dihedral angle in degrees above which an edge is sharp [0, 180] (35)");
+  refine_cmd->add_option("--max-faces", refine.max_faces,
+                         "Refuse before any work if the output would have more faces (20000000)");
+  refine_cmd->add_option("--threads", refine.threads, "Worker threads [0, 256] (0 = every core)");
+  refine_cmd->add_option("--weld-tolerance", refine.weld_tolerance,
+                         "Merge corners closer than this (model units; 0 = exact, default)");
+  refine_cmd->add_flag("--ascii", refine.ascii, "Write ASCII STL instead of binary");
+  refine_cmd->add_option("--report", refine.report, "Also write the JSON report to this file");
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? kExitOk : kExitUsage;  // --help / --version exit with 0
+  }
+
+  try {
+    if (info_cmd->parsed()) return run_info(*info_cmd, info);
+    return run_refine(*refine_cmd, refine);
+  } catch (const Failure& f) {
+    std::cerr << "stlrefine: " << f.message << std::endl;
+    return f.exit_code;
+  } catch (const std::exception& e) {
+    std::cerr << "stlrefine: internal error: " << e.what() << std::endl;
+    return kExitInternal;
+  }
+}
