@@ -1,0 +1,77 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#pragma once
+
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <string_view>
+
+#include "server/compute_slots.h"
+
+namespace stlrefine::server {
+
+//! Everything `stlrefined` can be told. Defaults are the daemon's defaults.
+struct DaemonConfig {
+  //! HTTP worker threads; 0 = compute slots + 4, so health checks and fast 4xx/503
+  //! answers never wait behind the compute requests.
+  std::size_t http_threads = 0;
+  //! Requests computing at once (refine and info); 0 = std::thread::hardware_concurrency.
+  //! One more gets 503 with Retry-After at once.
+  std::size_t compute_slots = 0;
+  //! Largest request body in bytes (413 above); default 256 MiB.
+  std::size_t max_body_bytes = std::size_t{256} << 20;
+  //! Face cap of one refinement, [1, 2^31); a request's max_faces may only lower it.
+  std::uint64_t max_faces = 20'000'000;
+  //! Idle time allowed in one socket read / write before the connection is dropped.
+  std::chrono::seconds read_timeout{10};
+  std::chrono::seconds write_timeout{60};
+  //! Value of Retry-After on 503 answers.
+  int retry_after_seconds = 2;
+  //! One line per request on stderr: method, path, status, bytes sent.
+  bool access_log = false;
+  //! For tests only: called with the route ("/v1/refine", ...) at the start of each route
+  //! handler. It may throw, to exercise the generic 500 path.
+  std::function<void(std::string_view route)> test_hook;
+};
+
+//! The HTTP daemon: routes, hardening around cpp-httplib 0.11.4 (see daemon.cpp), and the
+//! compute slots. httplib stays behind this class (pimpl).
+//!
+//! Routes: POST /v1/refine, POST /v1/info, GET /healthz, GET /readyz. Every error is an
+//! RFC 9457 application/problem+json body.
+class Daemon {
+ public:
+  //! \throw std::invalid_argument for a config out of range.
+  explicit Daemon(DaemonConfig config);
+  ~Daemon();
+  Daemon(const Daemon&) = delete;
+  Daemon& operator=(const Daemon&) = delete;
+
+  //! Binds the listening socket; port 0 picks a free port. Returns the bound port.
+  //! \throw std::runtime_error when the address cannot be bound.
+  int bind(const std::string& host, int port);
+  //! Serves until stop(). Requests in flight are answered before it returns.
+  //! \pre bind() succeeded
+  void run();
+  //! Stops accepting connections and makes run() return once the requests in flight are
+  //! answered. Thread-safe and idempotent; /readyz answers 503 from now on.
+  void stop();
+  //! Asks running refinements to give up (they answer 503): a second SIGTERM.
+  void cancel_running();
+
+  ComputeSlots& compute_slots();
+  const DaemonConfig& config() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+//! The `listening on` URL for a bound host and port ("http://[::1]:8080" for IPv6).
+std::string listen_url(const std::string& host, int port);
+
+}  // namespace stlrefine::server

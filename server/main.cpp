@@ -1,0 +1,128 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+//
+// stlrefined: the refinement daemon. See server/README.md for the HTTP interface.
+//
+// Exit codes: 0 after a clean shutdown (SIGINT / SIGTERM), 2 for bad flags, 1 when the
+// address cannot be bound or anything else fails.
+
+#include <pthread.h>
+#include <signal.h>
+
+#include <CLI/CLI.hpp>
+#include <atomic>
+#include <cerrno>
+#include <csignal>
+#include <cstdint>
+#include <ctime>
+#include <exception>
+#include <iostream>
+#include <string>
+#include <thread>
+
+#include "server/daemon.h"
+
+namespace {
+
+// SIGINT / SIGTERM are blocked in every thread (the mask is inherited, so this runs before
+// any thread exists) and taken by one thread with sigtimedwait: the first stops accepting
+// and lets requests in flight finish, a second one also cancels running refinements.
+sigset_t shutdown_signals() {
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, SIGINT);
+  sigaddset(&set, SIGTERM);
+  return set;
+}
+
+void watch_signals(stlrefine::server::Daemon& daemon, const std::atomic<bool>& done) {
+  const sigset_t set = shutdown_signals();
+  const timespec poll{0, 200'000'000};
+  int received = 0;
+  while (!done) {
+    if (sigtimedwait(&set, nullptr, &poll) < 0) continue;  // EAGAIN (timeout) or EINTR
+    if (++received == 1) {
+      std::cerr << "stlrefined: shutting down (finishing requests in flight)\n";
+      daemon.stop();
+    } else {
+      std::cerr << "stlrefined: cancelling running refinements\n";
+      daemon.cancel_running();
+    }
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const sigset_t signals = shutdown_signals();
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+  // A client that hangs up mid-response must cost an EPIPE, not the process.
+  std::signal(SIGPIPE, SIG_IGN);
+
+  CLI::App app{"stlrefined: HTTP daemon that refines STL files with interpolatory subdivision"};
+  app.set_version_flag("--version", std::string(STLREFINE_VERSION));
+  std::string host = "127.0.0.1";
+  int port = 8080;
+  std::size_t threads = 0;
+  std::size_t compute_slots = 0;
+  std::size_t max_body_mib = 256;
+  std::uint64_t max_faces = 20'000'000;
+  int read_timeout = 10;
+  int write_timeout = 60;
+  bool access_log = false;
+  app.add_option("--host", host, "Address to listen on")->capture_default_str();
+  app.add_option("--port", port, "Port to listen on; 0 picks a free one")
+      ->check(CLI::Range(0, 65535))
+      ->capture_default_str();
+  app.add_option("--threads", threads, "HTTP worker threads (0 = compute slots + 4)")
+      ->check(CLI::Range(0, 4096))
+      ->capture_default_str();
+  app.add_option("--compute-slots", compute_slots,
+                 "Requests computing at once; more get 503 (0 = hardware threads)")
+      ->check(CLI::Range(0, 4096))
+      ->capture_default_str();
+  app.add_option("--max-body-mib", max_body_mib, "Largest request body in MiB (413 above)")
+      ->check(CLI::Range(1, 1 << 20))
+      ->capture_default_str();
+  app.add_option("--max-faces", max_faces, "Face cap of one refinement (422 above)")
+      ->check(CLI::Range(std::uint64_t{1}, (std::uint64_t{1} << 31) - 1))
+      ->capture_default_str();
+  app.add_option("--read-timeout", read_timeout, "Seconds a socket read may stall")
+      ->check(CLI::Range(1, 3600))
+      ->capture_default_str();
+  app.add_option("--write-timeout", write_timeout, "Seconds a socket write may stall")
+      ->check(CLI::Range(1, 3600))
+      ->capture_default_str();
+  app.add_flag("--access-log", access_log, "Log one line per request on stderr");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;  // --help and --version are "errors" with code 0
+  }
+
+  try {
+    stlrefine::server::DaemonConfig config;
+    config.http_threads = threads;
+    config.compute_slots = compute_slots;
+    config.max_body_bytes = max_body_mib << 20;
+    config.max_faces = max_faces;
+    config.read_timeout = std::chrono::seconds(read_timeout);
+    config.write_timeout = std::chrono::seconds(write_timeout);
+    config.access_log = access_log;
+    stlrefine::server::Daemon daemon(config);
+    const int bound = daemon.bind(host, port);
+    // The one line on stdout: scripts and tests read the port from it.
+    std::cout << "listening on " << stlrefine::server::listen_url(host, bound) << std::endl;
+
+    std::atomic<bool> done{false};
+    std::thread watcher(watch_signals, std::ref(daemon), std::cref(done));
+    daemon.run();
+    done = true;
+    watcher.join();
+    std::cerr << "stlrefined: stopped" << std::endl;
+    return 0;
+  } catch (const std::exception& e) {
+    std::cerr << "stlrefined: " << e.what() << std::endl;
+    return 1;
+  }
+}
