@@ -1,0 +1,140 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <limits>
+#include <span>
+#include <string>
+
+#include "api/pipeline.h"
+#include "api/problem.h"
+#include "core/error.h"
+#include "test_stl.h"
+
+namespace stlrefine::api {
+namespace {
+
+std::span<const std::uint8_t> bytes_of(const std::string& s) {
+  return {reinterpret_cast<const std::uint8_t*>(s.data()), s.size()};
+}
+
+RefineRequest butterfly(int levels) {
+  RefineRequest r;
+  r.refine.scheme = "butterfly";
+  r.refine.levels = levels;
+  return r;
+}
+
+TEST(ApiPipeline, RefineQuadruplesFacesAndKeepsInputVertices) {
+  const auto input = test::octahedron_triangles();
+  for (int levels : {0, 1, 2}) {
+    const RefineOutcome out = run_refine(bytes_of(test::binary_stl(input)), butterfly(levels));
+    const auto output = test::read_binary_stl(out.stl);
+    EXPECT_EQ(output.size(), input.size() << (2 * levels));
+    EXPECT_TRUE(test::corners_preserved(input, output));
+    EXPECT_EQ(out.report.at("input").at("faces"), input.size());
+    EXPECT_EQ(out.report.at("output").at("faces"), output.size());
+    EXPECT_EQ(out.report.at("output").at("bytes"), out.stl.size());
+    EXPECT_EQ(out.report.at("max_input_displacement"), 0.0);
+    EXPECT_EQ(out.report.at("scheme"), "butterfly");
+  }
+}
+
+TEST(ApiPipeline, RefineIsDeterministic) {
+  const std::string in = test::binary_stl(test::octahedron_triangles());
+  EXPECT_EQ(run_refine(bytes_of(in), butterfly(2)).stl, run_refine(bytes_of(in), butterfly(2)).stl);
+}
+
+TEST(ApiPipeline, AsciiInAsciiOut) {
+  RefineRequest r = butterfly(1);
+  r.output_format = StlFormat::Ascii;
+  const RefineOutcome out = run_refine(bytes_of(test::ascii_stl(test::octahedron_triangles())), r);
+  EXPECT_EQ(out.report.at("input").at("format"), "ascii");
+  EXPECT_EQ(out.report.at("output").at("format"), "ascii");
+  EXPECT_EQ(out.stl.rfind("solid", 0), 0u);
+}
+
+TEST(ApiPipeline, BudgetIsCheckedWithThePrediction) {
+  RefineRequest r = butterfly(3);
+  r.refine.max_faces = 100;  // 8 * 4^3 = 512
+  try {
+    run_refine(bytes_of(test::binary_stl(test::octahedron_triangles())), r);
+    FAIL() << "no budget error";
+  } catch (const FaceBudgetError& e) {
+    EXPECT_EQ(e.code(), ErrorCode::BudgetExceeded);
+    EXPECT_EQ(e.predicted_faces(), 512u);
+    EXPECT_EQ(e.max_faces(), 100u);
+  }
+}
+
+TEST(ApiPipeline, BadParametersBeforeTheFile) {
+  RefineRequest r = butterfly(1);
+  r.refine.scheme = "nope";
+  try {
+    run_refine(bytes_of(std::string("not an stl")), r);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::InvalidParameter);
+    EXPECT_EQ(e.field(), "scheme");
+  }
+}
+
+TEST(ApiPipeline, MalformedStlHasAByteOffset) {
+  auto tris = test::octahedron_triangles();
+  tris[1][0][1] = std::numeric_limits<float>::quiet_NaN();
+  try {
+    run_refine(bytes_of(test::binary_stl(tris)), butterfly(1));
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::MalformedStl);
+    ASSERT_TRUE(e.byte_offset().has_value());
+    EXPECT_EQ(*e.byte_offset(), 84u + 50u + 12u + 4u);  // facet 1, corner 0, y
+  }
+}
+
+TEST(ApiPipeline, InfoReport) {
+  const auto j = run_info(bytes_of(test::binary_stl(test::octahedron_triangles())), {});
+  EXPECT_EQ(j.at("input").at("format"), "binary");
+  EXPECT_EQ(j.at("input").at("triangles"), 8);
+  EXPECT_EQ(j.at("input").at("vertices_before_weld"), 24);
+  EXPECT_EQ(j.at("input").at("vertices_after_weld"), 6);
+  EXPECT_EQ(j.at("mesh").at("faces"), 8);
+  EXPECT_EQ(j.at("mesh").at("edges"), 12);
+  EXPECT_EQ(j.at("mesh").at("watertight"), true);
+  EXPECT_EQ(j.at("mesh").at("genus"), 0);
+  EXPECT_EQ(j.at("mesh").at("boundary_edges"), 0);
+  EXPECT_NEAR(j.at("mesh").at("volume").get<double>(), 4.0 / 3.0, 1e-6);
+  EXPECT_EQ(j.at("mesh").at("bbox").at("min"), nlohmann::ordered_json::array({-1.0, -1.0, -1.0}));
+  EXPECT_EQ(j.at("ingest").at("faces_reoriented"), 0);
+  // The octahedron's dihedral angle is 109.47 deg, so every edge turns 70.5 deg: all sharp
+  // at 35, none at 80.
+  EXPECT_EQ(j.at("features").at("sharp_edges"), 12);
+  EXPECT_EQ(j.at("features").at("corners"), 6);
+  InfoRequest flat;
+  flat.features.crease_angle_deg = 80;
+  const auto k = run_info(bytes_of(test::binary_stl(test::octahedron_triangles())), flat);
+  EXPECT_EQ(k.at("features").at("sharp_edges"), 0);
+  EXPECT_EQ(k.at("features").at("crease_angle_deg"), 80.0);
+}
+
+TEST(ApiPipeline, InfoCountsFlippedFacets) {
+  auto tris = test::octahedron_triangles();
+  std::swap(tris[3][1], tris[3][2]);
+  const auto j = run_info(bytes_of(test::binary_stl(tris)), {});
+  EXPECT_EQ(j.at("ingest").at("faces_reoriented"), 1);
+  EXPECT_EQ(j.at("mesh").at("watertight"), true);
+}
+
+TEST(ApiPipeline, InfoOfAnOpenMesh) {
+  auto tris = test::octahedron_triangles();
+  tris.pop_back();
+  const auto j = run_info(bytes_of(test::binary_stl(tris)), {});
+  EXPECT_EQ(j.at("mesh").at("watertight"), false);
+  EXPECT_TRUE(j.at("mesh").at("genus").is_null());
+  EXPECT_EQ(j.at("mesh").at("boundary_edges"), 3);
+  EXPECT_EQ(j.at("mesh").at("boundary_loops"), 1);
+}
+
+}  // namespace
+}  // namespace stlrefine::api

@@ -1,0 +1,89 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+//
+// The stlrefined binary itself: the `listening on` line, flags, and shutdown on signals.
+
+#include <gtest/gtest.h>
+#include <httplib.h>
+
+#include <csignal>
+#include <regex>
+#include <string>
+
+#include "subprocess.h"
+#include "test_stl.h"
+
+namespace stlrefine::test {
+namespace {
+
+using namespace std::chrono_literals;
+
+// Starts stlrefined on a free port; returns the port from its one stdout line.
+int start(Child& child) {
+  const std::string line = child.read_line(10s);
+  std::smatch m;
+  const std::regex expected(R"(^listening on http://127\.0\.0\.1:([0-9]+)$)");
+  if (!std::regex_match(line, m, expected)) {
+    ADD_FAILURE() << "unexpected first line: '" << line << "'\n" << child.stderr_text();
+    return 0;
+  }
+  return std::stoi(m[1]);
+}
+
+TEST(Stlrefined, ServesAndStopsCleanlyOnSigterm) {
+  Child child({STLREFINED, "--port", "0", "--compute-slots", "1", "--access-log"});
+  const int port = start(child);
+  ASSERT_GT(port, 0);
+  httplib::Client client("127.0.0.1", port);
+  auto health = client.Get("/healthz");
+  ASSERT_TRUE(health);
+  EXPECT_EQ(health->status, 200);
+  const auto input = octahedron_triangles();
+  auto refined = client.Post("/v1/refine?levels=1", binary_stl(input), "model/stl");
+  ASSERT_TRUE(refined);
+  EXPECT_EQ(refined->status, 200);
+  EXPECT_EQ(read_binary_stl(refined->body).size(), 32u);
+
+  child.signal(SIGTERM);
+  EXPECT_EQ(child.wait(10s), 0) << child.stderr_text();
+  EXPECT_EQ(child.read_line(100ms), "");  // exactly one line on stdout
+  EXPECT_NE(child.stderr_text().find("POST /v1/refine 200"), std::string::npos)
+      << child.stderr_text();
+}
+
+TEST(Stlrefined, StopsCleanlyOnSigint) {
+  Child child({STLREFINED, "--port", "0"});
+  ASSERT_GT(start(child), 0);
+  child.signal(SIGINT);
+  EXPECT_EQ(child.wait(10s), 0) << child.stderr_text();
+}
+
+TEST(Stlrefined, BadFlagsExitWith2) {
+  for (const std::vector<std::string>& flags : {std::vector<std::string>{"--port", "70000"},
+                                                {"--port", "80x"},
+                                                {"--bogus"},
+                                                {"--max-faces", "0"},
+                                                {"--compute-slots", "-1"},
+                                                {"--max-body-mib", "0"}}) {
+    std::vector<std::string> argv{STLREFINED};
+    argv.insert(argv.end(), flags.begin(), flags.end());
+    const ProcessResult r = run_process(argv, 10s);
+    EXPECT_EQ(r.exit_code, 2) << flags[0] << " " << r.err;
+    EXPECT_EQ(r.out, "");
+  }
+  EXPECT_EQ(run_process({STLREFINED, "--help"}, 10s).exit_code, 0);
+}
+
+TEST(Stlrefined, PortInUseExitsWith1) {
+  Child first({STLREFINED, "--port", "0"});
+  const int port = start(first);
+  ASSERT_GT(port, 0);
+  const ProcessResult second = run_process({STLREFINED, "--port", std::to_string(port)}, 10s);
+  EXPECT_EQ(second.exit_code, 1) << second.err;
+  EXPECT_EQ(second.out, "");
+  first.signal(SIGTERM);
+  EXPECT_EQ(first.wait(10s), 0);
+}
+
+}  // namespace
+}  // namespace stlrefine::test
