@@ -58,6 +58,14 @@ inline IndexedSoup bumpy_grid_soup(int n, double amplitude) {
   return soup;
 }
 
+//! Every position moved by up to `amount` per coordinate: irregular rings, so rules with
+//! weights that cancel on symmetric rings (e.g. the cos(4 pi j/k) terms) show.
+inline IndexedSoup jittered(IndexedSoup soup, double amount) {
+  for (std::uint32_t i = 0; i < soup.positions.size(); ++i)
+    soup.positions[i] += Vec3{jitter(i, 4), jitter(i, 5), jitter(i, 6)} * amount;
+  return soup;
+}
+
 inline double cubic_field(double x, double y) {
   return 0.1 + 0.3 * x - 0.2 * y + 0.15 * x * x - 0.1 * x * y + 0.05 * y * y + 0.02 * x * x * x -
          0.03 * x * x * y + 0.04 * x * y * y - 0.01 * y * y * y;
@@ -106,6 +114,9 @@ inline std::vector<RefCase> reference_cases() {
       {"Cylinder8Corners", lv([] { return cylinder_soup(8, 10, 30); }, 35)},
       {"Cylinder8Smooth", lv([] { return cylinder_soup(8, 10, 15); }, 180)},
       {"Icosphere", lv([] { return icosphere_soup(1, 2.0); }, 180)},
+      {"JitteredIcosphere", lv([] { return jittered(icosphere_soup(1, 2.0), 0.1); }, 180)},
+      {"JitteredBipyramid7", lv([] { return jittered(bipyramid_soup(7, 0.9), 0.1); }, 180)},
+      {"JitteredBipyramid5", lv([] { return jittered(bipyramid_soup(5, 1.1), 0.1); }, 180)},
       {"IcosphereCreased", lv([] { return icosphere_soup(1, 2.0); }, 20)},
       {"Torus", lv([] { return torus_soup(10, 7, 3, 1); }, 180)},
       {"Fan3", lv([] { return fan_soup(3, 0.3); }, 180)},
@@ -125,8 +136,8 @@ inline std::string describe_edge(const Level& level, EdgeId e) {
   const HalfedgeId h = m.halfedge(e);
   std::ostringstream os;
   auto vdesc = [&](VertexId v) {
-    os << "v" << v.idx << "[" << to_string(level.features.kind(v)) << ", valence "
-       << m.valence(v) << (m.is_boundary(v) ? ", boundary" : "") << "] " << str(m.position(v));
+    os << "v" << v.idx << "[" << to_string(level.features.kind(v)) << ", valence " << m.valence(v)
+       << (m.is_boundary(v) ? ", boundary" : "") << "] " << str(m.position(v));
   };
   os << "edge " << e.idx << (level.features.is_sharp(e) ? " (sharp)" : "") << " from ";
   vdesc(m.from(h));
