@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <map>
 #include <set>
+#include <string>
 #include <utility>
 
 #include "core/error.h"
@@ -44,6 +45,9 @@ bool all_twinned(const Mesh& m) {
   return true;
 }
 
+void expect_single_flip_repaired(std::size_t bad);
+void expect_majority_wins(std::size_t first);
+
 IndexedSoup flipped(IndexedSoup soup, const std::vector<std::size_t>& faces) {
   for (std::size_t f : faces) std::swap(soup.triangles[f][1], soup.triangles[f][2]);
   return soup;
@@ -61,8 +65,15 @@ TEST(BuildMesh, ReportsInputCounts) {
 }
 
 TEST(BuildMesh, FlippedFacetIsReorientedAndCounted) {
+  for (std::size_t bad : {0u, 5u, 11u}) {  // 0: whichever facet a walk may start from
+    SCOPED_TRACE("flipped facet " + std::to_string(bad));
+    expect_single_flip_repaired(bad);
+  }
+}
+
+void expect_single_flip_repaired(std::size_t bad) {
   const IndexedSoup good = cube_soup(2.0);
-  const IndexedSoup soup = flipped(good, {5});
+  const IndexedSoup soup = flipped(good, {bad});
   ASSERT_EQ(count_inconsistent_edges(soup), 3u);
   const IngestResult r = build_mesh(soup);
   EXPECT_EQ(r.mesh.check_invariants(), "");
@@ -76,10 +87,18 @@ TEST(BuildMesh, FlippedFacetIsReorientedAndCounted) {
 }
 
 TEST(BuildMesh, MajorityOrientationWins) {
-  // 15 of 20 facets inward: the 5 outward ones are the minority and get flipped.
+  // 15 of 20 facets inward: the 5 outward ones are the minority and get flipped, whether
+  // or not facet 0 is among them.
+  for (std::size_t first : {0u, 5u}) {
+    SCOPED_TRACE("inward facets " + std::to_string(first) + ".." + std::to_string(first + 14));
+    expect_majority_wins(first);
+  }
+}
+
+void expect_majority_wins(std::size_t first) {
   const IndexedSoup good = icosahedron_soup();
   std::vector<std::size_t> many;
-  for (std::size_t f = 0; f < 15; ++f) many.push_back(f);
+  for (std::size_t f = first; f < first + 15; ++f) many.push_back(f);
   const IndexedSoup soup = flipped(good, many);
   std::vector<std::size_t> all;
   for (std::size_t f = 0; f < 20; ++f) all.push_back(f);

@@ -71,6 +71,8 @@ TEST(Features, ThresholdIsStrict) {
     EXPECT_NEAR(dihedral_angle_deg(m, EdgeId(e)), angle, 1e-9);
   EXPECT_EQ(features_of(m, 70.0).num_sharp_edges(), 12u);
   EXPECT_EQ(features_of(m, 71.0).num_sharp_edges(), 0u);
+  EXPECT_EQ(features_of(m, angle - 0.01).num_sharp_edges(), 12u);
+  EXPECT_EQ(features_of(m, angle + 0.01).num_sharp_edges(), 0u);
   EXPECT_EQ(features_of(m, 70.0).count(VertexKind::Corner), 6u);
 }
 
