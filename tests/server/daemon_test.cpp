@@ -13,10 +13,13 @@
 #include <atomic>
 #include <chrono>
 #include <csignal>
+#include <filesystem>
+#include <fstream>
 #include <limits>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -31,7 +34,7 @@ namespace {
 using namespace std::chrono_literals;
 using test::RawResponse;
 
-constexpr std::size_t kMaxBody = 64 * 1024;
+constexpr std::size_t kMaxBody = 256 * 1024;
 constexpr std::uint64_t kMaxFaces = 100'000;
 constexpr const char* kGoodTarget = "/v1/refine?scheme=butterfly&levels=2&crease_angle=35";
 
@@ -394,6 +397,37 @@ TEST_F(DaemonTest, FaceBudgetIs422WithThePrediction) {
       "budget-exceeded");
   EXPECT_EQ(j.value("predicted_faces", 0u), 128u);
   EXPECT_EQ(j.value("max_faces", 0u), 100u);
+  expect_good_request_still_works();
+}
+
+TEST_F(DaemonTest, SharedMalformedFilesAre200Or422NeverWorse) {
+  const std::filesystem::path dir = std::filesystem::path(STLREFINE_TEST_DATA_DIR) / "malformed";
+  if (!std::filesystem::is_directory(dir)) GTEST_SKIP() << dir << " is absent";
+  int files = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+    if (entry.path().extension() != ".stl") continue;
+    SCOPED_TRACE(entry.path().filename().string());
+    ++files;
+    std::ifstream in(entry.path(), std::ios::binary);
+    std::stringstream bytes;
+    bytes << in.rdbuf();
+    const RawResponse r =
+        request(test::post_text(refine_target("levels=1"), "model/stl", bytes.str()));
+    if (r.status == 200) {
+      const auto report = nlohmann::json::parse(r.header("x-stlrefine-report"));
+      EXPECT_EQ(test::read_binary_stl(r.body).size(),
+                4 * report.at("input").at("faces").get<std::size_t>());
+    } else {
+      ASSERT_EQ(r.status, 422) << r.body;
+      const auto j = nlohmann::json::parse(r.body);
+      const std::string type = j.value("type", "");
+      if (type == "urn:stlrefine:problem:malformed-stl")
+        EXPECT_TRUE(j.contains("byte_offset") || j.contains("line")) << r.body;
+      else
+        EXPECT_EQ(type, "urn:stlrefine:problem:not-triangle-mesh") << r.body;
+    }
+  }
+  EXPECT_GT(files, 0);
   expect_good_request_still_works();
 }
 
