@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 #include <httplib.h>
+#include <sys/socket.h>
 #include <zlib.h>
 
 #include <atomic>
@@ -270,6 +271,20 @@ TEST(Httplib0114, ExpectContinueHandlerCanAnswerInsteadOf100) {
   // that reads to the close gets it. Hence the daemon sets Content-Length there itself.
   EXPECT_FALSE(responses[0].has_header("content-length"));
   EXPECT_EQ(responses[0].body, "too big");
+}
+
+// The default socket options set SO_REUSEPORT: a second server binds a port already in
+// use, and the kernel splits the connections between the two.
+TEST(Httplib0114, DefaultSocketOptionsLetASecondServerBindTheSamePort) {
+  BareServer first([](httplib::Server&) {});
+  httplib::Server second;
+  EXPECT_TRUE(second.bind_to_port("127.0.0.1", first.port()));
+  httplib::Server strict;
+  strict.set_socket_options([](socket_t sock) {
+    int yes = 1;
+    ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
+  });
+  EXPECT_FALSE(strict.bind_to_port("127.0.0.1", first.port()));
 }
 
 }  // namespace
