@@ -1,0 +1,248 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+//
+// LSF (spec section 5 and 7): test vectors, interpolation, linear precision, the
+// equivalence with the modified butterfly's irregular rule on equiangular rings, the
+// 1-D crease rule, and crease preservation.
+
+#include "core/schemes/lsf.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "core/schemes/butterfly.h"
+#include "core/schemes/crease_rules.h"
+#include "tests/core/test_util.h"
+#include "tests/support/mesh_queries.h"
+#include "tests/support/shapes.h"
+
+namespace stlrefine {
+namespace {
+
+using namespace test;
+
+Level level_of(const IndexedSoup& soup, double crease_angle = 35.0) {
+  return make_level(to_mesh(soup), crease_angle);
+}
+
+TEST(LsfScheme, IsRegisteredAndInterpolating) {
+  const auto scheme = make_scheme("lsf");
+  EXPECT_EQ(scheme->name(), "lsf");
+  EXPECT_TRUE(scheme->interpolating());
+  EXPECT_EQ(scheme->predict_faces(10, 2), 160u);
+}
+
+TEST(LsfScheme, OctahedronEdgePointMatchesSpec) {
+  const Level coarse = level_of(octahedron_soup(), 180.0);
+  const Level fine = refine_level("lsf", coarse);
+  // Valence 4 needs the damping (mu = 1e-9), which biases the fit by O(mu): 1e-9, not 1e-12.
+  constexpr double kDampingBias = 1e-9;
+  for (std::size_t v = coarse.mesh.num_vertices(); v < fine.mesh.num_vertices(); ++v) {
+    const Vec3 p = fine.mesh.position(VertexId(static_cast<std::uint32_t>(v)));
+    EXPECT_NEAR(norm(p), 5.0 * std::sqrt(2.0) / 8.0, kDampingBias);
+    // Each edge point is (5/8, 5/8, 0) up to the octahedron's symmetries.
+    const double coords[3] = {std::abs(p.x), std::abs(p.y), std::abs(p.z)};
+    int zeros = 0, fives = 0;
+    for (double c : coords) zeros += c < kDampingBias, fives += std::abs(c - 0.625) < kDampingBias;
+    EXPECT_EQ(zeros, 1);
+    EXPECT_EQ(fives, 2);
+  }
+}
+
+TEST(LsfScheme, IcosahedronEdgePointRadiusEqualsButterfly) {
+  const Level coarse = level_of(icosahedron_soup(), 180.0);
+  const Level fine = refine_level("lsf", coarse);
+  for (std::size_t v = coarse.mesh.num_vertices(); v < fine.mesh.num_vertices(); ++v)
+    EXPECT_NEAR(norm(fine.mesh.position(VertexId(static_cast<std::uint32_t>(v)))), 0.968208, 5e-7);
+}
+
+TEST(LsfScheme, TetrahedronWithDampingGivesTwoThirdsOfTheEdgeSum) {
+  // Valence 3: S^T S is singular; the damped fit must reproduce MB's k = 3 rule.
+  const Level coarse = level_of(tetrahedron_soup(), 180.0);
+  const Level fine = refine_level("lsf", coarse);
+  const Mesh& m = coarse.mesh;
+  for (std::uint32_t e = 0; e < m.num_edges(); ++e) {
+    const HalfedgeId h = m.halfedge(EdgeId(e));
+    const Vec3 expected = (2.0 / 3.0) * (m.position(m.from(h)) + m.position(m.to(h)));
+    EXPECT_VEC_NEAR(fine.mesh.position(edge_vertex(m, EdgeId(e))), expected, 1e-6);
+  }
+}
+
+TEST(LsfScheme, KeepsInputVerticesBitIdentical) {
+  const Level coarse = level_of(cylinder_soup(12, 10.0, 30.0));
+  const Level fine = refine_levels("lsf", coarse, 3);
+  for (std::uint32_t v = 0; v < coarse.mesh.num_vertices(); ++v)
+    EXPECT_EQ(fine.mesh.position(VertexId(v)), coarse.mesh.position(VertexId(v)));
+}
+
+TEST(LsfScheme, PlanarFanWithUnevenAnglesGivesExactMidpoints) {
+  // An isometric parameterisation of a planar fan makes every fit the plane itself.
+  IndexedSoup soup;
+  soup.positions.push_back({0, 0, 0});
+  const double angles[] = {0.0, 0.7, 1.1, 2.3, 3.0, 3.9, 4.4, 5.6};
+  const double radii[] = {1.0, 2.0, 0.5, 1.5, 1.2, 0.8, 2.5, 1.1};
+  for (int i = 0; i < 8; ++i)
+    soup.positions.push_back({radii[i] * std::cos(angles[i]), radii[i] * std::sin(angles[i]), 0});
+  for (std::uint32_t i = 0; i < 8; ++i) soup.triangles.push_back({0, 1 + i, 1 + (i + 1) % 8});
+  // The centre's fan is isometric (angles sum to 2 pi): its one-sided estimates are the
+  // exact midpoints. (The ring vertices are boundary vertices whose sectors are scaled to
+  // pi, so whole edge points are not midpoints; planarity is tested below.)
+  const Level level = level_of(soup);
+  const Mesh& m = level.mesh;
+  const VertexId centre = find_vertex(m, {0, 0, 0});
+  BigVector<Vec3> estimate(m.num_halfedges());
+  LsfStencil::half_edge_estimates(m, level.features, centre, estimate);
+  for (HalfedgeId h : outgoing(m, centre)) {
+    const Vec3 mid = 0.5 * (m.position(centre) + m.position(m.to(h)));
+    EXPECT_VEC_NEAR(estimate[h.idx], mid, 1e-12);
+  }
+}
+
+TEST(LsfScheme, CoplanarInputStaysCoplanar) {
+  const Level coarse = level_of(grid_soup(6, 5, {0, 0, 2}, {1, 0.3, 0}, {0.2, 1, 0}));
+  const Level fine = refine_levels("lsf", coarse, 2);
+  for (const Vec3& p : fine.mesh.positions()) EXPECT_NEAR(p.z, 2.0, 1e-12);
+}
+
+// On an equiangular, equal-length ring the one-sided LSF rule is Zorin's irregular rule
+// 3/4 v + sum s_j e_j (spec 5, properties), for every valence >= 5 and, with the damping,
+// for 3 and 4.
+class LsfEquiangular : public ::testing::TestWithParam<int> {};
+
+TEST_P(LsfEquiangular, OneSidedRuleEqualsModifiedButterfly) {
+  const int n = GetParam();
+  // A cone: apex above a regular n-gon, so the estimate is not just the chord midpoint.
+  const Level level = level_of(fan_soup(n, 0.6), 180.0);
+  const Mesh& m = level.mesh;
+  BigVector<Vec3> estimate(m.num_halfedges());
+  const VertexId centre(0);
+  LsfStencil::half_edge_estimates(m, level.features, centre, estimate);
+  const std::vector<HalfedgeId> spokes = outgoing(m, centre);
+  ASSERT_EQ(static_cast<int>(spokes.size()), n);
+  for (HalfedgeId h : spokes) {
+    Vec3 expected = 0.75 * m.position(centre);
+    for_each_ring_vertex_from(m, h, [&](int j, VertexId w) {
+      expected += ButterflyStencil::extraordinary_weight(n, j) * m.position(w);
+    });
+    EXPECT_VEC_NEAR(estimate[h.idx], expected, 1e-6) << "valence " << n;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Valences, LsfEquiangular, ::testing::Values(3, 4, 5, 7, 8, 12));
+
+TEST(LsfCurveRule, EqualChordsGiveExactlyTheFourPointRule) {
+  // The boundary of a regular fan lies on a circle with equal chords: the chord-length
+  // quadratics must give -1/16, 9/16, 9/16, -1/16 (spec 5 gap 3), which is not the midpoint.
+  const int n = 10;
+  const Level coarse = level_of(fan_soup(n, 0.0));
+  const Level fine = refine_level("lsf", coarse);
+  auto P = [&](int i) { return coarse.mesh.position(VertexId(1 + ((i % n) + n) % n)); };
+  for (int i = 0; i < n; ++i) {
+    const EdgeId e = find_edge(coarse.mesh, VertexId(1 + i), VertexId(1 + (i + 1) % n));
+    ASSERT_TRUE(e.valid());
+    const Vec3 expected =
+        -0.0625 * P(i - 1) + 0.5625 * P(i) + 0.5625 * P(i + 1) - 0.0625 * P(i + 2);
+    EXPECT_VEC_NEAR(fine.mesh.position(edge_vertex(coarse.mesh, e)), expected, 1e-14);
+  }
+}
+
+TEST(LsfCurveRule, StraightCreaseWithUnevenSpacingGivesTheMidpoint) {
+  // Collinear curve points with uneven spacing: the chord-length quadratic is a line.
+  IndexedSoup soup;
+  const double xs[] = {0.0, 0.3, 1.5, 1.9, 4.0};
+  for (double x : xs) soup.positions.push_back({x, 0, 0});
+  for (double x : xs) soup.positions.push_back({x, 1, 0.2 * x * x});
+  for (std::uint32_t i = 0; i + 1 < 5; ++i) {
+    soup.triangles.push_back({i, i + 1, 5 + i + 1});
+    soup.triangles.push_back({i, 5 + i + 1, 5 + i});
+  }
+  const Level coarse = level_of(soup);
+  const Level fine = refine_level("lsf", coarse);
+  for (int i = 1; i + 2 < 5; ++i) {
+    const EdgeId e = find_edge(coarse.mesh, find_vertex(coarse.mesh, {xs[i], 0, 0}),
+                               find_vertex(coarse.mesh, {xs[i + 1], 0, 0}));
+    ASSERT_TRUE(e.valid());
+    const Vec3 p = fine.mesh.position(edge_vertex(coarse.mesh, e));
+    EXPECT_VEC_NEAR(p, Vec3(0.5 * (xs[i] + xs[i + 1]), 0, 0), 1e-12);
+  }
+}
+
+TEST(LsfScheme, CubeKeepsItsEdgesAndFacesExactly) {
+  const Level coarse = level_of(cube_soup(2.0));
+  const Level fine = refine_levels("lsf", coarse, 2);
+  // Every vertex of the refined cube lies on the cube's surface: one coordinate is 0 or 2
+  // and the others in [0, 2] (faces stay planar, edges straight, corners fixed).
+  for (const Vec3& p : fine.mesh.positions()) {
+    const double c[3] = {p.x, p.y, p.z};
+    int on_face = 0;
+    for (double x : c) {
+      EXPECT_GE(x, -1e-12);
+      EXPECT_LE(x, 2.0 + 1e-12);
+      on_face += std::abs(x) < 1e-12 || std::abs(x - 2.0) < 1e-12;
+    }
+    EXPECT_GE(on_face, 1) << test::str(p);
+  }
+}
+
+TEST(LsfScheme, CylinderCapsStayPlanarAndRimsStayOnTheirPlanes) {
+  const Level coarse = level_of(cylinder_soup(16, 10.0, 20.0));
+  const Level fine = refine_levels("lsf", coarse, 2);
+  std::size_t near_caps = 0;
+  for (const Vec3& p : fine.mesh.positions()) {
+    const double r = std::hypot(p.x, p.y);
+    if (std::abs(p.z) < 1e-9 || std::abs(p.z - 20.0) < 1e-9) {
+      ++near_caps;
+      EXPECT_LE(r, 10.0 + 1e-9);  // the cap never bulges beyond the rim circle
+    } else {
+      EXPECT_GT(p.z, 0.0);
+      EXPECT_LT(p.z, 20.0);
+    }
+  }
+  EXPECT_GT(near_caps, 0u);
+}
+
+TEST(LsfScheme, WatertightInWatertightOutAndFacesTimesFour) {
+  const Level coarse = level_of(torus_soup(12, 8, 15.0, 5.0));
+  const Level fine = refine_levels("lsf", coarse, 2);
+  EXPECT_EQ(fine.mesh.num_faces(), 16 * coarse.mesh.num_faces());
+  EXPECT_EQ(fine.mesh.check_invariants(), "");
+  for (std::uint32_t h = 0; h < fine.mesh.num_halfedges(); ++h)
+    EXPECT_FALSE(fine.mesh.is_boundary(HalfedgeId(h)));
+}
+
+TEST(LsfScheme, IsTranslationInvariant) {
+  const IndexedSoup soup = icosphere_soup(1, 3.0);
+  const Vec3 t{100.0, -40.0, 7.5};
+  const Level a = refine_levels("lsf", level_of(soup), 2);
+  const Level b = refine_levels("lsf", level_of(translated(soup, t)), 2);
+  ASSERT_EQ(a.mesh.num_vertices(), b.mesh.num_vertices());
+  for (std::uint32_t v = 0; v < a.mesh.num_vertices(); ++v)
+    EXPECT_VEC_NEAR(b.mesh.position(VertexId(v)), a.mesh.position(VertexId(v)) + t, 1e-10);
+}
+
+TEST(QuadricFit, ReproducesAQuadraticGraphOnExactParameters) {
+  // With the true (u, v) parameters, a quadratic graph is fitted exactly (n >= 5).
+  const Vec3 origin{1, 2, 3};
+  std::vector<Vec3> pts;
+  std::vector<std::array<double, 2>> prm;
+  for (int i = 0; i < 7; ++i) {
+    const double u = std::cos(0.9 * i) * (1 + 0.1 * i), v = std::sin(0.9 * i) * (1 + 0.1 * i);
+    prm.push_back({u, v});
+    pts.push_back(origin + Vec3(u, v, 0.5 * u * u - 0.25 * u * v + 0.75 * v * v));
+  }
+  const QuadricFit fit = fit_quadric(origin, pts, prm);
+  ASSERT_TRUE(fit.valid);
+  EXPECT_VEC_NEAR(fit.evaluate(0.3, -0.2),
+                  origin + Vec3(0.3, -0.2, 0.5 * 0.09 + 0.25 * 0.06 + 0.75 * 0.04), 1e-6);
+}
+
+TEST(QuadricFit, RejectsACollinearSample) {
+  std::vector<Vec3> pts = {{1, 0, 0}, {2, 0, 0}, {-1, 0, 0}};
+  std::vector<std::array<double, 2>> prm = {{1, 0}, {2, 0}, {-1, 0}};
+  EXPECT_FALSE(fit_quadric({0, 0, 0}, pts, prm).valid);
+}
+
+}  // namespace
+}  // namespace stlrefine
