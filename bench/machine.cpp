@@ -6,6 +6,7 @@
 #include <sys/mman.h>
 #include <sys/utsname.h>
 #include <tbb/version.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -102,6 +103,32 @@ double load_average_1min() {
   double a = -1;
   in >> a;
   return a;
+}
+
+bool cpu_times(double& idle_seconds, double& total_seconds) {
+  std::ifstream in("/proc/stat");
+  std::string cpu;
+  in >> cpu;
+  if (cpu != "cpu") return false;
+  double idle = 0, total = 0;
+  for (int i = 0; i < 8; ++i) {  // user nice system idle iowait irq softirq steal
+    double v = 0;
+    if (!(in >> v)) return false;
+    total += v;
+    if (i == 3 || i == 4) idle += v;
+  }
+  const double hz = double(::sysconf(_SC_CLK_TCK));
+  idle_seconds = idle / hz;
+  total_seconds = total / hz;
+  return true;
+}
+
+double cpu_idle_fraction(double seconds) {
+  double idle0 = 0, total0 = 0, idle1 = 0, total1 = 0;
+  if (!cpu_times(idle0, total0)) return -1;
+  ::usleep(useconds_t(seconds * 1e6));
+  if (!cpu_times(idle1, total1) || total1 <= total0) return -1;
+  return (idle1 - idle0) / (total1 - total0);
 }
 
 long mem_available_kb() {

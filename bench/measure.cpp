@@ -19,6 +19,8 @@
 #include <iostream>
 #include <string>
 
+#include "bench/machine.h"
+
 namespace stlrefine::bench {
 namespace {
 
@@ -145,6 +147,8 @@ Outcome run_in_child(const std::function<Sample()>& body, int timeout_seconds) {
   std::cerr.flush();
   std::fflush(nullptr);
 
+  double idle0 = 0, total0 = 0;
+  const bool have_times = cpu_times(idle0, total0);
   int fds[2];
   if (::pipe(fds) != 0) {
     outcome.failure = std::string("pipe: ") + std::strerror(errno);
@@ -189,7 +193,15 @@ Outcome run_in_child(const std::function<Sample()>& body, int timeout_seconds) {
   }
   ::close(fds[0]);
   int status = 0;
-  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  rusage child{};
+  while (::wait4(pid, &status, 0, &child) < 0 && errno == EINTR) {
+  }
+  double idle1 = 0, total1 = 0;
+  if (have_times && cpu_times(idle1, total1) && total1 > total0) {
+    const auto to_s = [](const timeval& t) { return double(t.tv_sec) + 1e-6 * double(t.tv_usec); };
+    const double child_cpu = to_s(child.ru_utime) + to_s(child.ru_stime);
+    const double busy = (total1 - total0) - (idle1 - idle0);
+    outcome.others_busy = std::max(0.0, (busy - child_cpu) / (total1 - total0));
   }
 
   if (WIFSIGNALED(status)) {

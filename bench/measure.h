@@ -58,6 +58,9 @@ struct Outcome {
   bool ok = false;
   Sample sample;
   std::string failure;  //!< "exception: ...", "crashed (signal 11, Segmentation fault)", ...
+  //! Share of all CPUs' time that other processes used while the child ran (its own CPU
+  //! time taken out); negative when unknown. Our measure of interference.
+  double others_busy = -1;
 };
 
 //! Forks; the child runs body() and sends its Sample through a pipe. A child that throws,

@@ -53,8 +53,8 @@ struct Options {
   int timeout = 1800;
   double crease_angle = 35;
   bool no_read = false, no_refine = false, no_pipeline = false;
-  double quiet_load = 0;
-  int quiet_wait = 600;
+  double idle = 0.85;
+  int idle_wait = 180;
   fs::path tmp_dir = "/tmp/stlrefine_bench";
   fs::path warmup_mesh;  //!< written into tmp_dir at start
 };
@@ -99,6 +99,10 @@ std::string cell(std::string text) {
   return text;
 }
 
+std::string percent(double fraction) {
+  return fraction < 0 ? "?" : std::to_string(int(std::lround(fraction * 100))) + "%";
+}
+
 std::uint64_t stl_bytes(std::uint64_t faces) {
   return 84 + 50 * faces;
 }
@@ -113,6 +117,7 @@ struct Aggregate {
   Sample first;                      //!< sample of the first repetition (counts, notes)
   long peak_kb = 0, base_kb = 0;
   double cpu_ratio = 0;
+  double others_busy = 0;  //!< most CPU share other processes took during a repetition
   bool peak_reset = true;
 
   double median_s() const { return median(seconds); }
@@ -123,6 +128,7 @@ struct Aggregate {
 };
 
 void add_outcome(Aggregate& agg, const Outcome& outcome) {
+  agg.others_busy = std::max(agg.others_busy, outcome.others_busy);
   if (!outcome.ok) {
     if (agg.failure.empty()) agg.failure = outcome.failure;
     agg.ok = false;
@@ -254,14 +260,17 @@ void warm_page_cache(const fs::path& path) {
   }
 }
 
-void wait_until_quiet(const Options& opt) {
-  if (opt.quiet_load <= 0) return;
+//! Before each measured process: waits (up to --idle-wait s) until the CPUs were at least
+//! --idle idle over one second, so other users' work does not land in our timings.
+//! Returns the last idle fraction seen.
+double wait_until_idle(const Options& opt) {
+  if (opt.idle <= 0) return -1;
   const double start = now_seconds();
-  while (load_average_1min() > opt.quiet_load && now_seconds() - start < opt.quiet_wait) {
-    std::cerr << "waiting for load " << load_averages() << " to drop below " << opt.quiet_load
-              << '\n';
-    ::sleep(10);
+  double idle = cpu_idle_fraction(1.0);
+  while (idle >= 0 && idle < opt.idle && now_seconds() - start < opt.idle_wait) {
+    idle = cpu_idle_fraction(2.0);
   }
+  return idle;
 }
 
 // ------------------------------------------------------------------------- cases
@@ -382,6 +391,17 @@ void decide_skip(const Options& opt, RefineCase& c, std::uint64_t in_faces,
   }
 }
 
+//! One repetition of one case: waits for idle CPUs, runs it in a child, records it.
+Outcome measure_case(const Options& opt, const Maker& maker, const fs::path& path,
+                     Aggregate& result) {
+  wait_until_idle(opt);
+  const Outcome outcome = run_in_child(
+      [&] { return measure_job(maker(path), maker(opt.warmup_mesh), opt.min_time, opt.max_runs); },
+      opt.timeout);
+  add_outcome(result, outcome);
+  return outcome;
+}
+
 void run_reads(const Options& opt, InputResult& input) {
   const auto ours = [](OurRead variant) {
     return [variant](const fs::path& path) { return ours_read_job(path, variant); };
@@ -400,13 +420,7 @@ void run_reads(const Options& opt, InputResult& input) {
   for (int rep = 0; rep < opt.reps; ++rep) {
     for (ReadCase& c : input.reads) {
       if (rep > 0 && !c.result.ok) continue;
-      const Outcome outcome = run_in_child(
-          [&] {
-            return measure_job(c.maker(input.path), c.maker(opt.warmup_mesh), opt.min_time,
-                               opt.max_runs);
-          },
-          opt.timeout);
-      add_outcome(c.result, outcome);
+      const Outcome outcome = measure_case(opt, c.maker, input.path, c.result);
       std::cerr << "  [" << input.name << "] read " << c.label << " rep " << rep + 1 << '/'
                 << opt.reps << ": "
                 << (outcome.ok ? fixed(outcome.sample.seconds, 4) + " s" : outcome.failure) << '\n';
@@ -429,13 +443,7 @@ void run_refines(const Options& opt, InputResult& input) {
       for (std::size_t i = begin; i < input.refines.size(); ++i) {
         RefineCase& c = input.refines[i];
         if (c.skipped || (rep > 0 && !c.result.ok)) continue;
-        const Outcome outcome = run_in_child(
-            [&] {
-              return measure_job(c.maker(input.path), c.maker(opt.warmup_mesh), opt.min_time,
-                                 opt.max_runs);
-            },
-            opt.timeout);
-        add_outcome(c.result, outcome);
+        const Outcome outcome = measure_case(opt, c.maker, input.path, c.result);
         std::cerr << "  [" << input.name << " L" << level << "] " << c.label << " t" << c.threads
                   << " rep " << rep + 1 << '/' << opt.reps << ": "
                   << (outcome.ok ? fixed(outcome.sample.seconds, 4) + " s, peak " +
@@ -520,12 +528,12 @@ void print_input(std::ostream& out, const InputResult& input, const Options& opt
     out << "\n**Binary STL read** (MB = 10^6 bytes of file per wall second, median of " << opt.reps
         << " processes, first call in each; page cache warm):\n\n";
     out << "| reader | reads from | MB/s | median s | warm MB/s | faces | vertices "
-           "| peak RSS MiB | note |\n";
-    out << "|---|---|--:|--:|--:|--:|--:|--:|---|\n";
+           "| peak RSS MiB | others' CPU | note |\n";
+    out << "|---|---|--:|--:|--:|--:|--:|--:|--:|---|\n";
     for (const ReadCase& c : input.reads) {
       out << "| " << c.label << " | " << c.source << " | ";
       if (!c.result.ok) {
-        out << "— | — | — | — | — | — | **" << cell(c.result.failure) << "** |\n";
+        out << "— | — | — | — | — | — | — | **" << cell(c.result.failure) << "** |\n";
         continue;
       }
       const Sample& s = c.result.first;
@@ -533,7 +541,7 @@ void print_input(std::ostream& out, const InputResult& input, const Options& opt
       out << fixed(mb / c.result.median_s(), 1) << " | " << sig3(c.result.median_s()) << " | "
           << (c.result.has_warm() ? fixed(mb / c.result.warm_median_s(), 1) : "—") << " | "
           << group(s.out_faces) << " | " << group(s.out_vertices) << " | " << mib(c.result.peak_kb)
-          << " | " << cell(s.note) << " |\n";
+          << " | " << percent(c.result.others_busy) << " | " << cell(s.note) << " |\n";
     }
   }
 
@@ -545,19 +553,19 @@ void print_input(std::ostream& out, const InputResult& input, const Options& opt
         << " s; peak RSS of the cold run, base = RSS with the input loaded; "
            "ratio = peak / (input + output binary STL bytes)):\n\n";
     out << "| L | algorithm | thr | out tris | M tris/s | median s (min–max) | warm M tris/s "
-           "| vs peer (1 thr) | peak MiB | base MiB | Δ MiB | ratio | CPU/wall | convert s "
-           "| note |\n";
-    out << "|--:|---|--:|--:|--:|--:|--:|---|--:|--:|--:|--:|--:|--:|---|\n";
+           "| vs peer (1 thr) | peak MiB | base MiB | Δ MiB | ratio | CPU/wall | others' CPU "
+           "| convert s | note |\n";
+    out << "|--:|---|--:|--:|--:|--:|--:|---|--:|--:|--:|--:|--:|--:|--:|---|\n";
     for (const RefineCase& c : input.refines) {
       out << "| " << c.level << " | " << c.label << " | " << c.threads << " | ";
       if (c.skipped) {
         out << group(input.info.out_faces << (2 * c.level))
-            << " | — | — | — | — | — | — | — | — | — | — | — | skipped: " << cell(c.skip_reason)
+            << " | — | — | — | — | — | — | — | — | — | — | — | — | skipped: " << cell(c.skip_reason)
             << " |\n";
         continue;
       }
       if (!c.result.ok) {
-        out << "— | — | — | — | — | — | — | — | — | — | — | **" << cell(c.result.failure)
+        out << "— | — | — | — | — | — | — | — | — | — | — | — | **" << cell(c.result.failure)
             << "** |\n";
         continue;
       }
@@ -574,8 +582,8 @@ void print_input(std::ostream& out, const InputResult& input, const Options& opt
           << (r.has_warm() ? fixed(warm_rate(c) / 1e6, 2) : "—") << " | " << speedup_text(input, c)
           << " | " << mib(r.peak_kb) << " | " << mib(r.base_kb) << " | "
           << mib(r.peak_kb - r.base_kb) << " | " << fixed(rss_ratio(input, c), 2) << " | "
-          << fixed(r.cpu_ratio, 2) << " | " << (c.ours ? std::string("—") : sig3(s.convert_seconds))
-          << " | " << cell(note) << " |\n";
+          << fixed(r.cpu_ratio, 2) << " | " << percent(r.others_busy) << " | "
+          << (c.ours ? std::string("—") : sig3(s.convert_seconds)) << " | " << cell(note) << " |\n";
     }
   }
 }
@@ -667,7 +675,11 @@ int run(Options opt, const std::string& command_line) {
          "creases at "
       << opt.crease_angle
       << "° and applies crease rules; the peers' uniform schemes do not. CPU/wall = CPU "
-         "time of the process (all threads) / wall time of the first run.\n";
+         "time of the process (all threads) / wall time of the first run. Others' CPU = the "
+         "largest share of all CPU time that other processes used while a repetition's "
+         "process ran (interference; each process starts only after the CPUs were "
+      << int(opt.idle * 100) << "% idle for a second, waiting at most " << opt.idle_wait
+      << " s).\n";
   out.flush();
 
   std::vector<InputResult> inputs;
@@ -682,7 +694,6 @@ int run(Options opt, const std::string& command_line) {
       continue;
     }
     input.file_bytes = fs::file_size(input.path);
-    wait_until_quiet(opt);
     input.load_before = load_averages();
     std::cerr << "[" << name << "] " << input.path << ", load " << input.load_before << '\n';
 
@@ -752,10 +763,11 @@ int main(int argc, char** argv) {
   app.add_flag("--no-read", opt.no_read, "Skip the STL read comparison");
   app.add_flag("--no-refine", opt.no_refine, "Skip the refinement comparison");
   app.add_flag("--no-pipeline", opt.no_pipeline, "Skip the whole-request rows");
-  app.add_option("--quiet-load", opt.quiet_load,
-                 "Before each input, wait until the 1-min load average is below this (0: off)")
+  app.add_option("--idle", opt.idle,
+                 "Before each measured process, wait until this share of all CPU time was "
+                 "idle over a second (0: do not wait)")
       ->capture_default_str();
-  app.add_option("--quiet-wait", opt.quiet_wait, "Longest wait for --quiet-load (s)")
+  app.add_option("--idle-wait", opt.idle_wait, "Longest wait for --idle (s), then run anyway")
       ->capture_default_str();
   app.add_option("--tmp-dir", tmp_dir, "Where .gz inputs are unpacked")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
