@@ -165,8 +165,16 @@ std::string media_type(const std::string& content_type) {
   return lowercase(v);
 }
 
+// Parameters come from the query string only. httplib also decodes an
+// application/x-www-form-urlencoded *body* into req.params, which for us is STL bytes.
 api::RawParams raw_params(const Request& req) {
-  return api::RawParams(req.params.begin(), req.params.end());
+  const std::string& target = req.target;
+  const std::size_t q = target.find('?');
+  api::RawParams params;
+  if (q == std::string::npos) return params;
+  httplib::Params parsed;
+  httplib::detail::parse_query_text(target.substr(q + 1), parsed);
+  return api::RawParams(parsed.begin(), parsed.end());
 }
 
 // One write per line: worker threads log concurrently, and a line built with several <<
@@ -191,7 +199,7 @@ struct Daemon::Impl {
   //! The body for an answer httplib made itself (status set, body empty).
   api::Problem library_problem(int status, const Request& req) const;
   void respond(Response& res, const api::Problem& problem) const;
-  void compute(const Request& req, Response& res, const Route& route);
+  void compute(const Request& req, std::string_view body, Response& res, const Route& route);
   void readyz(Response& res) const;
 
   DaemonConfig config;
@@ -268,7 +276,11 @@ std::optional<api::Problem> Daemon::Impl::precheck(const Request& req) const {
     return p;
   }
   const std::string type = media_type(req.get_header_value("Content-Type"));
-  if (type != "model/stl" && type != "application/octet-stream") {
+  // curl --data-binary labels the body application/x-www-form-urlencoded unless told
+  // otherwise. The bytes arrive unchanged and are never form-decoded, so the plain
+  // `curl --data-binary @part.stl URL` a user types is accepted as raw STL.
+  if (type != "model/stl" && type != "application/octet-stream" &&
+      type != "application/x-www-form-urlencoded") {
     api::Problem p =
         make_problem(415, "unsupported-media-type",
                      "Content-Type must be model/stl or application/octet-stream, not '" +
@@ -317,12 +329,13 @@ void Daemon::Impl::respond(Response& res, const api::Problem& problem) const {
   send_problem(res, problem);
 }
 
-void Daemon::Impl::compute(const Request& req, Response& res, const Route& route) {
+void Daemon::Impl::compute(const Request& req, std::string_view raw_body, Response& res,
+                           const Route& route) {
   if (config.test_hook) config.test_hook(route.path);
   try {
     // Parsed again (cheap): the pre-routing check only validated.
     const auto body =
-        std::span(reinterpret_cast<const std::uint8_t*>(req.body.data()), req.body.size());
+        std::span(reinterpret_cast<const std::uint8_t*>(raw_body.data()), raw_body.size());
     const bool refine = route.path == std::string_view("/v1/refine");
     std::optional<api::RefineRequest> refine_request;
     std::optional<api::InfoRequest> info_request;
@@ -425,8 +438,24 @@ void Daemon::Impl::install() {
 
   for (const Route& route : kRoutes) {
     if (route.compute) {
-      http.Post(route.path,
-                [this, &route](const Request& req, Response& res) { compute(req, res, route); });
+      // A content-reader route gets the body bytes as sent (payload limit still applied).
+      // httplib's default reader would form-decode an application/x-www-form-urlencoded
+      // body (curl's default label) and refuse it above 8 KiB.
+      http.Post(route.path, [this, &route](const Request& req, Response& res,
+                                           const httplib::ContentReader& reader) {
+        // Content-Length was validated by the pre-routing check (one number, under the cap).
+        const std::string length_text = req.get_header_value("Content-Length");
+        std::uint64_t length = 0;
+        std::from_chars(length_text.data(), length_text.data() + length_text.size(), length);
+        std::string body;
+        body.reserve(
+            static_cast<std::size_t>(std::min<std::uint64_t>(length, config.max_body_bytes)));
+        reader([&](const char* data, std::size_t n) {
+          body.append(data, n);
+          return true;
+        });
+        compute(req, body, res, route);
+      });
     }
   }
   http.Get("/healthz", [this](const Request&, Response& res) {

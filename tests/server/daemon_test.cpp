@@ -232,6 +232,14 @@ TEST_F(DaemonTest, WrongContentTypeIs415) {
   expect_good_request_still_works();
 }
 
+TEST_F(DaemonTest, CurlsDefaultContentTypeIsReadAsRawStl) {
+  // `curl --data-binary @part.stl URL` sends application/x-www-form-urlencoded.
+  const auto r = request(test::post_text(kGoodTarget, "application/x-www-form-urlencoded", input_));
+  ASSERT_EQ(r.status, 200) << r.body;
+  EXPECT_EQ(r.header("content-type"), "model/stl");
+  expect_good_request_still_works();
+}
+
 TEST_F(DaemonTest, AnyContentEncodingIs415) {
   // httplib 0.11.4 would inflate gzip with no limit on the inflated size.
   for (const char* encoding : {"gzip", "br", "deflate", "identity"}) {
