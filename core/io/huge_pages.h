@@ -8,22 +8,16 @@
 // helpers ask for them on the 2 MiB-aligned interior of a fresh buffer. It is only a hint:
 // if the kernel says no, we lose speed, nothing else.
 
-#include <sys/mman.h>
-
 #include <cstddef>
 #include <cstdint>
 #include <vector>
 
+#include "core/mesh/big_vector.h"
+
 namespace stlrefine::io_detail {
 
-constexpr std::size_t kHugePage = std::size_t{2} << 20;
-
-inline void advise_huge_pages(const void* p, std::size_t bytes) {
-  if (bytes < kHugePage) return;
-  const auto begin = (reinterpret_cast<std::uintptr_t>(p) + kHugePage - 1) & ~(kHugePage - 1);
-  const auto end = (reinterpret_cast<std::uintptr_t>(p) + bytes) & ~(kHugePage - 1);
-  if (end > begin) ::madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE);
-}
+using stlrefine::advise_huge_pages;
+constexpr std::size_t kHugePage = HugePageAllocator<char>::kHugePage;
 
 //! v.reserve(n), with huge pages asked for before anything touches the new memory.
 template <class T>

@@ -5,11 +5,22 @@
 #include <sys/mman.h>
 
 #include <cstddef>
+#include <cstdint>
 #include <cstdlib>
 #include <new>
 #include <vector>
 
 namespace stlrefine {
+
+//! Asks for transparent huge pages on the 2 MiB-aligned interior of [p, p + bytes). A hint:
+//! if the kernel says no, only speed is lost.
+inline void advise_huge_pages(const void* p, std::size_t bytes) {
+  constexpr std::size_t kHuge = std::size_t{2} << 20;  // the x86-64 huge page
+  if (bytes < kHuge) return;
+  const auto begin = (reinterpret_cast<std::uintptr_t>(p) + kHuge - 1) & ~(kHuge - 1);
+  const auto end = (reinterpret_cast<std::uintptr_t>(p) + bytes) & ~(kHuge - 1);
+  if (end > begin) ::madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE);
+}
 
 //! Allocator for the mesh's large arrays. Refinement is bound by first-touch page faults
 //! (each level allocates hundreds of MB afresh); asking for transparent huge pages cuts
@@ -32,7 +43,7 @@ struct HugePageAllocator {
     const std::size_t rounded = (bytes + kHugePage - 1) / kHugePage * kHugePage;
     void* p = std::aligned_alloc(kHugePage, rounded);
     if (!p) throw std::bad_alloc();
-    ::madvise(p, rounded, MADV_HUGEPAGE);  // a hint: failure only costs speed
+    advise_huge_pages(p, rounded);
     return static_cast<T*>(p);
   }
   void deallocate(T* p, std::size_t n) noexcept {
