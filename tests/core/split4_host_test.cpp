@@ -10,6 +10,7 @@
 #include <set>
 #include <utility>
 
+#include "core/mesh/build_mesh.h"
 #include "core/mesh/mesh_stats.h"
 #include "tests/core/test_util.h"
 #include "tests/support/mesh_queries.h"
@@ -195,6 +196,38 @@ TEST(Split4Host, FoldGuardPullsBackAFoldingEdgePoint) {
   for (std::uint32_t e = 0; e < m.num_edges(); ++e) {
     if (EdgeId(e) == target) continue;
     EXPECT_EQ(fine.mesh.position(edge_vertex(m, EdgeId(e))), raw[m.num_vertices() + e]);
+  }
+}
+
+// The host derives the fine level's vertex kinds and curve neighbours arithmetically;
+// they must equal a full re-classification of the fine mesh from its sharp flags.
+TEST(Split4Host, DerivedFeaturesEqualAFullReclassification) {
+  IndexedSoup fin = cube_soup(10.0);  // a fin on a cube edge: a non-manifold cut
+  const std::uint32_t tip = static_cast<std::uint32_t>(fin.positions.size());
+  fin.positions.push_back({5.0, -5.0, 10.0});
+  fin.triangles.push_back({0, 1, tip});
+  ASSERT_EQ(build_mesh(fin).report.non_manifold_edges, 1u);
+  for (const IndexedSoup& soup : {cube_soup(2.0), cylinder_soup(12, 5.0, 8.0), grid_soup(5, 4),
+                                  fan_soup(7, 0.5), torus_soup(10, 6, 10.0, 3.0), fin}) {
+    Level level = make_level(to_mesh(soup));
+    for (const char* scheme : {"loop", "butterfly"}) {
+      Level fine = level;
+      for (int i = 0; i < 2; ++i) {
+        fine = refine_level(scheme, fine);
+        const auto flags = fine.features.sharp_edges();
+        const Features full(fine.mesh, BigVector<std::uint8_t>(flags.begin(), flags.end()));
+        ASSERT_EQ(full.num_sharp_edges(), fine.features.num_sharp_edges());
+        for (std::uint32_t v = 0; v < fine.mesh.num_vertices(); ++v) {
+          const VertexId id(v);
+          ASSERT_EQ(full.kind(id), fine.features.kind(id)) << scheme << " vertex " << v;
+          if (full.kind(id) != VertexKind::Crease) continue;
+          auto x = full.curve_neighbours(id), y = fine.features.curve_neighbours(id);
+          if (x[0] != y[0]) std::swap(y[0], y[1]);
+          EXPECT_EQ(x[0], y[0]);
+          EXPECT_EQ(x[1], y[1]);
+        }
+      }
+    }
   }
 }
 
