@@ -5,6 +5,7 @@
 // Timing and peak-RSS measurement for the benchmark. Every measured case runs in its own
 // forked child, so one case's peak RSS (and heap state) cannot hide or inflate another's.
 
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -51,8 +52,13 @@ using JobFactory = std::function<std::unique_ptr<Job>()>;
 //! the "cold" run, timed, with its peak RSS (a fresh process: every page is faulted in).
 //! When that took less than `min_seconds`, rebuilds and reruns it ("warm": the heap now
 //! holds freed memory) until `min_seconds` of reruns have accumulated (at most `max_runs`).
-Sample measure_job(const JobFactory& make, const JobFactory& warm_up, double min_seconds,
-                   int max_runs);
+//! `prefault_bytes` > 0: after loading, touch and release that much fresh memory (huge
+//! pages) first. On a VM whose host backs guest memory lazily, the first touch of guest
+//! pages the host has not backed yet costs ~1 s/GB and varies from run to run; recycling
+//! pages just touched does not. This puts every algorithm on already-backed memory, as on
+//! a machine that has been running for a while.
+Sample measure_job(const JobFactory& make, const JobFactory& warm_up, std::size_t prefault_bytes,
+                   double min_seconds, int max_runs);
 
 struct Outcome {
   bool ok = false;

@@ -53,6 +53,7 @@ struct Options {
   int timeout = 1800;
   double crease_angle = 35;
   bool no_read = false, no_refine = false, no_pipeline = false;
+  bool no_prefault = false;
   double idle = 0.85;
   int idle_wait = 180;
   fs::path tmp_dir = "/tmp/stlrefine_bench";
@@ -100,7 +101,7 @@ std::string cell(std::string text) {
 }
 
 std::string percent(double fraction) {
-  return fraction < 0 ? "?" : std::to_string(int(std::lround(fraction * 100))) + "%";
+  return fraction < 0 ? "—" : std::to_string(int(std::lround(fraction * 100))) + "%";
 }
 
 std::uint64_t stl_bytes(std::uint64_t faces) {
@@ -165,6 +166,7 @@ struct RefineCase {
   Maker maker;
   bool skipped = false;
   std::string skip_reason;
+  double predicted_growth_kb = 0;  //!< expected peak - base (for prefaulting)
   Aggregate result;
 };
 
@@ -362,6 +364,7 @@ void decide_skip(const Options& opt, RefineCase& c, std::uint64_t in_faces,
   }
   const auto it = previous.find(case_id(c));
   double predicted_kb = out * 200.0 / 1024.0;  // no history: assume 200 B per output tri
+  c.predicted_growth_kb = predicted_kb;
   std::string basis = "200 B per output triangle";
   if (it != previous.end()) {
     const RefineCase& p = it->second;
@@ -375,7 +378,8 @@ void decide_skip(const Options& opt, RefineCase& c, std::uint64_t in_faces,
       c.skip_reason = "failed at level " + std::to_string(p.level);
       return;
     }
-    predicted_kb = double(p.result.base_kb) + 4.0 * double(p.result.peak_kb - p.result.base_kb);
+    c.predicted_growth_kb = 4.0 * double(p.result.peak_kb - p.result.base_kb);
+    predicted_kb = double(p.result.base_kb) + c.predicted_growth_kb;
     basis = "4x the level-" + std::to_string(p.level) + " growth";
   }
   const double limit_kb = opt.max_mem_gb * 1024 * 1024;
@@ -392,11 +396,19 @@ void decide_skip(const Options& opt, RefineCase& c, std::uint64_t in_faces,
 }
 
 //! One repetition of one case: waits for idle CPUs, runs it in a child, records it.
-Outcome measure_case(const Options& opt, const Maker& maker, const fs::path& path,
+Outcome measure_case(const Options& opt, const Maker& maker, const fs::path& path, double growth_kb,
                      Aggregate& result) {
+  std::size_t prefault = 0;
+  if (!opt.no_prefault) {
+    const double cap_kb = 0.5 * double(std::max(0L, mem_available_kb()));
+    prefault = std::size_t(std::min(1.1 * growth_kb, cap_kb) * 1024.0);
+  }
   wait_until_idle(opt);
   const Outcome outcome = run_in_child(
-      [&] { return measure_job(maker(path), maker(opt.warmup_mesh), opt.min_time, opt.max_runs); },
+      [&] {
+        return measure_job(maker(path), maker(opt.warmup_mesh), prefault, opt.min_time,
+                           opt.max_runs);
+      },
       opt.timeout);
   add_outcome(result, outcome);
   return outcome;
@@ -420,7 +432,8 @@ void run_reads(const Options& opt, InputResult& input) {
   for (int rep = 0; rep < opt.reps; ++rep) {
     for (ReadCase& c : input.reads) {
       if (rep > 0 && !c.result.ok) continue;
-      const Outcome outcome = measure_case(opt, c.maker, input.path, c.result);
+      const double growth_kb = std::max(65536.0, 12.0 * double(input.file_bytes) / 1024.0);
+      const Outcome outcome = measure_case(opt, c.maker, input.path, growth_kb, c.result);
       std::cerr << "  [" << input.name << "] read " << c.label << " rep " << rep + 1 << '/'
                 << opt.reps << ": "
                 << (outcome.ok ? fixed(outcome.sample.seconds, 4) + " s" : outcome.failure) << '\n';
@@ -443,7 +456,8 @@ void run_refines(const Options& opt, InputResult& input) {
       for (std::size_t i = begin; i < input.refines.size(); ++i) {
         RefineCase& c = input.refines[i];
         if (c.skipped || (rep > 0 && !c.result.ok)) continue;
-        const Outcome outcome = measure_case(opt, c.maker, input.path, c.result);
+        const Outcome outcome =
+            measure_case(opt, c.maker, input.path, c.predicted_growth_kb, c.result);
         std::cerr << "  [" << input.name << " L" << level << "] " << c.label << " t" << c.threads
                   << " rep " << rep + 1 << '/' << opt.reps << ": "
                   << (outcome.ok ? fixed(outcome.sample.seconds, 4) + " s, peak " +
@@ -679,7 +693,13 @@ int run(Options opt, const std::string& command_line) {
          "largest share of all CPU time that other processes used while a repetition's "
          "process ran (interference; each process starts only after the CPUs were "
       << int(opt.idle * 100) << "% idle for a second, waiting at most " << opt.idle_wait
-      << " s).\n";
+      << " s; — for processes too short to tell)."
+      << (opt.no_prefault ? ""
+                          : " Before its measured run each process touches and releases the "
+                            "memory the run is expected to need, so no algorithm pays this "
+                            "VM's cost of first-touching guest memory the host has not backed "
+                            "yet (see bench/measure.h).")
+      << "\n";
   out.flush();
 
   std::vector<InputResult> inputs;
@@ -763,6 +783,9 @@ int main(int argc, char** argv) {
   app.add_flag("--no-read", opt.no_read, "Skip the STL read comparison");
   app.add_flag("--no-refine", opt.no_refine, "Skip the refinement comparison");
   app.add_flag("--no-pipeline", opt.no_pipeline, "Skip the whole-request rows");
+  app.add_flag("--no-prefault", opt.no_prefault,
+               "Do not touch and release the expected amount of memory before each measured "
+               "run (see measure.h)");
   app.add_option("--idle", opt.idle,
                  "Before each measured process, wait until this share of all CPU time was "
                  "idle over a second (0: do not wait)")
