@@ -204,9 +204,9 @@ TEST(CliWriter, AsciiUnitsScaleEveryCoordinate) {
   const CliFile file = read_cli(write(mesh, uniform(5.0), SliceFormat::CliAscii, {"cube", 0.5}));
   EXPECT_EQ(file.units, 0.5);
   ASSERT_EQ(file.layers.size(), 2u);
-  EXPECT_EQ(file.layers[0].z, 5.0);  // 2.5 mm in units of 0.5 mm
+  EXPECT_EQ(file.layers[0].z, 5.0);                    // 2.5 mm in units of 0.5 mm
   const auto& xy = file.layers[1].polylines.at(0).xy;  // the 10 mm square is 20 units wide
-  ASSERT_EQ(xy.size(), 2u * 9u);                        // corners and side diagonals, closed
+  ASSERT_EQ(xy.size(), 2u * 9u);                       // corners and side diagonals, closed
   for (std::size_t i = 0; i < xy.size(); i += 2) {
     EXPECT_TRUE(xy[i] == 0 || xy[i] == 20 || xy[i + 1] == 0 || xy[i + 1] == 20);
     EXPECT_TRUE(xy[i] >= 0 && xy[i] <= 20 && xy[i + 1] >= 0 && xy[i + 1] <= 20);
