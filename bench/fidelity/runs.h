@@ -1,0 +1,43 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#pragma once
+
+// The refinements the fidelity benchmark compares: our schemes through stlrefine::refine
+// (uniform levels, or the curvature-adaptive mode once RefineParams has it) and OpenMesh's
+// ModifiedButterflyT.
+
+#include <cstddef>
+#include <string>
+
+#include "core/mesh/mesh.h"
+
+namespace stlrefine::fidelity {
+
+struct Variant {
+  enum class Kind { Ours, OursAdaptive, OpenMeshButterfly } kind = Kind::Ours;
+  std::string scheme;       //!< our scheme name (Ours, OursAdaptive)
+  int level = 1;            //!< uniform levels; the level cap in adaptive mode
+  double adaptive_tol = 0;  //!< mm, OursAdaptive only
+
+  std::string label() const;
+};
+
+struct RunSettings {
+  double crease_angle_deg = 35;
+  int threads = 1;
+  int reps = 3;  //!< the time is the median of this many runs
+};
+
+struct RunOutput {
+  Mesh mesh;
+  double seconds = 0;
+  std::size_t fold_fallbacks = 0;
+  std::string note;  //!< set when the run was skipped (and `mesh` is empty)
+};
+
+//! True when core/refine.h's RefineParams has the adaptive fields (adaptive_tol, max_level).
+bool adaptive_available();
+
+RunOutput run_variant(const Variant& variant, const Mesh& input, const RunSettings& settings);
+
+}  // namespace stlrefine::fidelity
