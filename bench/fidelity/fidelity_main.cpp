@@ -67,6 +67,13 @@ std::string num(double v, int digits = 3) {
   return buf;
 }
 
+//! A cap or rim deviation; "none left" when the shape has caps (rims) but the refined mesh
+//! has no vertex that is recognisably on one (the crease was rounded away).
+std::string cap_or_rim(double value, std::size_t count, int digits) {
+  if (value >= 0 && count == 0) return "none left";
+  return num(value, digits);
+}
+
 //! "valence 3: 2, 4: 16, ..." over the input mesh.
 std::string valence_summary(const Mesh& mesh) {
   std::map<int, int> hist;
@@ -92,8 +99,9 @@ void print_table(const std::vector<Row>& rows) {
               << r.level << " | " << r.m.faces << " | " << num(r.m.rms, 4) << " | "
               << num(r.m.rms / input_rms, 3) << " | " << num(r.m.max, 4) << " | "
               << num(r.m.normal_rms_deg, 2) << " | " << num(r.m.normal_max_deg, 2) << " | "
-              << num(r.m.cap_max) << " | " << num(r.m.rim_max, 4) << " | " << r.m.sharp_edges
-              << " | " << r.m.folds << " | "
+              << cap_or_rim(r.m.cap_max, r.m.cap_vertices, 3) << " | "
+              << cap_or_rim(r.m.rim_max, r.m.rim_vertices, 4) << " | " << r.m.sharp_edges << " | "
+              << r.m.folds << " | "
               << (r.ours ? std::to_string(r.fold_fallbacks) : std::string("–")) << " | "
               << (r.level == 0 ? std::string("–") : num(r.seconds * 1e3, 2)) << " |\n";
   }
@@ -167,8 +175,8 @@ void print_worst(const Mesh& input, const std::vector<Row>& rows) {
                   "- %s: %.4f mm at (%.2f, %.2f, %.2f), azimuth %.1f°, rho %.3f; %.2f mm from "
                   "input vertex %u (%.2f, %.2f, %.2f), valence %d",
                   r.variant.label().c_str(), r.m.max, p.x, p.y, p.z,
-                  std::fmod(std::atan2(p.y, p.x) * 180 / std::numbers::pi + 360, 360), std::hypot(p.x, p.y),
-                  best_d, best, q.x, q.y, q.z, input.valence(VertexId(best)));
+                  std::fmod(std::atan2(p.y, p.x) * 180 / std::numbers::pi + 360, 360),
+                  std::hypot(p.x, p.y), best_d, best, q.x, q.y, q.z, input.valence(VertexId(best)));
     std::cout << buf << "\n";
   }
 }

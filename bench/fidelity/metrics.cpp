@@ -60,6 +60,10 @@ std::vector<std::uint32_t> face_pieces(const Mesh& mesh, const TrueSurface& surf
   return piece;
 }
 
+double angle_deg(const Vec3& a, const Vec3& b) {
+  return std::acos(std::clamp(dot(a, b), -1.0, 1.0)) * 180.0 / std::numbers::pi;
+}
+
 }  // namespace
 
 Metrics measure(const Mesh& mesh, const TrueSurface& surface, double crease_angle_deg,
@@ -73,6 +77,19 @@ Metrics measure(const Mesh& mesh, const TrueSurface& surface, double crease_angl
   for (std::size_t f = 0; f < nf; ++f) {
     unit_normal[f] = normalized(mesh.face_normal(FaceId(static_cast<std::uint32_t>(f))));
     if (unit_normal[f] == Vec3{}) ++m.degenerate_faces;
+  }
+
+  // Normals are compared with the true normal of the piece (side, cap, ...) nearest to the
+  // face's centroid, not to each sample: near a rim a side face's sample can be closer to
+  // the cap plane than to the side, but its normal should still be the side's.
+  std::vector<std::uint32_t> own_piece(nf);
+  for (std::uint32_t f = 0; f < nf; ++f) {
+    const auto fv = mesh.face_vertices(FaceId(f));
+    own_piece[f] = static_cast<std::uint32_t>(
+        surface
+            .closest((mesh.position(fv[0]) + mesh.position(fv[1]) + mesh.position(fv[2])) *
+                     (1.0 / 3))
+            .piece);
   }
 
   // --- distance and normal deviation, sampled inside the faces
@@ -92,7 +109,7 @@ Metrics measure(const Mesh& mesh, const TrueSurface& surface, double crease_angl
       sum_d2 += w * d * d;
       sum_w += w;
       if (n != Vec3{}) {
-        const double ang = surface.normal_angle_deg(p, n);
+        const double ang = angle_deg(n, surface.normal(p, own_piece[f]));
         sum_a2 += w * ang * ang;
         m.normal_max_deg = std::max(m.normal_max_deg, ang);
       }
@@ -116,7 +133,7 @@ Metrics measure(const Mesh& mesh, const TrueSurface& surface, double crease_angl
       }
     if (n != Vec3{}) {
       const Vec3 centroid = (a + b + c) * (1.0 / 3);
-      if (surface.normal_angle_deg(centroid, n) > 90.0) ++m.folds;
+      if (angle_deg(n, surface.normal(centroid, own_piece[f])) > 90.0) ++m.folds;
     }
   }
   m.rms = sum_w > 0 ? std::sqrt(sum_d2 / sum_w) : 0;

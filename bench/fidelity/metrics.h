@@ -18,7 +18,8 @@ struct Metrics {
   //! centroids, k x k per face) and the maximum (barycentric lattice points, which include
   //! the vertices and edges).
   double rms = 0, max = 0;
-  //! Angle between each face's normal and the true normal at a sample's closest point,
+  //! Angle between each face's normal and the true normal of the surface piece (side,
+  //! cap, ...) nearest to the face's centroid, at the sample's nearest point on that piece;
   //! area-weighted RMS and maximum, in degrees.
   double normal_rms_deg = 0, normal_max_deg = 0;
   //! Vertices of flat caps (all their faces lie on a cap): largest |z - z_cap|. Negative
