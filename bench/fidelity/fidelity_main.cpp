@@ -43,6 +43,7 @@ struct Options {
   std::size_t samples = 200'000;
   double window = 2.0;
   int plot_level = 3;
+  bool plot_openmesh = false;
   std::string svg = "undulation.svg";
 };
 
@@ -87,7 +88,7 @@ std::string valence_summary(const Mesh& mesh) {
 void print_table(const std::vector<Row>& rows) {
   std::cout << "| scheme | level | faces | RMS mm | RMS / input | max mm | normal RMS ° | normal "
                "max ° | cap dev mm | rim dev mm | sharp edges | folds | fold fallbacks | time ms "
-               "|\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+               "|\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   const double input_rms = rows.front().m.rms;
   for (const Row& r : rows) {
     if (!r.note.empty()) {
@@ -108,20 +109,23 @@ void print_table(const std::vector<Row>& rows) {
 }
 
 void print_section_table(const fid::Shape& shape, const std::vector<Row>& rows, double window) {
-  std::cout << "\nSection z = " << shape.section_z.value_or(0) << " mm (a circle of radius "
-            << shape.section_radius << "), curvature window " << window
-            << " mm:\n\n| scheme | level | loops | points | tangent dev RMS ° | tangent dev max ° "
-               "| κr−1 RMS | κr−1 max | κr total variation | Σ|turn| / 2π | radius dev mm "
-               "|\n|---|---|---|---|---|---|---|---|---|---|---|\n";
+  std::cout
+      << "\nSection z = " << shape.section_z.value_or(0) << " mm (a circle of radius "
+      << shape.section_radius << "), curvature window " << window
+      << " mm:\n\n| scheme | level | loops | points | tangent dev RMS ° | tangent dev max ° "
+         "| tangent dev max, "
+      << window
+      << " mm average ° | κr−1 RMS | κr−1 max | κr total variation | Σ|turn| / 2π | radius dev mm "
+         "|\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const Row& r : rows) {
     if (!r.section) continue;
     const fid::SectionStats& s = *r.section;
     std::cout << "| " << (r.level == 0 ? std::string("input") : r.variant.label()) << " | "
               << r.level << " | " << s.curves << " | " << s.points << " | "
               << num(s.tangent_rms_deg, 3) << " | " << num(s.tangent_max_deg, 3) << " | "
-              << num(s.curvature_rms, 4) << " | " << num(s.curvature_max, 4) << " | "
-              << num(s.curvature_variation, 3) << " | " << num(s.absolute_turning, 4) << " | "
-              << num(s.radius_max_dev, 4) << " |\n";
+              << num(s.tangent_smoothed_max_deg, 3) << " | " << num(s.curvature_rms, 4) << " | "
+              << num(s.curvature_max, 4) << " | " << num(s.curvature_variation, 3) << " | "
+              << num(s.absolute_turning, 4) << " | " << num(s.radius_max_dev, 4) << " |\n";
   }
 }
 
@@ -200,6 +204,8 @@ int main(int argc, char** argv) {
   app.add_option("--samples", o.samples, "about this many distance samples per mesh");
   app.add_option("--window", o.window, "curvature window along the section (mm)");
   app.add_option("--plot-level", o.plot_level, "level plotted in the SVG");
+  app.add_option("--plot-openmesh", o.plot_openmesh,
+                 "also plot OpenMesh (no crease rules: its rounded rims dominate the scale)");
   app.add_option("--svg", o.svg, "where to write the undulation plot");
   CLI11_PARSE(app, argc, argv);
 
@@ -284,7 +290,8 @@ int main(int argc, char** argv) {
                          0,
                          360};
     fid::Panel tangent{
-        "Tangent deviation from the true circle (chord-length derivative, paper eq. 4)",
+        "Tangent deviation from the true circle (chord-length derivative, paper eq. 4), " +
+            num(o.window, 1) + " mm average",
         "azimuth (degrees)",
         "degrees",
         {},
@@ -298,14 +305,16 @@ int main(int argc, char** argv) {
                                                      {"sqrt3-interp", "#9467bd"}};
     for (const Row& r : rows) {
       if (!r.section || r.level != o.plot_level ||
-          r.variant.kind == fid::Variant::Kind::OursAdaptive)
+          r.variant.kind == fid::Variant::Kind::OursAdaptive ||
+          (r.variant.kind == fid::Variant::Kind::OpenMeshButterfly && !o.plot_openmesh))
         continue;
       const std::string label = r.variant.label();
       const std::string colour = colours.count(label) ? colours.at(label) : "#7f7f7f";
       fid::Series kc{label, colour, {}, label.starts_with("OpenMesh")};
       for (const auto& s : r.section->curvature) kc.points.emplace_back(s.polar_deg, s.value);
       fid::Series tc{label, colour, {}, label.starts_with("OpenMesh")};
-      for (const auto& s : r.section->tangent) tc.points.emplace_back(s.polar_deg, s.value);
+      for (const auto& s : r.section->tangent_smoothed)
+        tc.points.emplace_back(s.polar_deg, s.value);
       curvature.series.push_back(std::move(kc));
       tangent.series.push_back(std::move(tc));
     }

@@ -124,6 +124,24 @@ SectionStats analyse_section(const std::vector<SectionCurve>& curves, double r, 
     s.tangent.push_back({azimuth_deg(mid), dev});
   }
   s.tangent_rms_deg = std::sqrt(sum_t2 / s.length);
+  {
+    std::vector<double> centre(n);
+    double acc = 0;
+    for (std::size_t i = 0; i < n; ++i) centre[i] = acc + 0.5 * len[i], acc += len[i];
+    for (std::size_t i = 0; i < n; ++i) {
+      double sum = 0, weight = 0;
+      for (std::size_t j = 0; j < n; ++j) {
+        double gap = std::abs(centre[j] - centre[i]);
+        gap = std::min(gap, s.length - gap);  // around the loop
+        if (gap > 0.5 * window) continue;
+        sum += len[j] * s.tangent[j].value;
+        weight += len[j];
+      }
+      const double avg = sum / weight;
+      s.tangent_smoothed.push_back({s.tangent[i].polar_deg, avg});
+      s.tangent_smoothed_max_deg = std::max(s.tangent_smoothed_max_deg, std::abs(avg));
+    }
+  }
 
   // Tangent angle, unwrapped, at each segment's midpoint (arc length mid[i]); the
   // turning at vertex i is the step between segments i - 1 and i.

@@ -56,6 +56,10 @@ struct SectionStats {
   double absolute_turning = 0;
   std::vector<SectionSample> curvature;  //!< kappa r at evenly spaced arc lengths
   std::vector<SectionSample> tangent;    //!< signed tangent deviation per segment, degrees
+  //! The same, length-weighted average over `window` of arc length: the facet-level
+  //! zig-zag of a section through long thin triangles averages out, undulation stays.
+  std::vector<SectionSample> tangent_smoothed;
+  double tangent_smoothed_max_deg = 0;
 };
 
 //! Analyses the longest closed curve of `curves` (empty stats when there is none).
