@@ -88,7 +88,7 @@ std::string valence_summary(const Mesh& mesh) {
 void print_table(const std::vector<Row>& rows) {
   std::cout << "| scheme | level | faces | RMS mm | RMS / input | max mm | normal RMS ° | normal "
                "max ° | cap dev mm | rim dev mm | sharp edges | folds | fold fallbacks | time ms "
-               "|\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+               "|\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   const double input_rms = rows.front().m.rms;
   for (const Row& r : rows) {
     if (!r.note.empty()) {
