@@ -61,6 +61,32 @@ int parse_int(std::string_view field, std::string_view text) {
       parse_integer(field, text, std::numeric_limits<int>::min(), std::numeric_limits<int>::max()));
 }
 
+// "0.1,0.2, 0.35": each item a complete number; empty items are refused.
+std::vector<double> parse_heights(std::string_view field, std::string_view text) {
+  std::vector<double> heights;
+  std::size_t start = 0;
+  for (;;) {
+    const std::size_t comma = text.find(',', start);
+    std::string_view item =
+        text.substr(start, comma == std::string_view::npos ? text.npos : comma - start);
+    while (!item.empty() && item.front() == ' ') item.remove_prefix(1);
+    while (!item.empty() && item.back() == ' ') item.remove_suffix(1);
+    heights.push_back(parse_number(field, item));
+    if (comma == std::string_view::npos) break;
+    start = comma + 1;
+  }
+  return heights;
+}
+
+// The same error with another field name: after a refinement the slice's layer height is
+// the parameter `slice` and its format `slice_format`.
+Error renamed(const Error& e, std::string_view from, std::string_view to) {
+  if (e.field() != from) return e;
+  Error out = e;
+  out.with_field(std::string(to));
+  return out;
+}
+
 double parse_weld_tolerance(std::string_view text) {
   const double t = parse_number("weld_tolerance", text);
   if (t < 0)
@@ -100,10 +126,48 @@ const std::vector<std::string_view>& info_param_names() {
 }
 
 std::vector<std::string_view> refine_param_names(const RequestLimits& limits) {
-  std::vector<std::string_view> names{"scheme", "levels", "crease_angle", "max_faces",
-                                      "weld_tolerance"};
+  std::vector<std::string_view> names{"scheme",    "levels",         "crease_angle",
+                                      "max_faces", "weld_tolerance", "adaptive_tol",
+                                      "max_level", "slice",          "slice_format"};
   if (limits.accept_threads) names.push_back("threads");
   return names;
+}
+
+std::vector<std::string_view> slice_param_names(const RequestLimits& limits) {
+  std::vector<std::string_view> names{"layer_height", "format",     "z_min",         "z_max",
+                                      "heights",      "max_layers", "weld_tolerance"};
+  if (limits.accept_threads) names.push_back("threads");
+  return names;
+}
+
+SliceRequest parse_slice_params(const RawParams& params, const RequestLimits& limits) {
+  check_names(params, slice_param_names(limits));
+  SliceRequest request;
+  slicer::SliceParams& p = request.slice.params;
+  const std::size_t cap = p.max_layers;
+  p.max_points = limits.max_slice_points;
+  for (const auto& [name, value] : params) {
+    if (name == "layer_height") {
+      p.layer_height = parse_number(name, value);
+    } else if (name == "format") {
+      request.slice.format = slicer::parse_slice_format(value);
+    } else if (name == "z_min") {
+      p.z_min = parse_number(name, value);
+    } else if (name == "z_max") {
+      p.z_max = parse_number(name, value);
+    } else if (name == "heights") {
+      p.heights = parse_heights(name, value);
+    } else if (name == "max_layers") {
+      p.max_layers = static_cast<std::size_t>(parse_unsigned(name, value, 1, cap));
+    } else if (name == "threads") {
+      p.threads = parse_int(name, value);
+    } else if (name == "weld_tolerance") {
+      request.weld_tolerance = parse_weld_tolerance(value);
+    }
+  }
+  // The ranges live in the slicer (SliceParams::validate), which names the same fields.
+  p.validate();
+  return request;
 }
 
 InfoRequest parse_info_params(const RawParams& params) {
@@ -143,6 +207,34 @@ RefineRequest parse_refine_params(const RawParams& params, const RequestLimits& 
       p.threads = parse_int(name, value);
     } else if (name == "weld_tolerance") {
       request.weld_tolerance = parse_weld_tolerance(value);
+    } else if (name == "adaptive_tol") {
+      p.adaptive_tol = parse_number(name, value);
+    } else if (name == "max_level") {
+      p.max_level = parse_int(name, value);
+    } else if (name == "slice") {
+      if (!request.slice) request.slice.emplace();
+      request.slice->params.layer_height = parse_number(name, value);
+    } else if (name == "slice_format") {
+      if (!request.slice) request.slice.emplace();
+      try {
+        request.slice->format = slicer::parse_slice_format(value);
+      } catch (const Error& e) {
+        throw renamed(e, "format", "slice_format");
+      }
+    }
+  }
+  if (request.slice) {
+    const bool has_height = std::any_of(params.begin(), params.end(),
+                                        [](const auto& kv) { return kv.first == "slice"; });
+    if (!has_height)
+      throw invalid("slice_format", "missing_parameter",
+                    "slice_format needs slice (the layer height in mm)");
+    request.slice->params.threads = p.threads;
+    request.slice->params.max_points = limits.max_slice_points;
+    try {
+      request.slice->params.validate();
+    } catch (const Error& e) {
+      throw renamed(e, "layer_height", "slice");
     }
   }
   // The ranges live in core (RefineParams::validate); this names the same fields.

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -11,6 +12,8 @@
 #include "core/features/features.h"
 #include "core/io/stl.h"
 #include "core/refine.h"
+#include "slicer/slice.h"
+#include "slicer/writers.h"
 
 namespace stlrefine::api {
 
@@ -25,6 +28,9 @@ struct RequestLimits {
   //! `max_faces` when the request gives none; 0 = the cap. (The daemon's default is its
   //! cap; the CLI's cap is the core's maximum and its default the core's default.)
   std::uint64_t default_max_faces = 0;
+  //! Contour points one slice may produce (SliceParams::max_points), checked before the
+  //! contour pass. The daemon lowers it: the answer is built in memory.
+  std::uint64_t max_slice_points = slicer::SliceParams{}.max_points;
   //! Accept `threads` (the CLI does; the daemon decides threads itself).
   bool accept_threads = false;
 };
@@ -35,11 +41,29 @@ struct InfoRequest {
   double weld_tolerance = 0;  //!< `weld_tolerance`, model units, >= 0; 0 = exact welding
 };
 
+//! Planes and output format of a slice, alone (`slice`) or after a refinement.
+struct SliceOptions {
+  //! `layer_height` (`slice` after a refinement), `z_min`, `z_max`, `heights` (comma
+  //! list), `max_layers` (may only lower the default cap), `threads` (CLI only).
+  slicer::SliceParams params;
+  slicer::SliceFormat format = slicer::SliceFormat::Json;  //!< `format` / `slice_format`
+  slicer::WriterOptions writer;  //!< not a parameter: the CLI sets the label
+};
+
+//! What `slice` needs besides the STL bytes.
+struct SliceRequest {
+  SliceOptions slice;
+  double weld_tolerance = 0;  //!< as in InfoRequest
+};
+
 //! What `refine` needs besides the STL bytes.
 struct RefineRequest {
-  RefineParams refine;        //!< `scheme`, `levels`, `crease_angle`, `max_faces`, `threads`
-  double weld_tolerance = 0;  //!< as in InfoRequest
+  //! `scheme`, `levels`, `crease_angle`, `max_faces`, `threads`, `adaptive_tol`, `max_level`
+  RefineParams refine;
+  double weld_tolerance = 0;                    //!< as in InfoRequest
   StlFormat output_format = StlFormat::Binary;  //!< not a parameter: the CLI's --ascii
+  //! `slice` (layer height, mm) and `slice_format`: also slice the refined mesh.
+  std::optional<SliceOptions> slice;
 };
 
 //! Names `parse_info_params` accepts.
@@ -57,6 +81,15 @@ InfoRequest parse_info_params(const RawParams& params);
 //! defaults, except `max_faces` (RequestLimits::default_max_faces). \throw Error(InvalidParameter)
 //! as above.
 RefineRequest parse_refine_params(const RawParams& params, const RequestLimits& limits);
+
+//! Names `parse_slice_params` accepts (`threads` only with RequestLimits::accept_threads).
+std::vector<std::string_view> slice_param_names(const RequestLimits& limits);
+
+//! Parses and validates `slice` parameters: `layer_height` (default 0.1), `format` (json,
+//! svg, cli, cli-ascii, cli-binary; default json), `z_min`, `z_max`, `heights` (comma
+//! separated, replaces the uniform layers), `max_layers`, `weld_tolerance`, `threads`.
+//! \throw Error(InvalidParameter) naming the field, as above.
+SliceRequest parse_slice_params(const RawParams& params, const RequestLimits& limits);
 
 // --- the number parsers both functions use, exposed for the CLI and the tests
 

@@ -13,6 +13,7 @@
 #include "core/io/stl.h"
 #include "core/mesh/mesh_stats.h"
 #include "core/schemes/scheme.h"
+#include "slicer/writers.h"
 
 namespace stlrefine::api {
 
@@ -50,9 +51,13 @@ RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineReques
   request.refine.validate();  // a bad parameter is reported before the file is read
   RefineTimes times;
 
+  if (request.slice) request.slice->params.validate();
   Ingested in = ingest_stl(bytes, request.weld_tolerance);
   times.ingest = in.seconds;
   check_budget(in.result.mesh.num_faces(), request.refine);
+  // The layer budget on the input's bounds, before any refinement work. (Refinement moves
+  // the bounds a little; the refined mesh is planned again by the slicer itself.)
+  if (request.slice) slicer::plan_layers(in.result.mesh, request.slice->params);
 
   auto phase = Clock::now();
   // The input mesh is not needed afterwards (the report only uses counters): move it in.
@@ -63,8 +68,39 @@ RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineReques
   RefineOutcome out;
   out.stl = write_stl(refined.mesh, request.output_format);
   times.write = seconds_since(phase);
+  slicer::SliceStats slice_stats;
+  if (request.slice)
+    out.contours = slice_to_string(refined.mesh, *request.slice, &slice_stats, progress, cancel);
   times.total = seconds_since(start);
   out.report = refine_report(in, refined.report, request, out.stl.size(), times);
+  if (request.slice)
+    out.report["slice"] = slice_stats_json(slice_stats, *request.slice, out.contours->size());
+  return out;
+}
+
+std::string slice_to_string(const Mesh& mesh, const SliceOptions& options,
+                            slicer::SliceStats* stats, const ProgressFn& progress,
+                            const std::atomic<bool>* cancel) {
+  const std::unique_ptr<slicer::LayerWriter> writer =
+      slicer::make_writer(options.format, options.writer);
+  std::string out;
+  const slicer::SliceStats s = slicer::write_slices(
+      mesh, options.params, *writer, [&out](std::string_view bytes) { out.append(bytes); },
+      progress, cancel);
+  if (stats) *stats = s;
+  return out;
+}
+
+SliceOutcome run_slice(std::span<const std::uint8_t> bytes, const SliceRequest& request,
+                       const ProgressFn& progress, const std::atomic<bool>* cancel) {
+  const auto start = Clock::now();
+  request.slice.params.validate();  // a bad parameter is reported before the file is read
+  request.slice.writer.validate();
+  const Ingested in = ingest_stl(bytes, request.weld_tolerance);
+  SliceOutcome out;
+  slicer::SliceStats stats;
+  out.contours = slice_to_string(in.result.mesh, request.slice, &stats, progress, cancel);
+  out.report = slice_report(in, stats, request, out.contours.size(), seconds_since(start));
   return out;
 }
 

@@ -5,6 +5,7 @@
 #include <atomic>
 #include <cstdint>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <span>
 #include <string>
 
@@ -20,7 +21,9 @@ nlohmann::ordered_json run_info(std::span<const std::uint8_t> bytes, const InfoR
 
 struct RefineOutcome {
   std::string stl;                //!< the refined mesh as STL bytes (request.output_format)
-  nlohmann::ordered_json report;  //!< see refine_report
+  nlohmann::ordered_json report;  //!< see refine_report; with a slice, also `slice`
+  //! The refined mesh's contours in request.slice->format, when request.slice is set.
+  std::optional<std::string> contours;
 };
 
 //! `refine`, the one path both the CLI and the daemon take:
@@ -28,8 +31,26 @@ struct RefineOutcome {
 //! The face budget is checked right after ingest, before any refinement work.
 //! \throw Error(MalformedStl | NotTriangleMesh | InvalidParameter | Cancelled | Internal);
 //! FaceBudgetError (an Error with code BudgetExceeded) with the predicted face count.
+//! With request.slice, the slice plan is checked on the input's bounds before refining
+//! (too many layers: BudgetExceeded, field max_layers), then the refined mesh is sliced.
 RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineRequest& request,
                          const ProgressFn& progress = {},
                          const std::atomic<bool>* cancel = nullptr);
+
+struct SliceOutcome {
+  std::string contours;           //!< in request.slice.format
+  nlohmann::ordered_json report;  //!< see slice_report
+};
+
+//! `slice`: bytes -> read_stl -> weld -> build_mesh -> plan (layer budget) -> contours.
+//! \throw Error(MalformedStl | NotTriangleMesh | InvalidParameter | BudgetExceeded |
+//! Cancelled | Internal)
+SliceOutcome run_slice(std::span<const std::uint8_t> bytes, const SliceRequest& request,
+                       const ProgressFn& progress = {}, const std::atomic<bool>* cancel = nullptr);
+
+//! Contours of `mesh` as one string in options.format (what run_slice and run_refine use).
+std::string slice_to_string(const Mesh& mesh, const SliceOptions& options,
+                            slicer::SliceStats* stats = nullptr, const ProgressFn& progress = {},
+                            const std::atomic<bool>* cancel = nullptr);
 
 }  // namespace stlrefine::api

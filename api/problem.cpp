@@ -95,6 +95,11 @@ Problem problem_from_error(const Error& error) {
   p.byte_offset = error.byte_offset();
   p.line = error.line();
   if (!error.reason().empty()) p.extensions["reason"] = error.reason();
+  // The slicer's budgets share the code (and the 422) with the face budget.
+  if (error.code() == ErrorCode::BudgetExceeded && error.field() == "max_layers")
+    p.title = "Layer budget exceeded";
+  if (error.code() == ErrorCode::BudgetExceeded && error.field() == "max_points")
+    p.title = "Point budget exceeded";
   if (const auto* budget = dynamic_cast<const FaceBudgetError*>(&error)) {
     p.extensions["predicted_faces"] = budget->predicted_faces();
     p.extensions["max_faces"] = budget->max_faces();

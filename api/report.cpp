@@ -2,6 +2,8 @@
 // Copyright (c) 2026 stlrefine authors
 #include "api/report.h"
 
+#include "slicer/writers.h"
+
 namespace stlrefine::api {
 
 namespace {
@@ -94,11 +96,46 @@ Json refine_report(const Ingested& in, const RefineReport& r, const RefineReques
                    {"creases", r.creases},
                    {"darts", r.darts}};
   j["fold_fallbacks"] = r.fold_fallbacks;
+  j["adaptive_tol"] = r.adaptive_tol;
+  j["edges_over_tolerance"] = r.edges_over_tolerance;
   j["max_input_displacement"] = r.max_input_displacement;
   j["seconds"] = {{"ingest", times.ingest},
                   {"refine", times.refine},
                   {"write", times.write},
                   {"total", times.total}};
+  j["ingest"] = ingest_report_json(in.result.report);
+  return j;
+}
+
+Json slice_stats_json(const slicer::SliceStats& stats, const SliceOptions& options,
+                      std::size_t bytes) {
+  const slicer::SliceParams& p = options.params;
+  Json j;
+  j["format"] = slicer::to_string(options.format);
+  j["layer_height"] = p.heights.empty() ? Json(p.layer_height) : Json(nullptr);
+  j["z_min"] = p.z_min ? Json(*p.z_min) : Json(nullptr);
+  j["z_max"] = p.z_max ? Json(*p.z_max) : Json(nullptr);
+  j["layers"] = stats.layers;
+  j["outer_loops"] = stats.outer_loops;
+  j["holes"] = stats.holes;
+  j["open_polylines"] = stats.open_polylines;
+  j["points"] = stats.points;
+  j["degenerate_loops"] = stats.degenerate_loops;
+  j["reversed_loops"] = stats.reversed_loops;
+  j["bytes"] = bytes;
+  j["seconds"] = stats.seconds;
+  return j;
+}
+
+Json slice_report(const Ingested& in, const slicer::SliceStats& stats, const SliceRequest& request,
+                  std::size_t bytes, double total_seconds) {
+  Json input = input_json(in);
+  input["vertices"] = in.result.mesh.num_vertices();
+  input["faces"] = in.result.mesh.num_faces();
+  Json j;
+  j["input"] = std::move(input);
+  j["slice"] = slice_stats_json(stats, request.slice, bytes);
+  j["seconds"] = {{"ingest", in.seconds}, {"slice", stats.seconds}, {"total", total_seconds}};
   j["ingest"] = ingest_report_json(in.result.report);
   return j;
 }

@@ -10,6 +10,7 @@
 #include "core/mesh/build_mesh.h"
 #include "core/mesh/mesh_stats.h"
 #include "core/refine.h"
+#include "slicer/slice.h"
 
 namespace stlrefine::api {
 
@@ -35,10 +36,22 @@ struct RefineTimes {
 //! The `refine` report: scheme, levels, crease_angle_deg, `input` (as in info plus the
 //! mesh's vertices and faces), `output` {format, vertices, faces, bytes}, `features`
 //! {sharp_edges_in, sharp_edges_out (sharp edges kept), corners, creases, darts},
-//! fold_fallbacks, max_input_displacement, `seconds` {ingest, refine, write, total}, and
-//! `ingest`. Compact enough for a response header.
+//! fold_fallbacks, adaptive_tol, edges_over_tolerance, max_input_displacement, `seconds` {ingest,
+//! refine, write, total}, and `ingest`. Compact enough for a response header.
 nlohmann::ordered_json refine_report(const Ingested& in, const RefineReport& report,
                                      const RefineRequest& request, std::size_t output_bytes,
                                      const RefineTimes& times);
+
+//! The slice part of a report: format, layer_height (null for explicit heights), z_min,
+//! z_max (null when not given), layers, outer_loops, holes, open_polylines, points,
+//! degenerate_loops, reversed_loops, bytes, seconds.
+nlohmann::ordered_json slice_stats_json(const slicer::SliceStats& stats,
+                                        const SliceOptions& options, std::size_t bytes);
+
+//! The `slice` report: `input`, `slice` (slice_stats_json), `seconds` {ingest, slice,
+//! total}, `ingest`.
+nlohmann::ordered_json slice_report(const Ingested& in, const slicer::SliceStats& stats,
+                                    const SliceRequest& request, std::size_t bytes,
+                                    double total_seconds);
 
 }  // namespace stlrefine::api

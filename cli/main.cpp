@@ -7,10 +7,14 @@
 //   stlrefine info IN.stl [--crease-angle 35] [--weld-tolerance T]
 //   stlrefine refine IN.stl -o OUT.stl [--scheme butterfly] [--levels 1] [--crease-angle 35]
 //                    [--max-faces N] [--threads N] [--weld-tolerance T] [--ascii]
-//                    [--report R.json]
+//                    [--adaptive-tol MM] [--max-level L] [--report R.json]
+//                    [--slice H --slice-out CONTOURS [--slice-format json|svg|cli|cli-binary]]
+//   stlrefine slice IN.stl -o OUT [--layer-height 0.1] [--format json|svg|cli|cli-binary]
+//                   [--z-min Z] [--z-max Z] [--heights a,b,c] [--max-layers N] [--threads N]
+//                   [--weld-tolerance T] [--report R.json]
 //
 // Exit codes (kExit* below): 0 success; 2 bad usage or parameter; 3 the input file cannot
-// be read or is not a usable STL; 4 the face budget would be exceeded; 1 anything else
+// be read or is not a usable STL; 4 the face or layer budget would be exceeded; 1 anything else
 // (an internal error, or the output cannot be written).
 
 #include <unistd.h>
@@ -179,8 +183,22 @@ struct InfoOptions {
 struct RefineOptions {
   std::string input, output, report;
   std::string scheme, levels, crease_angle, max_faces, threads, weld_tolerance;
+  std::string adaptive_tol, max_level, slice, slice_format, slice_out;
   bool ascii = false;
 };
+
+struct SliceCliOptions {
+  std::string input, output, report;
+  std::string layer_height, format, z_min, z_max, heights, max_layers, threads, weld_tolerance;
+};
+
+// The part's name in the contour files: the input's file name without its extension.
+std::string label_of(const std::string& input) {
+  std::string stem = std::filesystem::path(input).stem().string();
+  if (stem.empty()) stem = "part";
+  if (stem.size() > 256) stem.resize(256);
+  return stem;
+}
 
 // Options given on the command line, as (API name, text) pairs: api/params validates them
 // exactly as the daemon validates a query string.
@@ -211,6 +229,14 @@ int run_refine(const CLI::App& cmd, const RefineOptions& o) {
   add_if_given(raw, cmd, "--max-faces", "max_faces", o.max_faces);
   add_if_given(raw, cmd, "--threads", "threads", o.threads);
   add_if_given(raw, cmd, "--weld-tolerance", "weld_tolerance", o.weld_tolerance);
+  add_if_given(raw, cmd, "--adaptive-tol", "adaptive_tol", o.adaptive_tol);
+  add_if_given(raw, cmd, "--max-level", "max_level", o.max_level);
+  add_if_given(raw, cmd, "--slice", "slice", o.slice);
+  add_if_given(raw, cmd, "--slice-format", "slice_format", o.slice_format);
+  const bool slicing = cmd.get_option("--slice")->count() > 0;
+  if (slicing != (cmd.get_option("--slice-out")->count() > 0))
+    throw Failure{kExitUsage, slicing ? "--slice needs --slice-out (the contour file)"
+                                      : "--slice-out needs --slice (the layer height in mm)"};
   api::RequestLimits limits;
   limits.max_faces = (std::uint64_t{1} << 31) - 1;  // the core's maximum
   limits.default_max_faces = stlrefine::RefineParams{}.max_faces;
@@ -218,15 +244,47 @@ int run_refine(const CLI::App& cmd, const RefineOptions& o) {
   try {
     api::RefineRequest request = api::parse_refine_params(raw, limits);
     request.output_format = o.ascii ? stlrefine::StlFormat::Ascii : stlrefine::StlFormat::Binary;
+    if (request.slice) request.slice->writer.label = label_of(o.input);
     const std::vector<std::uint8_t> bytes = read_file(o.input);
     ProgressLine progress;
     api::RefineOutcome out = api::run_refine(bytes, request, progress.sink());
     progress.finish();
     write_file(o.output, out.stl);
+    if (out.contours) write_file(o.slice_out, *out.contours);
     if (!o.report.empty()) write_file(o.report, out.report.dump(2) + "\n");
     std::cerr << "stlrefine: " << out.report["input"]["faces"] << " -> "
               << out.report["output"]["faces"] << " faces (" << request.refine.scheme << ", "
               << request.refine.levels << " levels) in " << out.report["seconds"]["total"]
+              << " s -> " << o.output << std::endl;
+    return kExitOk;
+  } catch (const Error& e) {
+    throw failure_from_error(e, o.input);
+  }
+}
+
+int run_slice(const CLI::App& cmd, const SliceCliOptions& o) {
+  api::RawParams raw;
+  add_if_given(raw, cmd, "--layer-height", "layer_height", o.layer_height);
+  add_if_given(raw, cmd, "--format", "format", o.format);
+  add_if_given(raw, cmd, "--z-min", "z_min", o.z_min);
+  add_if_given(raw, cmd, "--z-max", "z_max", o.z_max);
+  add_if_given(raw, cmd, "--heights", "heights", o.heights);
+  add_if_given(raw, cmd, "--max-layers", "max_layers", o.max_layers);
+  add_if_given(raw, cmd, "--threads", "threads", o.threads);
+  add_if_given(raw, cmd, "--weld-tolerance", "weld_tolerance", o.weld_tolerance);
+  api::RequestLimits limits;
+  limits.accept_threads = true;
+  try {
+    api::SliceRequest request = api::parse_slice_params(raw, limits);
+    request.slice.writer.label = label_of(o.input);
+    const std::vector<std::uint8_t> bytes = read_file(o.input);
+    api::SliceOutcome out = api::run_slice(bytes, request);
+    write_file(o.output, out.contours);
+    if (!o.report.empty()) write_file(o.report, out.report.dump(2) + "\n");
+    const auto& s = out.report["slice"];
+    std::cerr << "stlrefine: " << s["layers"] << " layers, " << s["outer_loops"] << " outer loops, "
+              << s["holes"] << " holes, " << s["open_polylines"] << " open polylines ("
+              << s["format"].get<std::string>() << ") in " << out.report["seconds"]["total"]
               << " s -> " << o.output << std::endl;
     return kExitOk;
   } catch (const Error& e) {
@@ -249,7 +307,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   app.footer(
       "Exit codes: 0 ok, 2 bad usage or parameter, 3 unreadable or unusable input file,\n"
-      "4 face budget exceeded, 1 internal error or output not writable.");
+      "4 face or layer budget exceeded, 1 internal error or output not writable.");
 
   InfoOptions info;
   CLI::App* info_cmd = app.add_subcommand("info", "Print a JSON report on an STL file");
@@ -275,6 +333,35 @@ int main(int argc, char** argv) {
                          "Merge corners closer than this (model units; 0 = exact, default)");
   refine_cmd->add_flag("--ascii", refine.ascii, "Write ASCII STL instead of binary");
   refine_cmd->add_option("--report", refine.report, "Also write the JSON report to this file");
+  refine_cmd->add_option("--adaptive-tol", refine.adaptive_tol,
+                         "Curvature-adaptive: split edges whose surface leaves the chord by more "
+                         "than this (mm; lsf and butterfly; 0 = uniform, default)");
+  refine_cmd->add_option("--max-level", refine.max_level,
+                         "Level cap of the adaptive mode [1, 8] (4)");
+  refine_cmd->add_option("--slice", refine.slice,
+                         "Also slice the refined mesh with this layer height (mm)");
+  refine_cmd->add_option("--slice-format", refine.slice_format,
+                         "Contour format: json, svg, cli, cli-binary (json)");
+  refine_cmd->add_option("--slice-out", refine.slice_out, "Contour file (with --slice)");
+
+  SliceCliOptions slice;
+  CLI::App* slice_cmd =
+      app.add_subcommand("slice", "Slice an STL file into layers of closed, oriented contours");
+  slice_cmd->add_option("input", slice.input, "STL file (binary or ASCII)")->required();
+  slice_cmd->add_option("-o,--output", slice.output, "Contour file")->required();
+  slice_cmd->add_option("--layer-height", slice.layer_height,
+                        "Layer thickness in mm [1e-4, 1e4] (0.1); planes at z_min + (k + 1/2) h");
+  slice_cmd->add_option("--format", slice.format, "json, svg, cli, cli-binary (json)");
+  slice_cmd->add_option("--z-min", slice.z_min, "Bottom of the uniform layers (mesh bottom)");
+  slice_cmd->add_option("--z-max", slice.z_max, "Top of the uniform layers (mesh top)");
+  slice_cmd->add_option("--heights", slice.heights,
+                        "Explicit plane heights a,b,c (replace the uniform layers)");
+  slice_cmd->add_option("--max-layers", slice.max_layers,
+                        "Refuse before any work above this many layers [1, 1000000]");
+  slice_cmd->add_option("--threads", slice.threads, "Worker threads [0, 256] (0 = every core)");
+  slice_cmd->add_option("--weld-tolerance", slice.weld_tolerance,
+                        "Merge corners closer than this (model units; 0 = exact, default)");
+  slice_cmd->add_option("--report", slice.report, "Also write the JSON report to this file");
 
   try {
     app.parse(argc, argv);
@@ -284,6 +371,7 @@ int main(int argc, char** argv) {
 
   try {
     if (info_cmd->parsed()) return run_info(*info_cmd, info);
+    if (slice_cmd->parsed()) return run_slice(*slice_cmd, slice);
     return run_refine(*refine_cmd, refine);
   } catch (const Failure& f) {
     std::cerr << "stlrefine: " << f.message << std::endl;

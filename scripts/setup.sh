@@ -13,7 +13,7 @@ jobs=$(nproc 2>/dev/null || echo 2)
 
 packages=(build-essential cmake pkg-config curl ca-certificates
   libcgal-dev libeigen3-dev libcpp-httplib-dev nlohmann-json3-dev libcli11-dev libtbb-dev
-  libgtest-dev libgmock-dev libbenchmark-dev libopenmesh-dev)
+  libgtest-dev libgmock-dev libbenchmark-dev libopenmesh-dev libzip-dev)
 
 install_missing() {
   local missing=()

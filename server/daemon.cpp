@@ -28,7 +28,9 @@
 #include "api/params.h"
 #include "api/pipeline.h"
 #include "api/problem.h"
+#include "api/zip.h"
 #include "core/error.h"
+#include "slicer/writers.h"
 
 // Hardening around cpp-httplib 0.11.4 (Debian 12), and why each piece is needed:
 //
@@ -65,6 +67,7 @@ using HandlerResponse = httplib::Server::HandlerResponse;
 constexpr const char* kStlContentType = "model/stl";
 constexpr const char* kJsonContentType = "application/json";
 constexpr const char* kReportHeader = "X-Stlrefine-Report";
+constexpr const char* kZipContentType = "application/zip";
 
 //! httplib::TaskQueue with a bounded backlog: enqueue() blocks while `max_queued` accepted
 //! connections already wait for a worker, which stalls the accept loop (the kernel's listen
@@ -128,10 +131,8 @@ struct Route {
 };
 
 constexpr Route kRoutes[] = {
-    {"/v1/refine", "POST", true},
-    {"/v1/info", "POST", true},
-    {"/healthz", "GET, HEAD", false},
-    {"/readyz", "GET, HEAD", false},
+    {"/v1/refine", "POST", true},     {"/v1/slice", "POST", true},     {"/v1/info", "POST", true},
+    {"/healthz", "GET, HEAD", false}, {"/readyz", "GET, HEAD", false},
 };
 
 const Route* find_route(const std::string& path) {
@@ -223,6 +224,8 @@ DaemonConfig checked(DaemonConfig c) {
     throw std::invalid_argument("max_faces must be in [1, 2^31)");
   if (c.read_timeout.count() < 1 || c.write_timeout.count() < 1)
     throw std::invalid_argument("timeouts must be at least 1 s");
+  if (c.max_slice_points < 1 || c.max_slice_points > (std::uint64_t{1} << 40))
+    throw std::invalid_argument("max_slice_points must be in [1, 2^40]");
   if (c.retry_after_seconds < 0) throw std::invalid_argument("retry_after_seconds must be >= 0");
   return c;
 }
@@ -231,7 +234,10 @@ DaemonConfig checked(DaemonConfig c) {
 
 Daemon::Impl::Impl(DaemonConfig c)
     : config(checked(std::move(c))),
-      limits{.max_faces = config.max_faces, .default_max_faces = 0, .accept_threads = false},
+      limits{.max_faces = config.max_faces,
+             .default_max_faces = 0,
+             .max_slice_points = config.max_slice_points,
+             .accept_threads = false},
       slots(config.compute_slots) {
   install();
 }
@@ -301,6 +307,8 @@ std::optional<api::Problem> Daemon::Impl::precheck(const Request& req) const {
   try {
     if (route->path == std::string_view("/v1/refine"))
       api::parse_refine_params(raw_params(req), limits);
+    else if (route->path == std::string_view("/v1/slice"))
+      api::parse_slice_params(raw_params(req), limits);
     else
       api::parse_info_params(raw_params(req));
   } catch (const Error& e) {
@@ -336,29 +344,55 @@ void Daemon::Impl::compute(const Request& req, std::string_view raw_body, Respon
     // Parsed again (cheap): the pre-routing check only validated.
     const auto body =
         std::span(reinterpret_cast<const std::uint8_t*>(raw_body.data()), raw_body.size());
-    const bool refine = route.path == std::string_view("/v1/refine");
+    const std::string_view path = route.path;
     std::optional<api::RefineRequest> refine_request;
+    std::optional<api::SliceRequest> slice_request;
     std::optional<api::InfoRequest> info_request;
-    if (refine)
+    if (path == "/v1/refine")
       refine_request = api::parse_refine_params(raw_params(req), limits);
+    else if (path == "/v1/slice")
+      slice_request = api::parse_slice_params(raw_params(req), limits);
     else
       info_request = api::parse_info_params(raw_params(req));
 
     std::optional<ComputeSlots::Lease> lease = slots.try_acquire();
     if (!lease || stopping) return respond(res, busy_problem(stopping));
 
-    if (refine) {
-      api::RefineOutcome out = api::run_refine(body, *refine_request, {}, &cancel);
-      lease.reset();
-      // The report header is compact ASCII JSON (no CR/LF can reach a header). The STL is
-      // handed over by a provider, not copied into res.body: it can be a GiB.
-      res.set_header(kReportHeader, out.report.dump(-1, ' ', true));
-      auto stl = std::make_shared<std::string>(std::move(out.stl));
+    // Large answers are handed over by a provider, not copied into res.body: a refined STL
+    // can be a GiB.
+    auto provide = [&res](std::string bytes, const char* type) {
+      auto data = std::make_shared<std::string>(std::move(bytes));
       res.set_content_provider(
-          stl->size(), kStlContentType,
-          [stl](std::size_t offset, std::size_t length, httplib::DataSink& sink) {
-            return sink.write(stl->data() + offset, length);
+          data->size(), type,
+          [data](std::size_t offset, std::size_t length, httplib::DataSink& sink) {
+            return sink.write(data->data() + offset, length);
           });
+    };
+    if (refine_request) {
+      api::RefineOutcome out = api::run_refine(body, *refine_request, {}, &cancel);
+      // The report header is compact ASCII JSON (no CR/LF can reach a header).
+      const std::string report = out.report.dump(-1, ' ', true);
+      if (out.contours) {
+        // Refine + slice: one zip with the refined STL, the contours and the report.
+        const slicer::SliceFormat format = refine_request->slice->format;
+        std::string zip = api::make_zip({{"refined.stl", out.stl, false},
+                                         {std::string("slices") + slicer::file_extension(format),
+                                          *out.contours, format != slicer::SliceFormat::CliBinary},
+                                         {"report.json", report, true}});
+        lease.reset();
+        res.set_header(kReportHeader, report);
+        res.set_header("Content-Disposition", "attachment; filename=\"refined.zip\"");
+        provide(std::move(zip), kZipContentType);
+      } else {
+        lease.reset();
+        res.set_header(kReportHeader, report);
+        provide(std::move(out.stl), kStlContentType);
+      }
+    } else if (slice_request) {
+      api::SliceOutcome out = api::run_slice(body, *slice_request, {}, &cancel);
+      lease.reset();
+      res.set_header(kReportHeader, out.report.dump(-1, ' ', true));
+      provide(std::move(out.contours), slicer::media_type(slice_request->slice.format));
     } else {
       const nlohmann::ordered_json report = api::run_info(body, *info_request);
       lease.reset();
@@ -367,6 +401,7 @@ void Daemon::Impl::compute(const Request& req, std::string_view raw_body, Respon
     res.status = 200;
   } catch (const Error& e) {
     res.headers.erase(kReportHeader);
+    res.headers.erase("Content-Disposition");
     respond(res, api::problem_from_error(e));
   }
 }

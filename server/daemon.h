@@ -26,6 +26,9 @@ struct DaemonConfig {
   std::size_t max_body_bytes = std::size_t{256} << 20;
   //! Face cap of one refinement, [1, 2^31); a request's max_faces may only lower it.
   std::uint64_t max_faces = 20'000'000;
+  //! Contour points one slice answer may hold (about 20 bytes each in JSON), checked before
+  //! the contour pass; more is 422 budget-exceeded, field max_points.
+  std::uint64_t max_slice_points = 20'000'000;
   //! Idle time allowed in one socket read / write before the connection is dropped.
   std::chrono::seconds read_timeout{10};
   std::chrono::seconds write_timeout{60};
@@ -41,8 +44,8 @@ struct DaemonConfig {
 //! The HTTP daemon: routes, hardening around cpp-httplib 0.11.4 (see daemon.cpp), and the
 //! compute slots. httplib stays behind this class (pimpl).
 //!
-//! Routes: POST /v1/refine, POST /v1/info, GET /healthz, GET /readyz. Every error is an
-//! RFC 9457 application/problem+json body.
+//! Routes: POST /v1/refine, POST /v1/slice, POST /v1/info, GET /healthz, GET /readyz. Every error
+//! is an RFC 9457 application/problem+json body.
 class Daemon {
  public:
   //! \throw std::invalid_argument for a config out of range.

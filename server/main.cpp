@@ -67,6 +67,7 @@ int main(int argc, char** argv) {
   std::size_t compute_slots = 0;
   std::size_t max_body_mib = 256;
   std::uint64_t max_faces = 20'000'000;
+  std::uint64_t max_slice_points = 20'000'000;
   int read_timeout = 10;
   int write_timeout = 60;
   bool access_log = false;
@@ -87,6 +88,10 @@ int main(int argc, char** argv) {
   app.add_option("--max-faces", max_faces, "Face cap of one refinement (422 above)")
       ->check(CLI::Range(std::uint64_t{1}, (std::uint64_t{1} << 31) - 1))
       ->capture_default_str();
+  app.add_option("--max-slice-points", max_slice_points,
+                 "Contour points one slice answer may hold (422 above)")
+      ->check(CLI::Range(std::uint64_t{1}, std::uint64_t{1} << 40))
+      ->capture_default_str();
   app.add_option("--read-timeout", read_timeout, "Seconds a socket read may stall")
       ->check(CLI::Range(1, 3600))
       ->capture_default_str();
@@ -106,6 +111,7 @@ int main(int argc, char** argv) {
     config.compute_slots = compute_slots;
     config.max_body_bytes = max_body_mib << 20;
     config.max_faces = max_faces;
+    config.max_slice_points = max_slice_points;
     config.read_timeout = std::chrono::seconds(read_timeout);
     config.write_timeout = std::chrono::seconds(write_timeout);
     config.access_log = access_log;
