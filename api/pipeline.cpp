@@ -12,6 +12,7 @@
 #include "core/features/features.h"
 #include "core/io/stl.h"
 #include "core/mesh/mesh_stats.h"
+#include "core/schemes/lsf_curvature.h"
 #include "core/schemes/scheme.h"
 #include "slicer/writers.h"
 
@@ -39,10 +40,21 @@ void check_budget(std::size_t faces, const RefineParams& params) {
 }  // namespace
 
 nlohmann::ordered_json run_info(std::span<const std::uint8_t> bytes, const InfoRequest& request) {
+  return run_info(bytes, request, false).report;
+}
+
+InfoOutcome run_info(std::span<const std::uint8_t> bytes, const InfoRequest& request,
+                     bool curvature_csv) {
   request.features.validate();
   const Ingested in = ingest_stl(bytes, request.weld_tolerance);
   const Mesh& mesh = in.result.mesh;
-  return info_report(in, compute_stats(mesh), detect_features(mesh, request.features), request);
+  const Features features = detect_features(mesh, request.features);
+  const std::vector<VertexCurvature> curvatures = vertex_curvatures(mesh, features);
+  InfoOutcome out;
+  out.report = info_report(in, compute_stats(mesh), features, request);
+  out.report["curvature"] = curvature_summary_json(summarize(curvatures));
+  if (curvature_csv) out.curvature_csv = curvature_table_csv(mesh, features, curvatures);
+  return out;
 }
 
 RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineRequest& request,

@@ -14,10 +14,21 @@
 
 namespace stlrefine::api {
 
-//! `info`: bytes -> read_stl -> weld -> build_mesh -> compute_stats + detect_features.
-//! Returns the report (see info_report).
+//! `info`: bytes -> read_stl -> weld -> build_mesh -> compute_stats + detect_features +
+//! LSF curvatures. Returns the report (see info_report; `curvature` is the summary).
 //! \throw Error(MalformedStl | NotTriangleMesh | InvalidParameter)
 nlohmann::ordered_json run_info(std::span<const std::uint8_t> bytes, const InfoRequest& request);
+
+struct InfoOutcome {
+  nlohmann::ordered_json report;  //!< as run_info
+  //! Per vertex of the ingested (welded) mesh, when asked for:
+  //! `vertex,x,y,z,kind,gaussian,mean,k1,k2,valid` (header line first).
+  std::optional<std::string> curvature_csv;
+};
+
+//! run_info, optionally with the per-vertex curvature table.
+InfoOutcome run_info(std::span<const std::uint8_t> bytes, const InfoRequest& request,
+                     bool curvature_csv);
 
 struct RefineOutcome {
   std::string stl;                //!< the refined mesh as STL bytes (request.output_format)

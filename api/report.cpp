@@ -2,6 +2,8 @@
 // Copyright (c) 2026 stlrefine authors
 #include "api/report.h"
 
+#include <charconv>
+
 #include "slicer/writers.h"
 
 namespace stlrefine::api {
@@ -25,7 +27,55 @@ Json input_json(const Ingested& in) {
   return j;
 }
 
+Json distribution_json(const Distribution& d, bool any) {
+  if (!any) return Json(nullptr);
+  return Json{{"min", d.min}, {"p05", d.p05}, {"p50", d.p50}, {"p95", d.p95}, {"max", d.max}};
+}
+
+void append_number(std::string& out, double v) {
+  char buf[32];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  out.append(buf, r.ptr);
+}
+
 }  // namespace
+
+Json curvature_summary_json(const CurvatureSummary& s) {
+  const bool any = s.valid > 0;
+  Json j;
+  j["valid"] = s.valid;
+  j["invalid"] = s.invalid;
+  j["gaussian"] = distribution_json(s.gaussian, any);
+  j["mean"] = distribution_json(s.mean, any);
+  j["k1"] = distribution_json(s.k1, any);
+  j["k2"] = distribution_json(s.k2, any);
+  j["abs_max"] = distribution_json(s.abs_max, any);
+  return j;
+}
+
+std::string curvature_table_csv(const Mesh& mesh, const Features& features,
+                                std::span<const VertexCurvature> curvatures) {
+  std::string out = "vertex,x,y,z,kind,gaussian,mean,k1,k2,valid\n";
+  out.reserve(out.size() + 120 * curvatures.size());
+  const auto positions = mesh.positions();
+  for (std::size_t i = 0; i < curvatures.size() && i < positions.size(); ++i) {
+    const VertexCurvature& c = curvatures[i];
+    const Vec3& p = positions[i];
+    out += std::to_string(i);
+    for (double v : {p.x, p.y, p.z}) {
+      out += ',';
+      append_number(out, v);
+    }
+    out += ',';
+    out += to_string(features.kind(VertexId(static_cast<std::uint32_t>(i))));
+    for (double v : {c.gaussian, c.mean, c.k1, c.k2}) {
+      out += ',';
+      append_number(out, v);
+    }
+    out += c.valid ? ",1\n" : ",0\n";
+  }
+  return out;
+}
 
 Json ingest_report_json(const IngestReport& r) {
   Json j;

@@ -3,6 +3,8 @@
 #pragma once
 
 #include <nlohmann/json.hpp>
+#include <span>
+#include <string>
 
 #include "api/ingest.h"
 #include "api/params.h"
@@ -10,6 +12,7 @@
 #include "core/mesh/build_mesh.h"
 #include "core/mesh/mesh_stats.h"
 #include "core/refine.h"
+#include "core/schemes/lsf_curvature.h"
 #include "slicer/slice.h"
 
 namespace stlrefine::api {
@@ -27,6 +30,17 @@ nlohmann::ordered_json ingest_report_json(const IngestReport& report);
 //! - `features`: crease_angle_deg, sharp_edges, corners, creases, darts.
 nlohmann::ordered_json info_report(const Ingested& in, const MeshStats& stats,
                                    const Features& features, const InfoRequest& request);
+
+//! The `curvature` member of the info report: valid and invalid vertex counts, then
+//! {min, p05, p50, p95, max} of gaussian (1/mm^2), mean, k1, k2 and abs_max (1/mm), from the
+//! LSF quadric fits (corners and degenerate fits are invalid). Nulls when no vertex is valid.
+nlohmann::ordered_json curvature_summary_json(const CurvatureSummary& summary);
+
+//! `vertex,x,y,z,kind,gaussian,mean,k1,k2,valid`, one line per vertex of `mesh` (after
+//! welding), numbers as shortest round-trip doubles, kind smooth/dart/crease/corner,
+//! valid 0/1.
+std::string curvature_table_csv(const Mesh& mesh, const Features& features,
+                                std::span<const VertexCurvature> curvatures);
 
 //! Wall times of the refine request's phases, in seconds.
 struct RefineTimes {

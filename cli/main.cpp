@@ -4,7 +4,7 @@
 // stlrefine: the command-line front end. It validates parameters with the daemon's code
 // (api/params) and runs the daemon's pipeline (api/pipeline), on files.
 //
-//   stlrefine info IN.stl [--crease-angle 35] [--weld-tolerance T]
+//   stlrefine info IN.stl [--crease-angle 35] [--weld-tolerance T] [--curvature OUT.csv]
 //   stlrefine refine IN.stl -o OUT.stl [--scheme butterfly] [--levels 1] [--crease-angle 35]
 //                    [--max-faces N] [--threads N] [--weld-tolerance T] [--ascii]
 //                    [--adaptive-tol MM] [--max-level L] [--report R.json]
@@ -178,6 +178,7 @@ class ProgressLine {
 struct InfoOptions {
   std::string input;
   std::string crease_angle, weld_tolerance;
+  std::string curvature;  // per-vertex CSV path
 };
 
 struct RefineOptions {
@@ -214,7 +215,9 @@ int run_info(const CLI::App& cmd, const InfoOptions& o) {
   try {
     const api::InfoRequest request = api::parse_info_params(raw);
     const std::vector<std::uint8_t> bytes = read_file(o.input);
-    std::cout << api::run_info(bytes, request).dump(2) << std::endl;
+    const api::InfoOutcome out = api::run_info(bytes, request, !o.curvature.empty());
+    if (out.curvature_csv) write_file(o.curvature, *out.curvature_csv);
+    std::cout << out.report.dump(2) << std::endl;
     return kExitOk;
   } catch (const Error& e) {
     throw failure_from_error(e, o.input);
@@ -316,6 +319,10 @@ int main(int argc, char** argv) {
                        "Dihedral angle in degrees above which an edge is sharp [0, 180] (35)");
   info_cmd->add_option("--weld-tolerance", info.weld_tolerance,
                        "Merge corners closer than this (model units; 0 = exact, default)");
+
+  info_cmd->add_option("--curvature", info.curvature,
+                       "Write per-vertex curvatures (vertex,x,y,z,kind,gaussian,mean,k1,k2,"
+                       "valid) of the welded mesh to this CSV file");
 
   RefineOptions refine;
   CLI::App* refine_cmd = app.add_subcommand("refine", "Refine an STL file");
