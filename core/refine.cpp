@@ -7,9 +7,11 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <string>
 
 #include "core/error.h"
+#include "core/schemes/adaptive_split4.h"
 
 namespace stlrefine {
 
@@ -19,9 +21,23 @@ void RefineParams::validate() const {
   features.validate();
   require_in_range<std::uint64_t>("max_faces", max_faces, 1, (std::uint64_t{1} << 31) - 1);
   require_in_range("threads", threads, 0, 256);
+  require_in_range("adaptive_tol", adaptive_tol, 0.0, 1e6);
+  require_in_range("max_level", max_level, 1, 8);
+  if (adaptive_tol > 0 && !adaptive_scheme(*make_scheme(scheme)))
+    throw Error(
+        ErrorCode::InvalidParameter, "adaptive_unsupported",
+        "adaptive refinement needs an interpolating 1-to-4 scheme (lsf, butterfly), not " + scheme)
+        .with_field("adaptive_tol");
+}
+
+const Split4Stencil* adaptive_scheme(const Scheme& scheme) {
+  const auto* split4 = dynamic_cast<const Split4Scheme*>(&scheme);
+  return split4 && split4->interpolating() ? &split4->stencil() : nullptr;
 }
 
 std::uint64_t check_face_budget(std::size_t faces, const RefineParams& params) {
+  // Adaptive output size depends on the geometry: each step checks its exact count.
+  if (params.adaptive_tol > 0) return faces;
   const std::uint64_t predicted = make_scheme(params.scheme)->predict_faces(faces, params.levels);
   if (predicted > params.max_faces) {
     throw Error(ErrorCode::BudgetExceeded, "face_budget",
@@ -61,11 +77,32 @@ RefineResult run_levels(Mesh mesh, const RefineParams& params, const Scheme& sch
   r.darts = level.features.count(VertexKind::Dart);
 
   StepStats stats;
+  if (params.adaptive_tol > 0) {
+    const Split4Stencil& stencil = *adaptive_scheme(scheme);
+    r.adaptive_tol = params.adaptive_tol;
+    AdaptiveSplit4 adaptive(level);
+    int made = 0;
+    for (int i = 1; i <= params.max_level; ++i) {
+      throw_if_cancelled(cancel);
+      if (progress)
+        progress(double(i - 1) / params.max_level,
+                 "adaptive level " + std::to_string(i) + "/" + std::to_string(params.max_level));
+      AdaptiveStepStats step;
+      if (!adaptive.step(stencil, params.adaptive_tol, params.max_faces, stats, step)) break;
+      made = i;
+    }
+    level = adaptive.release();
+    r.levels = made;
+    // At the cap some edges may still be over tolerance: say how many.
+    if (made == params.max_level)
+      r.edges_over_tolerance = count_edges_over_tolerance(level, stencil, params.adaptive_tol);
+  }
   // Work per level grows 4x (3x for sqrt3), so weight progress by output faces.
   std::uint64_t total = 0;
-  for (int i = 1; i <= params.levels; ++i) total += scheme.predict_faces(input_faces, i);
+  const int uniform_levels = params.adaptive_tol > 0 ? 0 : params.levels;
+  for (int i = 1; i <= uniform_levels; ++i) total += scheme.predict_faces(input_faces, i);
   std::uint64_t done = 0;
-  for (int i = 1; i <= params.levels; ++i) {
+  for (int i = 1; i <= uniform_levels; ++i) {
     throw_if_cancelled(cancel);
     if (progress)
       progress(total ? double(done) / double(total) : 0.0,

@@ -22,10 +22,20 @@ struct RefineParams {
   FeatureParams features;
   std::uint64_t max_faces = 20'000'000;  //!< [1, 2^31): refuse before work above this
   int threads = 0;                       //!< [0, 256]; 0 = every core
+  //! Curvature-adaptive mode when > 0: chordal tolerance in model units (mm) [0, 1e6].
+  //! Edges whose edge point leaves the chord by more than this are split, red-green
+  //! closed, until none does or `max_level` steps were made; `levels` is then unused.
+  //! Interpolating 1-to-4 schemes only (lsf, butterfly).
+  double adaptive_tol = 0;
+  int max_level = 4;  //!< [1, 8]: the level cap of the adaptive mode
 
   //! \throw Error(InvalidParameter) naming the field.
   void validate() const;
 };
+
+class Split4Stencil;
+//! The stencil the adaptive mode uses with `scheme`, or null when it has none.
+const Split4Stencil* adaptive_scheme(const Scheme& scheme);
 
 //! Progress sink: fraction in [0, 1] and a short stage name ("level 2/3").
 using ProgressFn = std::function<void(double fraction, std::string_view stage)>;
@@ -38,6 +48,9 @@ struct RefineReport {
   std::size_t sharp_edges_in = 0, sharp_edges_out = 0;
   std::size_t corners = 0, creases = 0, darts = 0;
   std::size_t fold_fallbacks = 0;
+  //! Adaptive mode: the tolerance, steps made and edges left above the tolerance at the cap.
+  double adaptive_tol = 0;
+  std::size_t edges_over_tolerance = 0;
   //! Largest distance any input vertex moved (0 for interpolating schemes).
   double max_input_displacement = 0;
   double seconds = 0;

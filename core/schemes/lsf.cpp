@@ -73,10 +73,14 @@ QuadricFit fit_quadric(const Vec3& origin, std::span<const Vec3> points,
   return fit;
 }
 
-void LsfStencil::half_edge_estimates(const Mesh& m, const Features& f, VertexId v,
-                                     std::span<Vec3> out) {
-  // The ring in ccw order; for a boundary vertex the last point closes the open fan and
-  // has no outgoing half-edge.
+namespace {
+
+//! Walks v's ring once and fits one quadric per sector (the whole ring for smooth and dart
+//! vertices), calling on_sector(fit, spokes, sharp, params) for each: spokes[i] is the
+//! outgoing half-edge to ring point i (invalid for the point that closes an open fan),
+//! params[i] its (u, v). Crease sectors are scaled to pi, corners keep natural angles.
+template <class OnSector>
+void for_each_sector_fit(const Mesh& m, const Features& f, VertexId v, OnSector&& on_sector) {
   thread_local std::vector<Vec3> ring;
   thread_local std::vector<HalfedgeId> spoke;
   thread_local std::vector<std::uint8_t> sharp;
@@ -109,27 +113,23 @@ void LsfStencil::half_edge_estimates(const Mesh& m, const Features& f, VertexId 
   params.resize(ring.size());
   const Vec3& p = m.position(v);
 
-  auto estimate_sector = [&](std::size_t begin, std::size_t count, bool sector_closed,
-                             double total_angle) {
+  auto fit_sector = [&](std::size_t begin, std::size_t count, bool sector_closed,
+                        double total_angle) {
     const std::span<const Vec3> pts(ring.data() + begin, count);
     const std::span<std::array<double, 2>> prm(params.data() + begin, count);
     polar_parameters(p, pts, sector_closed, total_angle, prm);
-    const QuadricFit fit = fit_quadric(p, pts, prm);
-    for (std::size_t i = 0; i < count; ++i) {
-      const HalfedgeId s = spoke[begin + i];
-      if (!s.valid() || sharp[begin + i]) continue;
-      out[s.idx] = fit.valid ? fit.evaluate(0.5 * prm[i][0], 0.5 * prm[i][1])
-                             : 0.5 * (p + pts[i]);  // degenerate sample: the chord midpoint
-    }
+    on_sector(fit_quadric(p, pts, prm), std::span<const HalfedgeId>(spoke.data() + begin, count),
+              std::span<const std::uint8_t>(sharp.data() + begin, count),
+              std::span<const std::array<double, 2>>(prm));
   };
 
   if (kind <= VertexKind::Dart) {
     // Smooth or dart: the whole ring, angles scaled to 2 pi (a dart's crease is ignored).
-    estimate_sector(0, ring.size(), true, 2.0 * std::numbers::pi);
+    fit_sector(0, ring.size(), true, 2.0 * std::numbers::pi);
     return;
   }
   // Crease and corner: one fit per sector between consecutive sharp spokes, including the
-  // two sharp neighbours that bound it. Crease sectors are scaled to pi, corners kept.
+  // two sharp neighbours that bound it.
   const double total = kind == VertexKind::Crease ? std::numbers::pi : 0.0;
   if (closed) {
     ring.push_back(ring.front());  // the sector that wraps around ends at the first spoke
@@ -140,9 +140,40 @@ void LsfStencil::half_edge_estimates(const Mesh& m, const Features& f, VertexId 
   std::size_t sector_begin = 0;
   for (std::size_t i = 1; i < ring.size(); ++i) {
     if (!sharp[i]) continue;
-    estimate_sector(sector_begin, i - sector_begin + 1, false, total);
+    fit_sector(sector_begin, i - sector_begin + 1, false, total);
     sector_begin = i;
   }
+}
+
+}  // namespace
+
+void LsfStencil::half_edge_estimates(const Mesh& m, const Features& f, VertexId v,
+                                     std::span<Vec3> out) {
+  const Vec3& p = m.position(v);
+  for_each_sector_fit(
+      m, f, v,
+      [&](const QuadricFit& fit, std::span<const HalfedgeId> spokes,
+          std::span<const std::uint8_t> sharp, std::span<const std::array<double, 2>> prm) {
+        for (std::size_t i = 0; i < spokes.size(); ++i) {
+          const HalfedgeId s = spokes[i];
+          if (!s.valid() || sharp[i]) continue;
+          // A degenerate sample falls back to the chord midpoint.
+          out[s.idx] = fit.valid ? fit.evaluate(0.5 * prm[i][0], 0.5 * prm[i][1])
+                                 : 0.5 * (p + m.position(m.to(s)));
+        }
+      });
+}
+
+QuadricFit vertex_fit(const Mesh& m, const Features& f, VertexId v) {
+  QuadricFit first;
+  bool have = false;
+  if (f.kind(v) == VertexKind::Corner) return first;
+  for_each_sector_fit(m, f, v,
+                      [&](const QuadricFit& fit, std::span<const HalfedgeId>,
+                          std::span<const std::uint8_t>, std::span<const std::array<double, 2>>) {
+                        if (!have) first = fit, have = true;
+                      });
+  return first;
 }
 
 Vec3 lsf_curve_point(const Mesh& m, const Features& f, HalfedgeId h) {

@@ -51,6 +51,10 @@ class LsfStencil final : public Split4Stencil {
                                   std::span<Vec3> per_halfedge);
 };
 
+//! The fit at v used for curvature: the whole ring (smooth, dart) or the first sector
+//! (crease, boundary); invalid at corners and for degenerate samples.
+QuadricFit vertex_fit(const Mesh& mesh, const Features& features, VertexId v);
+
 //! 1-D analogue on a sharp edge a-b (spec 5 gap 3): for each endpoint, the quadratic
 //! through its curve neighbours in chord-length parameters evaluated at the edge's
 //! half-parameter (linear at polyline ends), averaged over both endpoints.

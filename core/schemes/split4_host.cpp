@@ -108,6 +108,8 @@ Split4Topology split4_topology(const Mesh& m, const Features& features) {
   return t;
 }
 
+}  // namespace
+
 // Fold guard. An interpolating stencil can push an edge point so far that a child turns
 // over (the butterfly does on long thin CAD triangles). Where a child's normal is more
 // than 90 degrees from its parent's, the offending edge points are pulled towards their
@@ -171,6 +173,8 @@ std::size_t guard_folds(const Mesh& m, BigVector<Vec3>& pos) {
   }
   return moved_edges;
 }
+
+namespace {
 
 // Vertex kinds of the fine level without walking any ring: old vertices keep their kind
 // (each sharp edge at them is halved, not removed); a new vertex is a crease vertex

@@ -1,0 +1,70 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <unordered_map>
+#include <unordered_set>
+#include <vector>
+
+#include "core/schemes/split4_host.h"
+
+namespace stlrefine {
+
+//! What one adaptive step did.
+struct AdaptiveStepStats {
+  std::size_t marked_by_tolerance = 0;  //!< edges whose edge point left the chord by > tol
+  std::size_t red_by_tolerance = 0;     //!< faces split 1-to-4 because an edge was over tol
+  std::size_t red_by_closure = 0;       //!< faces split 1-to-4 to keep the mesh 1-irregular
+  std::size_t red_faces = 0;            //!< red_by_tolerance + red_by_closure
+  std::size_t green_faces = 0;          //!< faces of the result bisected to close a hanging node
+};
+
+//! Edges of `level` whose edge point (the stencil's, after the fold guard) lies more than
+//! `tolerance` from the edge's chord midpoint (spec 5 gap 4).
+std::size_t count_edges_over_tolerance(const Level& level, const Split4Stencil& stencil,
+                                       double tolerance);
+
+//! Curvature-adaptive 1-to-4 refinement with red-green closure (spec 5 gap 4).
+//!
+//! The state is a hierarchy of red (1-to-4) triangles that is 1-irregular: an edge carries
+//! at most one hanging midpoint. The conforming mesh `level()` bisects each triangle with a
+//! hanging midpoint (green); greens are never refined themselves: when a green pair needs
+//! refinement its parent is split red instead, so repeated steps do not make slivers.
+//! A step evaluates the stencil on the conforming mesh, splits red every triangle with an
+//! edge whose edge point leaves the chord by more than the tolerance, then closes: a
+//! triangle that would get two hanging midpoints, or a midpoint on a half of its own split
+//! edge, is split red too. Vertices are never moved or renumbered (the schemes are
+//! interpolating), so input vertex v is output vertex v; watertight in, watertight out.
+class AdaptiveSplit4 {
+ public:
+  explicit AdaptiveSplit4(const Level& coarse);
+
+  //! One step. Returns false, changing nothing, when no edge is over tolerance.
+  //! \throw Error(BudgetExceeded, field "max_faces") before building a mesh above max_faces.
+  bool step(const Split4Stencil& stencil, double tolerance, std::uint64_t max_faces,
+            StepStats& stats, AdaptiveStepStats& step);
+
+  //! The current conforming mesh and its features.
+  const Level& level() const { return level_; }
+  Level release() { return std::move(level_); }
+
+ private:
+  using Triangle = std::array<std::uint32_t, 3>;
+  void build_level();
+  std::uint32_t midpoint(std::uint32_t a, std::uint32_t b) const;
+
+  std::vector<Vec3> positions_;
+  std::vector<Triangle> red_;  // the hierarchy's leaves, oriented like the input
+  std::unordered_map<std::uint64_t, std::uint32_t> midpoint_;  // vertex pair -> midpoint
+  std::unordered_set<std::uint64_t> sharp_;                    // sharp vertex pairs
+  Level level_;
+  // For each face of level_: the leaf it belongs to; for each leaf edge k the half-edge of
+  // level_ that is that edge, or invalid when the edge is split by a hanging midpoint.
+  std::vector<std::uint32_t> owner_;
+  std::vector<std::array<HalfedgeId, 3>> leaf_halfedge_;
+};
+
+}  // namespace stlrefine
