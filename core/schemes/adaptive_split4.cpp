@@ -29,7 +29,7 @@ BigVector<Vec3> candidate_points(const Level& level, const Split4Stencil& stenci
   BigVector<Vec3> pos(nv + m.num_edges());
   stencil.vertex_points(level, std::span<Vec3>(pos.data(), nv));
   stencil.edge_points(level, std::span<Vec3>(pos.data() + nv, m.num_edges()));
-  stats.fold_fallbacks += guard_folds(m, pos);
+  stats.fold_fallbacks += guard_folds(m, level.features, pos);
   return pos;
 }
 

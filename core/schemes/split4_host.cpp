@@ -115,7 +115,10 @@ Split4Topology split4_topology(const Mesh& m, const Features& features) {
 // than 90 degrees from its parent's, the offending edge points are pulled towards their
 // chord midpoints in steps (1/2, 1/4, then the midpoint itself). With all three edge points
 // at their midpoints the children are parallel to the parent, so the loop ends.
-std::size_t guard_folds(const Mesh& m, BigVector<Vec3>& pos) {
+// Sharp (crease and boundary) edge points lie on their curve and are moved only when the
+// face's smooth edges are already at their midpoints: pulling a crease point off its curve
+// would make a dent in the crease that later levels amplify.
+std::size_t guard_folds(const Mesh& m, const Features& features, BigVector<Vec3>& pos) {
   const std::uint32_t nv = static_cast<std::uint32_t>(m.num_vertices());
   const std::uint32_t nf = static_cast<std::uint32_t>(m.num_faces());
   constexpr std::array<double, 4> kScale = {1.0, 0.5, 0.25, 0.0};
@@ -146,10 +149,16 @@ std::size_t guard_folds(const Mesh& m, BigVector<Vec3>& pos) {
     if (original.empty()) original.assign(pos.begin() + nv, pos.end());
     std::vector<std::uint32_t> touched;
     for (std::uint32_t f : todo) {
+      bool smooth_movable = false;
+      for (std::uint32_t k = 0; k < 3; ++k) {
+        const EdgeId e = m.edge(HalfedgeId(3 * f + k));
+        smooth_movable |= !features.is_sharp(e) && stage[e.idx] + 1u < kScale.size();
+      }
       for (std::uint32_t k = 0; k < 3; ++k) {
         const HalfedgeId h(3 * f + k);
         const EdgeId e = m.edge(h);
         if (stage[e.idx] + 1u >= kScale.size()) continue;
+        if (smooth_movable && features.is_sharp(e)) continue;
         if (stage[e.idx] == 0) ++moved_edges;
         ++stage[e.idx];
         const Vec3 mid = 0.5 * (pos[m.from(h).idx] + pos[m.to(h).idx]);
@@ -221,7 +230,7 @@ Level split4(const Level& coarse, const Split4Stencil& stencil, StepStats& stats
   BigVector<Vec3> positions(nv + m.num_edges());
   stencil.vertex_points(coarse, std::span<Vec3>(positions.data(), nv));
   stencil.edge_points(coarse, std::span<Vec3>(positions.data() + nv, m.num_edges()));
-  if (stencil.interpolating()) stats.fold_fallbacks += guard_folds(m, positions);
+  if (stencil.interpolating()) stats.fold_fallbacks += guard_folds(m, coarse.features, positions);
 
   Split4Topology t = split4_topology(m, coarse.features);
   Level fine;

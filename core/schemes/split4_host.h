@@ -31,8 +31,9 @@ Level split4(const Level& coarse, const Split4Stencil& stencil, StepStats& stats
 
 //! The fold guard on its own: `positions` holds the coarse vertices then one edge point
 //! per coarse edge (V + e). Pulls edge points whose 1-to-4 children would turn more than
-//! 90 degrees from their parent towards the chord midpoint; returns how many moved.
-std::size_t guard_folds(const Mesh& coarse, BigVector<Vec3>& positions);
+//! 90 degrees from their parent towards the chord midpoint, smooth edges before sharp
+//! ones; returns how many moved.
+std::size_t guard_folds(const Mesh& coarse, const Features& features, BigVector<Vec3>& positions);
 
 //! A Scheme made of the 1-to-4 host and one stencil.
 class Split4Scheme final : public Scheme {
