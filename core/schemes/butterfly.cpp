@@ -58,10 +58,8 @@ Vec3 eight_point(const Mesh& m, const Features& f, HalfedgeId h) {
 //   a' ---- a ---x--- b ---- b'    -1/16, 9/16, 9/16, -1/16 along the sharp polyline;
 //   a missing a' or b' (polyline end) is the end condition 2a - b.
 Vec3 four_point(const Mesh& m, const Features& f, HalfedgeId h) {
-  const VertexId a = m.from(h), b = m.to(h);
-  const Vec3 before = curve_point_beyond(m, f, a, b);
-  const Vec3 after = curve_point_beyond(m, f, b, a);
-  return 0.5625 * (m.position(a) + m.position(b)) - 0.0625 * (before + after);
+  const auto [before, a, b, after] = curve_window(m, f, h);
+  return 0.5625 * (a + b) - 0.0625 * (before + after);
 }
 
 }  // namespace

@@ -17,6 +17,12 @@ namespace stlrefine {
 struct Level {
   Mesh mesh;
   Features features;
+  //! Refinement steps that made this level from the input (0 for the input). The sqrt3
+  //! host trisects sharp edges in every second step, so it needs the parity.
+  int step = 0;
+  //! Per-vertex blend parameter of sqrt3-unified (Lin-Luo alpha: 1 interpolates, 0
+  //! approximates), carried to new vertices by the sqrt3 host; empty for other schemes.
+  BigVector<double> alpha{};
 };
 
 //! Counters a step adds to, reported to the user.

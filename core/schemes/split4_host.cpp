@@ -238,6 +238,7 @@ Level split4(const Level& coarse, const Split4Stencil& stencil, StepStats& stats
                                           std::move(t.twin), std::move(t.edge_of),
                                           std::move(t.edge_halfedge), std::move(t.vertex_halfedge));
   fine.features = split4_features(m, coarse.features, std::move(t.sharp));
+  fine.step = coarse.step + 1;
   return fine;
 }
 

@@ -1,0 +1,327 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#include "core/schemes/sqrt3_host.h"
+
+#include <atomic>
+
+#include "core/error.h"
+#include "core/parallel.h"
+#include "core/schemes/crease_rules.h"
+
+namespace stlrefine {
+
+std::uint64_t Sqrt3Scheme::predict_faces(std::uint64_t faces, int levels) const {
+  // Saturates instead of overflowing, so absurd requests still compare as too large.
+  for (int i = 0; i < levels; ++i) faces = faces > UINT64_MAX / 3 ? UINT64_MAX : faces * 3;
+  return faces;
+}
+
+namespace {
+
+constexpr std::uint8_t kNoSharpCorner = 3;
+
+// One fine triangle: corners, twins and edges of its half-edges 3h+0, 3h+1, 3h+2.
+struct FineFace {
+  std::array<VertexId, 3> corner;
+  std::array<HalfedgeId, 3> twin;
+  std::array<EdgeId, 3> edge;
+};
+
+// Where every fine vertex, face and edge of one sqrt3 step comes from, derived from the
+// coarse mesh by index arithmetic. Fine face h belongs to coarse half-edge h (a -> b in
+// coarse face f, apex c); its half-edges are 3h+0, 3h+1, 3h+2.
+//
+//   flipped h (non-sharp):      kept h (sharp, odd step):    kept h (sharp, even step):
+//          p                            p                            c
+//         / \   fine face h            / \   fine face h           / \   fine face h
+//        a---r  = (a, r, p)           a---b  = (a, b, p)          m1--m2 = (m1, m2, c)
+//   p = apex(h), r = apex of the     (the 1-to-3 child)           (middle one of the three
+//   twin's face                                                    children of a cut face)
+//
+// apex(h) is the face point of face(h), or, when face(h) has no face point (it lies on a
+// sharp edge s in an even step), the trisection point of s that h's sub-triangle touches.
+// Fine edges: coarse edge e -> e (the flipped diagonal, or the kept / middle piece); the
+// edge of fine half-edge 3h+2 -> E + h; in even steps the edge (m2, c) of a sharp face ->
+// E + s, and the first third of a boundary edge -> E + 3F + rank among boundary edges.
+class Sqrt3Layout {
+ public:
+  Sqrt3Layout(const Mesh& m, const Features& features, bool trisects,
+              std::span<const std::uint8_t> sharp_corner, std::span<const std::uint32_t> rank)
+      : m_(m),
+        features_(features),
+        trisects_(trisects),
+        sharp_corner_(sharp_corner),
+        boundary_rank_(rank),
+        nv_(static_cast<std::uint32_t>(m.num_vertices())),
+        nf_(static_cast<std::uint32_t>(m.num_faces())),
+        ne_(static_cast<std::uint32_t>(m.num_edges())) {}
+
+  bool sharp(HalfedgeId h) const { return features_.is_sharp(m_.edge(h)); }
+  //! The sharp half-edge of face f in an even step, or invalid.
+  HalfedgeId sharp_of(std::uint32_t f) const {
+    if (!trisects_ || sharp_corner_[f] == kNoSharpCorner) return HalfedgeId();
+    return HalfedgeId(3 * f + sharp_corner_[f]);
+  }
+  VertexId face_point(std::uint32_t f) const { return VertexId(nv_ + f); }
+  //! Trisection point of sharp half-edge s nearest from(s). Each face along a sharp edge
+  //! lends its (unused) face-point slot to the point nearest the start of its half-edge.
+  VertexId near_from(HalfedgeId s) const { return VertexId(nv_ + s.idx / 3); }
+  //! Trisection point nearest to(s): the twin's near_from, or an extra slot on a boundary.
+  VertexId near_to(HalfedgeId s) const {
+    const HalfedgeId t = m_.twin(s);
+    if (t.valid()) return near_from(t);
+    return VertexId(nv_ + nf_ + boundary_rank_[m_.edge(s).idx]);
+  }
+  EdgeId first_third_of_boundary(HalfedgeId s) const {
+    return EdgeId(ne_ + 3 * nf_ + boundary_rank_[m_.edge(s).idx]);
+  }
+  EdgeId spoke(HalfedgeId h) const { return EdgeId(ne_ + h.idx); }
+  static HalfedgeId fine(HalfedgeId h, std::uint32_t k) { return HalfedgeId(3 * h.idx + k); }
+
+  VertexId apex(HalfedgeId h) const {
+    const HalfedgeId s = sharp_of(h.idx / 3);
+    if (!s.valid()) return face_point(h.idx / 3);
+    return h == Mesh::next(s) ? near_to(s) : near_from(s);  // h == prev(s): near a = from(s)
+  }
+
+  FineFace fine_face(HalfedgeId h) const {
+    return trisects_ ? fine_face_trisecting(h) : fine_face_plain(h);
+  }
+
+ private:
+  // Odd steps: every face has its face point; sharp edges are kept whole.
+  FineFace fine_face_plain(HalfedgeId h) const {
+    const HalfedgeId t = m_.twin(h), p = Mesh::prev(h), n = Mesh::next(h);
+    const bool prev_flipped = m_.twin(p).valid() && !sharp(p);
+    // Spoke p -> a: paired with the spoke a -> p of the flipped triangle of twin(prev(h)),
+    // or with the kept triangle of prev(h).
+    const HalfedgeId spoke_twin = prev_flipped ? fine(m_.twin(p), 0) : fine(p, 1);
+    const VertexId a = m_.from(h), p_h = face_point(h.idx / 3);
+    if (t.valid() && !sharp(h)) {
+      return {{a, face_point(t.idx / 3), p_h},
+              {fine(Mesh::next(t), 2), fine(t, 1), spoke_twin},
+              {spoke(Mesh::next(t)), m_.edge(h), spoke(h)}};
+    }
+    return {{a, m_.to(h), p_h},
+            {t.valid() ? fine(t, 0) : HalfedgeId(), fine(n, 2), spoke_twin},
+            {m_.edge(h), spoke(n), spoke(h)}};
+  }
+
+  // Even steps: faces along a sharp edge s have no face point; s is cut in three.
+  FineFace fine_face_trisecting(HalfedgeId h) const {
+    const HalfedgeId t = m_.twin(h);
+    const HalfedgeId s = sharp_of(h.idx / 3);
+    if (h == s) {
+      return {{near_from(s), near_to(s), m_.opposite(s)},
+              {t.valid() ? fine(t, 0) : HalfedgeId(), fine(m_.twin(Mesh::next(s)), 0),
+               fine(Mesh::prev(s), 2)},
+              {m_.edge(s), spoke(s), spoke(Mesh::prev(s))}};
+    }
+    FineFace out{{m_.from(h), apex(t), apex(h)}, {}, {}};
+    // Half-edge a -> apex(t), seen from the twin's face g.
+    const HalfedgeId sg = sharp_of(t.idx / 3);
+    if (!sg.valid()) {
+      out.twin[0] = fine(Mesh::next(t), 2);
+      out.edge[0] = spoke(Mesh::next(t));
+    } else if (t == Mesh::next(sg)) {
+      out.twin[0] = fine(sg, 1);  // the edge (m2, c) of g's middle child
+      out.edge[0] = spoke(sg);
+    } else {  // t == prev(sg): a -> m1 is the first third of the sharp edge sg
+      const HalfedgeId across = m_.twin(sg);
+      out.twin[0] = across.valid() ? fine(Mesh::next(across), 2) : HalfedgeId();
+      out.edge[0] = across.valid() ? spoke(Mesh::next(across)) : first_third_of_boundary(sg);
+    }
+    out.twin[1] = fine(t, 1);
+    out.edge[1] = m_.edge(h);
+    // Half-edge apex(h) -> a.
+    if (!s.valid()) {
+      out.twin[2] = fine(m_.twin(Mesh::prev(h)), 0);
+    } else if (h == Mesh::next(s)) {  // m2 -> b: the last third of the sharp edge s
+      const HalfedgeId across = m_.twin(s);
+      out.twin[2] = across.valid() ? fine(m_.twin(Mesh::prev(across)), 0) : HalfedgeId();
+    } else {  // h == prev(s): m1 -> c, shared with s's middle child
+      out.twin[2] = fine(s, 2);
+    }
+    out.edge[2] = spoke(h);
+    return out;
+  }
+
+  const Mesh& m_;
+  const Features& features_;
+  bool trisects_;
+  std::span<const std::uint8_t> sharp_corner_;
+  std::span<const std::uint32_t> boundary_rank_;
+  std::uint32_t nv_, nf_, ne_;
+};
+
+// Per face in an even step: which corner's half-edge is sharp (kNoSharpCorner for none).
+// A face with two sharp edges cannot occur after an odd step of this host.
+BigVector<std::uint8_t> sharp_corners(const Mesh& m, const Features& features) {
+  BigVector<std::uint8_t> corner(m.num_faces());
+  std::atomic<bool> several{false};
+  parallel_for_each_index(m.num_faces(), [&](std::size_t f) {
+    std::uint8_t c = kNoSharpCorner;
+    for (std::uint8_t k = 0; k < 3; ++k) {
+      if (!features.is_sharp(m.edge(HalfedgeId(static_cast<std::uint32_t>(3 * f + k))))) continue;
+      if (c != kNoSharpCorner) several.store(true, std::memory_order_relaxed);
+      c = k;
+    }
+    corner[f] = c;
+  });
+  if (several)
+    throw Error(ErrorCode::Internal, "sqrt3_parity",
+                "sqrt3: a trisecting step met a face with two sharp edges");
+  return corner;
+}
+
+// Rank of every boundary edge among the boundary edges (its extra trisection point and
+// first third get the slots after the face-indexed ones). Returns the count.
+std::uint32_t rank_boundary_edges(const Mesh& m, const Features& features,
+                                  BigVector<std::uint32_t>& rank) {
+  std::uint32_t count = 0;
+  rank.resize(m.num_edges());
+  for (std::uint32_t e = 0; e < m.num_edges(); ++e)
+    if (features.is_sharp(EdgeId(e)) && m.is_boundary(EdgeId(e))) rank[e] = count++;
+  return count;
+}
+
+}  // namespace
+
+Level sqrt3_refine(const Level& coarse, const Sqrt3Stencil& stencil, StepStats& /*stats*/) {
+  const Mesh& m = coarse.mesh;
+  const Features& features = coarse.features;
+  const std::uint32_t nv = static_cast<std::uint32_t>(m.num_vertices());
+  const std::uint32_t nf = static_cast<std::uint32_t>(m.num_faces());
+  const std::uint32_t ne = static_cast<std::uint32_t>(m.num_edges());
+  const bool trisects = coarse.step % 2 == 1;
+
+  BigVector<std::uint8_t> sharp_corner;
+  BigVector<std::uint32_t> boundary_rank;
+  std::uint32_t boundary_edges = 0;
+  if (trisects) {
+    sharp_corner = sharp_corners(m, features);
+    boundary_edges = rank_boundary_edges(m, features, boundary_rank);
+  }
+  // The input level has no alpha yet: the stencil says what it is (or that it needs none).
+  BigVector<double> initial_alpha;
+  std::span<const double> alpha = coarse.alpha;
+  if (alpha.size() != nv) {
+    initial_alpha = stencil.initial_alpha(coarse);
+    alpha = initial_alpha;
+  }
+  const Sqrt3Step step{m, features, trisects, alpha, sharp_corner};
+  const Sqrt3Layout layout(m, features, trisects, sharp_corner, boundary_rank);
+
+  const std::size_t fine_vertices = std::size_t(nv) + nf + boundary_edges;
+  const std::size_t fine_edges = std::size_t(ne) + 3 * std::size_t(nf) + boundary_edges;
+  BigVector<Vec3> positions(fine_vertices);
+  stencil.points(
+      step, {std::span<Vec3>(positions.data(), nv), std::span<Vec3>(positions.data() + nv, nf)});
+
+  BigVector<VertexId> corner_vertex(9 * std::size_t(nf));
+  BigVector<HalfedgeId> twin(9 * std::size_t(nf));
+  BigVector<EdgeId> edge_of(9 * std::size_t(nf));
+  BigVector<HalfedgeId> edge_halfedge(fine_edges);
+  BigVector<HalfedgeId> vertex_halfedge(fine_vertices);
+  BigVector<std::uint8_t> sharp(fine_edges);
+  BigVector<VertexKind> kind(fine_vertices);
+  BigVector<std::array<VertexId, 2>> curve(fine_vertices);
+  BigVector<double> fine_alpha(alpha.empty() ? 0 : fine_vertices);
+
+  // New vertices, fine faces and the edges each coarse half-edge owns.
+  parallel_for_each_index(nf, [&](std::size_t fi) {
+    const std::uint32_t f = static_cast<std::uint32_t>(fi);
+    for (std::uint32_t k = 0; k < 3; ++k) {
+      const HalfedgeId h(3 * f + k);
+      const FineFace face = layout.fine_face(h);
+      for (std::uint32_t j = 0; j < 3; ++j) {
+        corner_vertex[3 * h.idx + j] = face.corner[j];
+        twin[3 * h.idx + j] = face.twin[j];
+        edge_of[3 * h.idx + j] = face.edge[j];
+      }
+      const bool sharp_h = layout.sharp(h);
+      const bool kept_whole = !trisects && (sharp_h || !m.twin(h).valid());
+      const bool cut = trisects && sharp_h;
+      const EdgeId e = m.edge(h);
+      if (m.halfedge(e) == h) {
+        edge_halfedge[e.idx] = Sqrt3Layout::fine(h, kept_whole || cut ? 0 : 1);
+        sharp[e.idx] = sharp_h;
+      }
+      const EdgeId own = layout.spoke(h);
+      edge_halfedge[own.idx] = Sqrt3Layout::fine(h, cut ? 1 : 2);
+      // The spoke of the sub-triangle after a sharp edge s is the last third of s.
+      const HalfedgeId s = layout.sharp_of(f);
+      sharp[own.idx] = s.valid() && h == Mesh::next(s);
+    }
+
+    const HalfedgeId s = layout.sharp_of(f);
+    if (!s.valid()) {
+      const VertexId q = layout.face_point(f);
+      vertex_halfedge[q.idx] = Sqrt3Layout::fine(HalfedgeId(3 * f), 2);
+      kind[q.idx] = VertexKind::Smooth;
+      curve[q.idx] = {};
+      if (!alpha.empty()) {
+        const auto [a, b, c] = m.face_vertices(FaceId(f));
+        fine_alpha[q.idx] = (alpha[a.idx] + alpha[b.idx] + alpha[c.idx]) / 3.0;
+      }
+      return;
+    }
+    // A face along a sharp edge: its slot holds the trisection point nearest from(s); the
+    // canonical side also writes the point nearest to(s) (the twin's slot, or the extra
+    // boundary slot), so every point is computed once.
+    const VertexId a = m.from(s), b = m.to(s);
+    const VertexId m1 = layout.near_from(s), m2 = layout.near_to(s);
+    vertex_halfedge[m1.idx] = Sqrt3Layout::fine(s, 0);
+    kind[m1.idx] = VertexKind::Crease;
+    curve[m1.idx] = {a, m2};
+    if (!alpha.empty()) fine_alpha[m1.idx] = (2.0 * alpha[a.idx] + alpha[b.idx]) / 3.0;
+    if (m.halfedge(m.edge(s)) == s) {
+      const std::array<Vec3, 2> points = stencil.curve_points(step, s);
+      positions[m1.idx] = points[0];
+      positions[m2.idx] = points[1];
+    }
+    if (!m.twin(s).valid()) {
+      vertex_halfedge[m2.idx] = Sqrt3Layout::fine(Mesh::next(s), 2);
+      kind[m2.idx] = VertexKind::Crease;
+      curve[m2.idx] = {m1, b};
+      if (!alpha.empty()) fine_alpha[m2.idx] = (alpha[a.idx] + 2.0 * alpha[b.idx]) / 3.0;
+      const EdgeId first_third = layout.first_third_of_boundary(s);
+      edge_halfedge[first_third.idx] = Sqrt3Layout::fine(m.twin(Mesh::prev(s)), 0);
+      sharp[first_third.idx] = 1;
+    }
+  });
+
+  // Old vertices keep their ids, kinds and alpha. In an even step a crease vertex's curve
+  // neighbours become the trisection points next to it.
+  parallel_for_each_index(nv, [&](std::size_t i) {
+    const VertexId v(static_cast<std::uint32_t>(i));
+    const HalfedgeId h = m.halfedge(v);
+    kind[i] = features.kind(v);
+    curve[i] = features.curve_neighbours(v);
+    if (!alpha.empty()) fine_alpha[i] = alpha[i];
+    if (!h.valid()) {
+      vertex_halfedge[i] = HalfedgeId();
+      return;
+    }
+    // Fine half-edge 3h+0 leaves from(h) unless h is cut; then the first third v -> m1,
+    // which is on the boundary exactly when h is.
+    vertex_halfedge[i] = trisects && layout.sharp(h) ? Sqrt3Layout::fine(m.twin(Mesh::prev(h)), 0)
+                                                     : Sqrt3Layout::fine(h, 0);
+    if (!trisects || kind[i] != VertexKind::Crease) return;
+    for (VertexId& w : curve[i]) {
+      const HalfedgeId out = halfedge_to(m, v, w);
+      w = out.valid() ? layout.near_from(out) : layout.near_to(halfedge_to(m, w, v));
+    }
+  });
+
+  Level fine;
+  fine.mesh = Mesh::from_parts_with_edges(std::move(positions), std::move(corner_vertex),
+                                          std::move(twin), std::move(edge_of),
+                                          std::move(edge_halfedge), std::move(vertex_halfedge));
+  fine.features = Features::from_parts(std::move(sharp), std::move(kind), std::move(curve));
+  fine.step = coarse.step + 1;
+  fine.alpha = std::move(fine_alpha);
+  return fine;
+}
+
+}  // namespace stlrefine

@@ -1,0 +1,95 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string_view>
+
+#include "core/schemes/scheme.h"
+
+namespace stlrefine {
+
+//! One sqrt3 step as a stencil sees it: the coarse level, whether this step trisects the
+//! sharp edges (every second step, spec 3.1), and the per-vertex alpha when the stencil
+//! blends per vertex (empty otherwise).
+struct Sqrt3Step {
+  const Mesh& mesh;
+  const Features& features;
+  //! True in steps 2, 4, 6, ...: sharp edges are trisected and the faces along them get
+  //! no face point.
+  bool trisects = false;
+  //! Per coarse vertex; empty unless the stencil asked for it (Sqrt3Stencil::initial_alpha).
+  std::span<const double> alpha;
+  //! In trisecting steps, per coarse face: the corner k whose half-edge 3f+k is the face's
+  //! one sharp edge, or 3 for none. Empty in the other steps.
+  std::span<const std::uint8_t> sharp_corner;
+
+  //! False for the faces along a sharp edge in a trisecting step (they are split by
+  //! joining their apex to the two trisection points instead).
+  bool has_face_point(FaceId f) const { return !trisects || sharp_corner[f.idx] == 3; }
+};
+
+//! Where a stencil writes its points: one per coarse vertex (the old vertex's new
+//! position) and one per coarse face (its face point; entries of faces without a face
+//! point are not read).
+struct Sqrt3Points {
+  std::span<Vec3> vertices;
+  std::span<Vec3> faces;
+};
+
+//! The geometric rules of a sqrt3-family scheme (the stencil): face points, old-vertex
+//! points and the trisection points of sharp edges. Reads the coarse level only.
+class Sqrt3Stencil {
+ public:
+  virtual ~Sqrt3Stencil() = default;
+  //! True when old vertices never move (their points are exact copies).
+  virtual bool interpolating() const = 0;
+  //! Per-vertex alpha of an input level (one without Level::alpha) for stencils that blend
+  //! per vertex; empty for the others. The host carries it to new vertices (LL eq. 7).
+  virtual BigVector<double> initial_alpha(const Level&) const { return {}; }
+  //! Writes out.vertices[v] for every coarse vertex and out.faces[f] for every face with
+  //! step.has_face_point(f).
+  virtual void points(const Sqrt3Step& step, Sqrt3Points out) const = 0;
+  //! Trisecting steps only: the new points at 1/3 and 2/3 of sharp half-edge h, counted
+  //! from from(h). Uses curve vertices only, so both sides of a crease agree.
+  virtual std::array<Vec3, 2> curve_points(const Sqrt3Step& step, HalfedgeId h) const = 0;
+};
+
+//! One sqrt3 step (spec 3.1). Odd steps (coarse.step even): a face point in every face,
+//! 1-to-3 split, every non-sharp old edge flipped. Even steps: sharp edges trisected, the
+//! faces along them split by joining their apex to the trisection points, face points in
+//! the others, every non-sharp old edge flipped. F x3 per step, sharp edges x3 per even
+//! step; no old edge that is sharp is ever flipped.
+//!
+//! Layout of the fine level (derived arithmetically, no maps):
+//! - vertices: old ids kept; V + f is the face point of coarse face f or, when f has no
+//!   face point, the trisection point of its sharp edge nearest the edge's start; the
+//!   second trisection point of a boundary edge gets V + F + (rank among boundary edges).
+//! - faces: fine face h belongs to coarse half-edge h: the flipped triangle
+//!   (from(h), apex across, apex of h), or for a sharp h the triangle it keeps.
+//! \throw Error(Internal) when a trisecting step meets a face with two sharp edges (a
+//! level not made by this host with the step parity it claims).
+Level sqrt3_refine(const Level& coarse, const Sqrt3Stencil& stencil, StepStats& stats);
+
+//! A Scheme made of the sqrt3 host and one stencil.
+class Sqrt3Scheme final : public Scheme {
+ public:
+  Sqrt3Scheme(std::string_view name, std::unique_ptr<Sqrt3Stencil> stencil)
+      : name_(name), stencil_(std::move(stencil)) {}
+  std::string_view name() const override { return name_; }
+  bool interpolating() const override { return stencil_->interpolating(); }
+  std::uint64_t predict_faces(std::uint64_t faces, int levels) const override;
+  Level refine_once(const Level& coarse, StepStats& stats) const override {
+    return sqrt3_refine(coarse, *stencil_, stats);
+  }
+  const Sqrt3Stencil& stencil() const { return *stencil_; }
+
+ private:
+  std::string_view name_;
+  std::unique_ptr<Sqrt3Stencil> stencil_;
+};
+
+}  // namespace stlrefine
