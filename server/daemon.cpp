@@ -12,13 +12,18 @@
 #include <atomic>
 #include <cctype>
 #include <charconv>
+#include <cmath>
 #include <condition_variable>
 #include <cstdio>
+#include <ctime>
 #include <deque>
+#include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <limits>
 #include <memory>
 #include <optional>
+#include <random>
 #include <span>
 #include <stdexcept>
 #include <thread>
@@ -30,6 +35,7 @@
 #include "api/problem.h"
 #include "api/zip.h"
 #include "core/error.h"
+#include "server/metrics.h"
 #include "slicer/writers.h"
 
 // Hardening around cpp-httplib 0.11.4 (Debian 12), and why each piece is needed:
@@ -124,25 +130,116 @@ class BoundedTaskQueue : public httplib::TaskQueue {
   bool shutdown_ = false;
 };
 
+enum class RouteKind {
+  Compute,  // POST with an STL body, answered synchronously, takes a compute slot
+  Submit,   // POST /v1/jobs: an STL body queued as a job
+  JobItem,  // /v1/jobs/{id} and /v1/jobs/{id}/{file}
+  Plain,    // GET without a body
+};
+
 struct Route {
-  const char* path;
+  const char* path;   // a prefix when kind == JobItem
   const char* allow;  // the Allow header of a 405
-  bool compute;       // POST with an STL body, takes a compute slot
+  RouteKind kind;
 };
 
 constexpr Route kRoutes[] = {
-    {"/v1/refine", "POST", true},     {"/v1/slice", "POST", true},     {"/v1/info", "POST", true},
-    {"/healthz", "GET, HEAD", false}, {"/readyz", "GET, HEAD", false},
+    {"/v1/refine", "POST", RouteKind::Compute},
+    {"/v1/slice", "POST", RouteKind::Compute},
+    {"/v1/info", "POST", RouteKind::Compute},
+    {"/v1/jobs", "POST", RouteKind::Submit},
+    {"/v1/jobs/", "GET, HEAD, DELETE", RouteKind::JobItem},
+    {"/v1/openapi.json", "GET, HEAD", RouteKind::Plain},
+    {"/metrics", "GET, HEAD", RouteKind::Plain},
+    {"/healthz", "GET, HEAD", RouteKind::Plain},
+    {"/readyz", "GET, HEAD", RouteKind::Plain},
 };
 
 const Route* find_route(const std::string& path) {
-  for (const Route& r : kRoutes)
-    if (path == r.path) return &r;
+  for (const Route& r : kRoutes) {
+    if (r.kind == RouteKind::JobItem ? path.rfind(r.path, 0) == 0 && path.size() > 9
+                                     : path == r.path)
+      return &r;
+  }
   return nullptr;
 }
 
+bool has_body(const Route& route) {
+  return route.kind == RouteKind::Compute || route.kind == RouteKind::Submit;
+}
+
 bool method_allowed(const Route& route, const std::string& method) {
-  return route.compute ? method == "POST" : (method == "GET" || method == "HEAD");
+  // allow is a comma-separated list of tokens
+  std::string_view allow = route.allow;
+  while (!allow.empty()) {
+    const std::size_t comma = allow.find(',');
+    std::string_view token = allow.substr(0, comma);
+    while (!token.empty() && token.front() == ' ') token.remove_prefix(1);
+    if (token == method) return true;
+    if (comma == std::string_view::npos) break;
+    allow.remove_prefix(comma + 1);
+  }
+  return false;
+}
+
+// The pre-routing handler and the logger of one request run on the same worker thread.
+thread_local std::chrono::steady_clock::time_point request_start{};
+
+void mark_request_start() {
+  request_start = std::chrono::steady_clock::now();
+}
+
+double request_seconds() {
+  if (request_start == std::chrono::steady_clock::time_point{}) return 0;
+  const double s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - request_start).count();
+  request_start = {};
+  return s;
+}
+
+std::string iso8601_now() {
+  const auto now = std::chrono::system_clock::now();
+  const std::time_t secs = std::chrono::system_clock::to_time_t(now);
+  const auto ms =
+      std::chrono::duration_cast<std::chrono::milliseconds>(now.time_since_epoch()).count() % 1000;
+  std::tm tm{};
+  gmtime_r(&secs, &tm);
+  char text[96];
+  std::snprintf(text, sizeof text, "%04d-%02d-%02dT%02d:%02d:%02d.%03dZ", tm.tm_year + 1900,
+                tm.tm_mon + 1, tm.tm_mday, tm.tm_hour, tm.tm_min, tm.tm_sec, static_cast<int>(ms));
+  return text;
+}
+
+// Result files a job may have.
+bool job_file_name(const std::string& name) {
+  return name == "result.stl" || name == "report.json" || name == "contours.json" ||
+         name == "contours.svg" || name == "contours.cli";
+}
+
+// Constant-time comparison: the time taken does not reveal how many bytes matched.
+bool same_secret(std::string_view a, std::string_view b) {
+  unsigned char diff = a.size() == b.size() ? 0 : 1;
+  const std::size_t n = std::max(a.size(), b.size());
+  for (std::size_t i = 0; i < n; ++i) {
+    const unsigned char x = i < a.size() ? static_cast<unsigned char>(a[i]) : 0;
+    const unsigned char y = i < b.size() ? static_cast<unsigned char>(b[i]) : 0;
+    diff |= static_cast<unsigned char>(x ^ y);
+  }
+  return diff == 0;
+}
+
+// A client's X-Request-Id is kept when it is short and plain; otherwise we make one.
+std::string request_id(const Request& req) {
+  const std::string given = req.get_header_value("X-Request-Id");
+  const bool plain =
+      !given.empty() && given.size() <= 64 && std::all_of(given.begin(), given.end(), [](char c) {
+        return std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.';
+      });
+  if (plain) return given;
+  thread_local std::mt19937_64 engine{std::random_device{}()};
+  char text[17];
+  std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(engine()));
+  return text;
 }
 
 std::string lowercase(std::string_view s) {
@@ -201,7 +298,10 @@ struct Daemon::Impl {
   api::Problem library_problem(int status, const Request& req) const;
   void respond(Response& res, const api::Problem& problem) const;
   void compute(const Request& req, std::string_view body, Response& res, const Route& route);
+  void submit_job(const Request& req, std::string_view body, Response& res);
+  void job_item(const Request& req, Response& res);
   void readyz(Response& res) const;
+  bool authorized(const Request& req) const;
 
   DaemonConfig config;
   api::RequestLimits limits;
@@ -210,6 +310,8 @@ struct Daemon::Impl {
   std::atomic<bool> running{false};   // run() is active
   std::atomic<bool> stopping{false};  // stop() was called
   std::atomic<bool> cancel{false};    // running refinements should give up
+  Metrics metrics;
+  std::unique_ptr<JobStore> jobs;  // null when jobs are not enabled
 };
 
 namespace {
@@ -227,6 +329,12 @@ DaemonConfig checked(DaemonConfig c) {
   if (c.max_slice_points < 1 || c.max_slice_points > (std::uint64_t{1} << 40))
     throw std::invalid_argument("max_slice_points must be in [1, 2^40]");
   if (c.retry_after_seconds < 0) throw std::invalid_argument("retry_after_seconds must be >= 0");
+  if (!c.jobs.data_dir.empty() && (c.jobs.max_queued < 1 || c.jobs.max_queued > 100000))
+    throw std::invalid_argument("the job queue length must be in [1, 100000]");
+  if (!c.jobs.data_dir.empty() && c.jobs.retention.count() < 1)
+    throw std::invalid_argument("job retention must be at least 1 s");
+  for (const std::string& key : c.api_keys)
+    if (key.size() < 16) throw std::invalid_argument("API keys must be at least 16 characters");
   return c;
 }
 
@@ -239,6 +347,16 @@ Daemon::Impl::Impl(DaemonConfig c)
              .max_slice_points = config.max_slice_points,
              .accept_threads = false},
       slots(config.compute_slots) {
+  if (!config.jobs.data_dir.empty()) {
+    JobsConfig jc = config.jobs;
+    if (jc.runners == 0) jc.runners = config.compute_slots;
+    jobs = std::make_unique<JobStore>(jc, slots, [this](const JobView& job, double seconds) {
+      const auto& r = job.report;
+      const std::uint64_t in = r.contains("input") ? r["input"].value("faces", 0ull) : 0;
+      const std::uint64_t out = r.contains("output") ? r["output"].value("faces", 0ull) : 0;
+      metrics.refinement(job.scheme, to_string(job.state), seconds, in, out);
+    });
+  }
   install();
 }
 
@@ -253,7 +371,16 @@ std::optional<api::Problem> Daemon::Impl::precheck(const Request& req) const {
     p.extensions["allow"] = route->allow;
     return p;
   }
-  if (!route->compute) return std::nullopt;
+  if (!authorized(req)) {
+    api::Problem p = make_problem(401, "unauthorized",
+                                  "this server needs an API key: Authorization: Bearer <key>");
+    p.extensions["www_authenticate"] = "Bearer";
+    return p;
+  }
+  if ((route->kind == RouteKind::Submit || route->kind == RouteKind::JobItem) && !jobs)
+    return make_problem(404, "jobs-disabled",
+                        "jobs are not enabled on this server (start it with --data-dir DIR)");
+  if (!has_body(*route)) return std::nullopt;
 
   // Body framing. Only Content-Length bodies are accepted: 0.11.4 applies its payload limit
   // to nothing else.
@@ -305,7 +432,7 @@ std::optional<api::Problem> Daemon::Impl::precheck(const Request& req) const {
 
   // Parameters, before the body is uploaded.
   try {
-    if (route->path == std::string_view("/v1/refine"))
+    if (route->kind == RouteKind::Submit || route->path == std::string_view("/v1/refine"))
       api::parse_refine_params(raw_params(req), limits);
     else if (route->path == std::string_view("/v1/slice"))
       api::parse_slice_params(raw_params(req), limits);
@@ -316,6 +443,17 @@ std::optional<api::Problem> Daemon::Impl::precheck(const Request& req) const {
   }
 
   // A full house is told at once. The handler takes the slot for real after the upload.
+  if (route->kind == RouteKind::Submit) {
+    if (stopping || jobs->queued() >= jobs->config().max_queued) {
+      if (stopping) return busy_problem(true);
+      api::Problem p = make_problem(503, "queue-full",
+                                    "all " + std::to_string(jobs->config().max_queued) +
+                                        " job queue places are taken; retry later");
+      p.extensions["max_queued"] = jobs->config().max_queued;
+      return p;
+    }
+    return std::nullopt;
+  }
   if (stopping || slots.available() == 0) return busy_problem(stopping);
   return std::nullopt;
 }
@@ -332,6 +470,7 @@ api::Problem Daemon::Impl::busy_problem(bool is_stopping) const {
 void Daemon::Impl::respond(Response& res, const api::Problem& problem) const {
   if (problem.status == 503)
     res.set_header("Retry-After", std::to_string(config.retry_after_seconds));
+  if (problem.status == 401) res.set_header("WWW-Authenticate", "Bearer");
   if (problem.status == 405 && problem.extensions.contains("allow"))
     res.set_header("Allow", problem.extensions["allow"].get<std::string>());
   send_problem(res, problem);
@@ -369,7 +508,12 @@ void Daemon::Impl::compute(const Request& req, std::string_view raw_body, Respon
           });
     };
     if (refine_request) {
+      const auto started = std::chrono::steady_clock::now();
       api::RefineOutcome out = api::run_refine(body, *refine_request, {}, &cancel);
+      metrics.refinement(
+          refine_request->refine.scheme, "done",
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(),
+          out.report["input"].value("faces", 0ull), out.report["output"].value("faces", 0ull));
       // The report header is compact ASCII JSON (no CR/LF can reach a header).
       const std::string report = out.report.dump(-1, ' ', true);
       if (out.contours) {
@@ -423,6 +567,106 @@ api::Problem Daemon::Impl::library_problem(int status, const Request& req) const
   }
 }
 
+bool Daemon::Impl::authorized(const Request& req) const {
+  if (config.api_keys.empty()) return true;
+  const Route* route = find_route(req.path);
+  if (route &&
+      (std::string_view(route->path) == "/healthz" || std::string_view(route->path) == "/readyz" ||
+       std::string_view(route->path) == "/metrics"))
+    return true;
+  const std::string header = req.get_header_value("Authorization");
+  constexpr std::string_view kBearer = "Bearer ";
+  if (header.size() <= kBearer.size() || header.compare(0, kBearer.size(), kBearer) != 0)
+    return false;
+  const std::string_view given = std::string_view(header).substr(kBearer.size());
+  bool ok = false;
+  for (const std::string& key : config.api_keys) ok |= same_secret(given, key);  // no early exit
+  return ok;
+}
+
+void Daemon::Impl::submit_job(const Request& req, std::string_view body, Response& res) {
+  if (config.test_hook) config.test_hook("/v1/jobs");
+  try {
+    api::RefineRequest request = api::parse_refine_params(raw_params(req), limits);
+    const std::size_t q = req.target.find('?');
+    std::string query = q == std::string::npos ? "" : req.target.substr(q + 1);
+    std::optional<JobView> job =
+        stopping ? std::nullopt : jobs->submit(std::move(request), std::move(query), body);
+    if (!job) {
+      api::Problem p =
+          stopping ? busy_problem(true)
+                   : api::make_problem(503, "queue-full", "the job queue is full; retry later");
+      return respond(res, p);
+    }
+    res.status = 202;
+    res.set_header("Location", "/v1/jobs/" + job->id);
+    res.set_content(job_json(*job).dump(2) + "\n", kJsonContentType);
+  } catch (const Error& e) {
+    respond(res, api::problem_from_error(e));
+  }
+}
+
+void Daemon::Impl::job_item(const Request& req, Response& res) {
+  // /v1/jobs/{id} or /v1/jobs/{id}/{file}
+  const std::string rest = req.path.substr(std::string_view("/v1/jobs/").size());
+  const std::size_t slash = rest.find('/');
+  const std::string id = rest.substr(0, slash);
+  const std::string file = slash == std::string::npos ? "" : rest.substr(slash + 1);
+  if (slash != std::string::npos && !job_file_name(file))
+    return respond(res, api::make_problem(404, "not-found", "no route " + shortened(req.path)));
+  if (!file.empty() && req.method == "DELETE") {
+    api::Problem p = api::make_problem(
+        405, "method-not-allowed", "DELETE is not allowed on a job's files (allowed: GET, HEAD)");
+    p.extensions["allow"] = "GET, HEAD";
+    return respond(res, p);
+  }
+  JobView job;
+  const JobStore::Lookup found =
+      req.method == "DELETE" ? jobs->cancel(id, &job) : jobs->find(id, &job);
+  if (found == JobStore::Lookup::Unknown)
+    return respond(res, api::make_problem(404, "unknown-job", "no job " + shortened(id)));
+  if (found == JobStore::Lookup::Expired && (req.method != "DELETE" && !file.empty())) {
+    return respond(res, api::make_problem(410, "expired",
+                                          "the results of job " + id +
+                                              " were removed after the retention period"));
+  }
+  if (file.empty()) {
+    if (found == JobStore::Lookup::Expired && req.method != "DELETE") res.status = 410;
+    res.set_content(job_json(job).dump(2) + "\n", kJsonContentType);
+    return;
+  }
+  if (job.state != JobState::Done) {
+    api::Problem p = api::make_problem(409, "not-done",
+                                       "job " + id + " is " + to_string(job.state) + ", not done");
+    p.extensions["state"] = to_string(job.state);
+    return respond(res, p);
+  }
+  if (std::find(job.results.begin(), job.results.end(), file) == job.results.end())
+    return respond(res, api::make_problem(404, "no-such-result", "job " + id + " has no " + file));
+  // Stream the file: results can be large. It was written by rename, so it is complete.
+  auto in = std::make_shared<std::ifstream>(jobs->result_path(id, file), std::ios::binary);
+  std::error_code ec;
+  const auto size = std::filesystem::file_size(jobs->result_path(id, file), ec);
+  if (!*in || ec)
+    return respond(res,
+                   api::make_problem(410, "expired", "the results of job " + id + " are gone"));
+  const char* type = file == "result.stl"      ? kStlContentType
+                     : file == "report.json"   ? kJsonContentType
+                     : file == "contours.json" ? slicer::media_type(slicer::SliceFormat::Json)
+                     : file == "contours.svg"  ? slicer::media_type(slicer::SliceFormat::Svg)
+                                               : "application/octet-stream";
+  res.set_header("Content-Disposition", "attachment; filename=\"" + file + "\"");
+  res.set_content_provider(static_cast<std::size_t>(size), type,
+                           [in](std::size_t offset, std::size_t length, httplib::DataSink& sink) {
+                             std::vector<char> buffer(std::min<std::size_t>(length, 1 << 20));
+                             in->seekg(static_cast<std::streamoff>(offset));
+                             in->read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+                             const std::streamsize got = in->gcount();
+                             return got > 0 &&
+                                    sink.write(buffer.data(), static_cast<std::size_t>(got));
+                           });
+}
+
 void Daemon::Impl::readyz(Response& res) const {
   if (stopping || slots.available() == 0) return respond(res, busy_problem(stopping));
   nlohmann::ordered_json j;
@@ -464,6 +708,7 @@ void Daemon::Impl::install() {
   });
 
   http.set_pre_routing_handler([this](const Request& req, Response& res) {
+    mark_request_start();
     if (std::optional<api::Problem> problem = precheck(req)) {
       respond(res, *problem);
       return HandlerResponse::Handled;
@@ -471,28 +716,51 @@ void Daemon::Impl::install() {
     return HandlerResponse::Unhandled;
   });
 
+  auto read_body = [this](const Request& req, const httplib::ContentReader& reader) {
+    // Content-Length was validated by the pre-routing check (one number, under the cap).
+    const std::string length_text = req.get_header_value("Content-Length");
+    std::uint64_t length = 0;
+    std::from_chars(length_text.data(), length_text.data() + length_text.size(), length);
+    std::string body;
+    body.reserve(static_cast<std::size_t>(std::min<std::uint64_t>(length, config.max_body_bytes)));
+    reader([&](const char* data, std::size_t n) {
+      body.append(data, n);
+      return true;
+    });
+    return body;
+  };
   for (const Route& route : kRoutes) {
-    if (route.compute) {
+    if (route.kind == RouteKind::Compute) {
       // A content-reader route gets the body bytes as sent (payload limit still applied).
       // httplib's default reader would form-decode an application/x-www-form-urlencoded
       // body (curl's default label) and refuse it above 8 KiB.
-      http.Post(route.path, [this, &route](const Request& req, Response& res,
-                                           const httplib::ContentReader& reader) {
-        // Content-Length was validated by the pre-routing check (one number, under the cap).
-        const std::string length_text = req.get_header_value("Content-Length");
-        std::uint64_t length = 0;
-        std::from_chars(length_text.data(), length_text.data() + length_text.size(), length);
-        std::string body;
-        body.reserve(
-            static_cast<std::size_t>(std::min<std::uint64_t>(length, config.max_body_bytes)));
-        reader([&](const char* data, std::size_t n) {
-          body.append(data, n);
-          return true;
-        });
-        compute(req, body, res, route);
+      http.Post(route.path, [this, &route, read_body](const Request& req, Response& res,
+                                                      const httplib::ContentReader& reader) {
+        compute(req, read_body(req, reader), res, route);
       });
     }
   }
+  http.Post("/v1/jobs", [this, read_body](const Request& req, Response& res,
+                                          const httplib::ContentReader& reader) {
+    submit_job(req, read_body(req, reader), res);
+  });
+  http.Get(R"(/v1/jobs/[^/]+(/[^/]+)?)",
+           [this](const Request& req, Response& res) { job_item(req, res); });
+  http.Delete(R"(/v1/jobs/[^/]+(/[^/]+)?)",
+              [this](const Request& req, Response& res) { job_item(req, res); });
+  http.Get("/v1/openapi.json", [](const Request&, Response& res) {
+    res.set_content(openapi_document(), kJsonContentType);
+  });
+  http.Get("/metrics", [this](const Request&, Response& res) {
+    Metrics::Gauges g;
+    g.compute_slots = slots.capacity();
+    g.compute_slots_free = slots.available();
+    if (jobs) {
+      g.jobs_queued = jobs->queued();
+      g.jobs_running = jobs->running();
+    }
+    res.set_content(metrics.render(g), "text/plain; version=0.0.4");
+  });
   http.Get("/healthz", [this](const Request&, Response& res) {
     if (config.test_hook) config.test_hook("/healthz");
     res.set_content("{\"status\":\"ok\"}\n", kJsonContentType);
@@ -533,13 +801,29 @@ void Daemon::Impl::install() {
     send_problem(res, api::make_problem(500, "internal", "an internal error occurred"));
   });
 
-  if (config.access_log) {
-    http.set_logger([](const Request& req, const Response& res) {
-      const std::size_t bytes = res.body.empty() ? res.content_length_ : res.body.size();
-      log_line(req.method + " " + shortened(req.path) + " " + std::to_string(res.status) + " " +
-               std::to_string(bytes));
-    });
-  }
+  // Every answer carries a request id (the client's, when it sent a plain one), also in the
+  // access log, so a user's report can be matched to the server's log line.
+  http.set_post_routing_handler([](const Request& req, Response& res) {
+    if (!res.has_header("X-Request-Id")) res.set_header("X-Request-Id", request_id(req));
+  });
+  http.set_logger([this](const Request& req, const Response& res) {
+    const double seconds = request_seconds();
+    const std::string route = route_label(req.path);
+    metrics.request(route, req.method, res.status, seconds);
+    if (!config.access_log) return;
+    const std::size_t bytes = res.body.empty() ? res.content_length_ : res.body.size();
+    nlohmann::ordered_json line;
+    line["time"] = iso8601_now();
+    line["request_id"] = res.get_header_value("X-Request-Id");
+    line["remote"] = req.remote_addr;
+    line["method"] = req.method;
+    line["path"] = shortened(req.path);
+    line["route"] = route;
+    line["status"] = res.status;
+    line["bytes"] = bytes;
+    line["ms"] = std::round(seconds * 1e4) / 10;
+    log_line(line.dump(-1, ' ', true, nlohmann::json::error_handler_t::replace));
+  });
 }
 
 Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>(std::move(config))) {}
@@ -565,6 +849,7 @@ void Daemon::run() {
   impl_->running = true;
   if (!impl_->stopping) impl_->http.listen_after_bind();
   impl_->running = false;
+  if (impl_->jobs) impl_->jobs->shutdown(impl_->config.shutdown_grace);
 }
 
 void Daemon::stop() {
@@ -578,6 +863,24 @@ void Daemon::stop() {
 
 void Daemon::cancel_running() {
   impl_->cancel = true;
+  if (impl_->jobs) impl_->jobs->cancel_running();
+}
+
+JobStore* Daemon::jobs() {
+  return impl_->jobs.get();
+}
+
+std::vector<RouteInfo> served_routes() {
+  std::vector<RouteInfo> out;
+  for (const Route& r : kRoutes) {
+    if (r.kind == RouteKind::JobItem) {
+      out.push_back({"/v1/jobs/{id}", r.allow});
+      out.push_back({"/v1/jobs/{id}/{file}", "GET, HEAD"});
+    } else {
+      out.push_back({r.path, r.allow});
+    }
+  }
+  return out;
 }
 
 ComputeSlots& Daemon::compute_slots() {

@@ -9,8 +9,10 @@
 #include <memory>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "server/compute_slots.h"
+#include "server/jobs.h"
 
 namespace stlrefine::server {
 
@@ -34,8 +36,16 @@ struct DaemonConfig {
   std::chrono::seconds write_timeout{60};
   //! Value of Retry-After on 503 answers.
   int retry_after_seconds = 2;
-  //! One line per request on stderr: method, path, status, bytes sent.
+  //! One JSON line per request on stderr: time, request id, method, path, route, status,
+  //! bytes sent, milliseconds.
   bool access_log = false;
+  //! Asynchronous jobs (POST /v1/jobs ...) are served when jobs.data_dir is not empty.
+  JobsConfig jobs;
+  //! On shutdown, running jobs may finish for this long before they are cancelled.
+  std::chrono::seconds shutdown_grace{30};
+  //! When not empty, every route except /healthz, /readyz and /metrics needs
+  //! `Authorization: Bearer <key>` with one of these keys (compared in constant time).
+  std::vector<std::string> api_keys;
   //! For tests only: called with the route ("/v1/refine", ...) at the start of each route
   //! handler. It may throw, to exercise the generic 500 path.
   std::function<void(std::string_view route)> test_hook;
@@ -44,8 +54,10 @@ struct DaemonConfig {
 //! The HTTP daemon: routes, hardening around cpp-httplib 0.11.4 (see daemon.cpp), and the
 //! compute slots. httplib stays behind this class (pimpl).
 //!
-//! Routes: POST /v1/refine, POST /v1/slice, POST /v1/info, GET /healthz, GET /readyz. Every error
-//! is an RFC 9457 application/problem+json body.
+//! Routes: POST /v1/refine, POST /v1/slice, POST /v1/info, POST /v1/jobs, GET and DELETE
+//! /v1/jobs/{id}, GET /v1/jobs/{id}/{file}, GET /v1/openapi.json, GET /metrics, GET /healthz,
+//! GET /readyz. Every error is an RFC 9457 application/problem+json body; every answer has
+//! an X-Request-Id.
 class Daemon {
  public:
   //! \throw std::invalid_argument for a config out of range.
@@ -57,7 +69,8 @@ class Daemon {
   //! Binds the listening socket; port 0 picks a free port. Returns the bound port.
   //! \throw std::runtime_error when the address cannot be bound.
   int bind(const std::string& host, int port);
-  //! Serves until stop(). Requests in flight are answered before it returns.
+  //! Serves until stop(). Requests in flight are answered before it returns; then queued
+  //! jobs are failed and running ones get shutdown_grace to finish before being cancelled.
   //! \pre bind() succeeded
   void run();
   //! Stops accepting connections and makes run() return once the requests in flight are
@@ -67,12 +80,26 @@ class Daemon {
   void cancel_running();
 
   ComputeSlots& compute_slots();
+  //! Null when jobs are not enabled.
+  JobStore* jobs();
   const DaemonConfig& config() const;
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+//! Every (path, methods) the daemon serves, for the OpenAPI test.
+struct RouteInfo {
+  std::string path;     //!< OpenAPI form: "/v1/jobs/{id}"
+  std::string methods;  //!< "GET, HEAD"
+};
+std::vector<RouteInfo> served_routes();
+
+//! The OpenAPI 3 document served at /v1/openapi.json.
+const std::string& openapi_document();
+//! True when the OpenAPI document has a description for this query parameter.
+bool documented_parameter(const std::string& name);
 
 //! The `listening on` URL for a bound host and port ("http://[::1]:8080" for IPv6).
 std::string listen_url(const std::string& host, int port);

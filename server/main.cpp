@@ -11,11 +11,13 @@
 
 #include <CLI/CLI.hpp>
 #include <atomic>
+#include <cctype>
 #include <cerrno>
 #include <csignal>
 #include <cstdint>
 #include <ctime>
 #include <exception>
+#include <fstream>
 #include <iostream>
 #include <string>
 #include <thread>
@@ -71,6 +73,13 @@ int main(int argc, char** argv) {
   int read_timeout = 10;
   int write_timeout = 60;
   bool access_log = false;
+  std::string data_dir = "stlrefine-data";
+  std::size_t job_queue = 16;
+  double retention_hours = 24;
+  std::uint64_t disk_budget_mib = 10240;
+  int shutdown_grace = 30;
+  std::string api_key_file;
+  app.set_config("--config", "", "Read options from this TOML/INI file (key = value)");
   app.add_option("--host", host, "Address to listen on")->capture_default_str();
   app.add_option("--port", port, "Port to listen on; 0 picks a free one")
       ->check(CLI::Range(0, 65535))
@@ -98,7 +107,37 @@ int main(int argc, char** argv) {
   app.add_option("--write-timeout", write_timeout, "Seconds a socket write may stall")
       ->check(CLI::Range(1, 3600))
       ->capture_default_str();
-  app.add_flag("--access-log", access_log, "Log one line per request on stderr");
+  app.add_flag("--access-log", access_log, "Log one JSON line per request on stderr");
+  app.add_option("--data-dir", data_dir,
+                 "Directory for job inputs and results (jobs survive restarts); empty disables "
+                 "jobs")
+      ->capture_default_str();
+  app.add_option("--job-queue", job_queue, "Jobs waiting for a slot; more get 503")
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
+  app.add_option("--job-retention-hours", retention_hours,
+                 "Hours a finished job's results are kept (then 410)")
+      ->check(CLI::Range(0.001, 24.0 * 365))
+      ->capture_default_str();
+  app.add_option("--job-disk-mib", disk_budget_mib,
+                 "Result bytes kept at most (MiB); the oldest finished jobs expire first")
+      ->check(CLI::Range(std::uint64_t{1}, std::uint64_t{1} << 30))
+      ->capture_default_str();
+  app.add_option("--shutdown-grace", shutdown_grace,
+                 "Seconds running jobs may finish after SIGTERM before they are cancelled")
+      ->check(CLI::Range(0, 3600))
+      ->capture_default_str();
+  app.add_option("--api-key-file", api_key_file,
+                 "File with one API key per line (>= 16 characters); then every route but "
+                 "/healthz, /readyz and /metrics needs Authorization: Bearer <key>");
+  // Every option can also come from the environment: STLREFINED_PORT=9000, ...
+  for (CLI::Option* option : app.get_options()) {
+    std::string name = option->get_single_name();
+    if (name.empty() || name == "help" || name == "version" || name == "config") continue;
+    std::string env = "STLREFINED_";
+    for (char c : name) env += c == '-' ? '_' : static_cast<char>(std::toupper(c));
+    option->envname(env);
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -115,6 +154,20 @@ int main(int argc, char** argv) {
     config.read_timeout = std::chrono::seconds(read_timeout);
     config.write_timeout = std::chrono::seconds(write_timeout);
     config.access_log = access_log;
+    config.jobs.data_dir = data_dir;
+    config.jobs.max_queued = job_queue;
+    config.jobs.retention = std::chrono::seconds(static_cast<long long>(retention_hours * 3600));
+    config.jobs.disk_budget_bytes = disk_budget_mib << 20;
+    config.shutdown_grace = std::chrono::seconds(shutdown_grace);
+    if (!api_key_file.empty()) {
+      std::ifstream keys(api_key_file);
+      if (!keys) throw std::runtime_error("cannot read --api-key-file " + api_key_file);
+      for (std::string line; std::getline(keys, line);) {
+        while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
+        if (!line.empty() && line.front() != '#') config.api_keys.push_back(line);
+      }
+      if (config.api_keys.empty()) throw std::runtime_error("--api-key-file has no keys");
+    }
     stlrefine::server::Daemon daemon(config);
     const int bound = daemon.bind(host, port);
     // The one line on stdout: scripts and tests read the port from it.

@@ -7,8 +7,12 @@
 #include <httplib.h>
 
 #include <csignal>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
 #include <regex>
 #include <string>
+#include <thread>
 
 #include "subprocess.h"
 #include "test_stl.h"
@@ -47,8 +51,44 @@ TEST(Stlrefined, ServesAndStopsCleanlyOnSigterm) {
   child.signal(SIGTERM);
   EXPECT_EQ(child.wait(10s), 0) << child.stderr_text();
   EXPECT_EQ(child.read_line(100ms), "");  // exactly one line on stdout
-  EXPECT_NE(child.stderr_text().find("POST /v1/refine 200"), std::string::npos)
+  // The access log is JSON lines with the request id.
+  EXPECT_NE(child.stderr_text().find(
+                R"("method":"POST","path":"/v1/refine","route":"/v1/refine","status":200)"),
+            std::string::npos)
       << child.stderr_text();
+  EXPECT_NE(child.stderr_text().find(R"("request_id":")"), std::string::npos);
+}
+
+TEST(Stlrefined, SigtermFailsQueuedJobsCancelsRunningOnesAfterTheGraceAndExits0) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                                    ("stlrefined-shutdown-" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  Child child({STLREFINED, "--port", "0", "--compute-slots", "1", "--data-dir", dir.string(),
+               "--shutdown-grace", "0", "--max-faces", "20000000"});
+  const int port = start(child);
+  ASSERT_GT(port, 0);
+  httplib::Client client("127.0.0.1", port);
+  std::ifstream in(std::filesystem::path(STLREFINE_EXAMPLES_DIR) / "fandisk.stl", std::ios::binary);
+  const std::string fandisk((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  auto running = client.Post("/v1/jobs?scheme=butterfly&levels=4", fandisk, "model/stl");
+  auto queued = client.Post("/v1/jobs?scheme=butterfly&levels=1", fandisk, "model/stl");
+  ASSERT_TRUE(running && queued);
+  ASSERT_EQ(running->status, 202);
+  ASSERT_EQ(queued->status, 202);
+  std::this_thread::sleep_for(300ms);
+  child.signal(SIGTERM);
+  EXPECT_EQ(child.wait(10s), 0) << child.stderr_text();
+  auto state_of = [&](const httplib::Result& r) {
+    const std::string id = r->get_header_value("Location").substr(9);
+    std::ifstream job(dir / id / "job.json");
+    return nlohmann::json::parse(job);
+  };
+  const auto q = state_of(queued);
+  EXPECT_EQ(q["state"], "failed") << q.dump();
+  EXPECT_EQ(q["problem"]["type"], "urn:stlrefine:problem:shutting-down");
+  const auto r = state_of(running);
+  EXPECT_TRUE(r["state"] == "cancelled" || r["state"] == "done") << r.dump();
+  std::filesystem::remove_all(dir);
 }
 
 TEST(Stlrefined, StopsCleanlyOnSigint) {

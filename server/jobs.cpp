@@ -1,0 +1,542 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#include "server/jobs.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <ctime>
+#include <fstream>
+#include <iostream>
+#include <random>
+#include <sstream>
+#include <stdexcept>
+
+#include "api/pipeline.h"
+#include "core/error.h"
+#include "slicer/writers.h"
+
+namespace stlrefine::server {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::system_clock;
+
+struct JobStore::Job {
+  std::string id;
+  fs::path dir;
+  api::RefineRequest request;
+  std::string scheme, query;
+  JobState state = JobState::Queued;
+  bool expired = false;
+  std::atomic<bool> cancel{false};
+  double progress = 0;
+  std::string stage = "queued";
+  Clock::time_point created, started, finished;
+  nlohmann::ordered_json report = nlohmann::ordered_json::object();
+  std::optional<nlohmann::ordered_json> problem;
+  std::vector<std::string> results;
+  std::uint64_t result_bytes = 0;
+};
+
+namespace {
+
+constexpr const char* kJobFile = "job.json";
+constexpr const char* kInputFile = "input.stl";
+
+const JobState kStates[] = {JobState::Queued, JobState::Running, JobState::Done, JobState::Failed,
+                            JobState::Cancelled};
+
+JobState state_from(const std::string& s) {
+  for (JobState st : kStates)
+    if (s == to_string(st)) return st;
+  throw std::runtime_error("unknown job state '" + s + "'");
+}
+
+bool finished(JobState s) {
+  return s == JobState::Done || s == JobState::Failed || s == JobState::Cancelled;
+}
+
+// Unguessable: ids are capabilities for the results behind them.
+std::string new_job_id() {
+  static std::mutex mutex;
+  static std::mt19937_64 engine = [] {
+    std::random_device rd;
+    std::seed_seq seq{rd(), rd(), rd(), rd(), rd(), rd(), rd(), rd()};
+    return std::mt19937_64(seq);
+  }();
+  std::lock_guard lock(mutex);
+  char text[33];
+  std::snprintf(text, sizeof text, "%016llx%016llx", static_cast<unsigned long long>(engine()),
+                static_cast<unsigned long long>(engine()));
+  return text;
+}
+
+// Only ids this store could have made: no path can be smuggled into the data directory.
+bool well_formed_id(const std::string& id) {
+  return id.size() == 32 && std::all_of(id.begin(), id.end(), [](char c) {
+           return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'f');
+         });
+}
+
+std::int64_t epoch_ms(Clock::time_point t) {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(t.time_since_epoch()).count();
+}
+
+Clock::time_point from_epoch_ms(std::int64_t ms) {
+  return Clock::time_point(std::chrono::milliseconds(ms));
+}
+
+std::string iso8601(Clock::time_point t) {
+  const std::time_t secs = Clock::to_time_t(t);
+  std::tm tm{};
+  gmtime_r(&secs, &tm);
+  char text[32];
+  std::strftime(text, sizeof text, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return text;
+}
+
+// Write to a temporary name in the same directory, flush to disk, rename: a reader sees
+// the old file or the whole new one, never a half-written one.
+void write_atomically(const fs::path& path, std::string_view bytes) {
+  const fs::path tmp = path.parent_path() / ("." + path.filename().string() + ".tmp");
+  {
+    std::FILE* f = std::fopen(tmp.c_str(), "wb");
+    if (!f) throw std::runtime_error("cannot write " + tmp.string());
+    const bool ok = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size() &&
+                    std::fflush(f) == 0 && ::fsync(fileno(f)) == 0;
+    std::fclose(f);
+    if (!ok) {
+      fs::remove(tmp);
+      throw std::runtime_error("cannot write " + tmp.string());
+    }
+  }
+  fs::rename(tmp, path);
+}
+
+std::string read_file(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error("cannot read " + path.string());
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+void log_line(const std::string& line) {
+  std::cerr << ("stlrefined: " + line + "\n") << std::flush;
+}
+
+}  // namespace
+
+const char* to_string(JobState state) {
+  switch (state) {
+    case JobState::Queued:
+      return "queued";
+    case JobState::Running:
+      return "running";
+    case JobState::Done:
+      return "done";
+    case JobState::Failed:
+      return "failed";
+    case JobState::Cancelled:
+      return "cancelled";
+  }
+  return "unknown";
+}
+
+nlohmann::ordered_json job_json(const JobView& job) {
+  nlohmann::ordered_json j;
+  const std::string self = "/v1/jobs/" + job.id;
+  j["id"] = job.id;
+  j["state"] = to_string(job.state);
+  if (job.expired) j["expired"] = true;
+  j["progress"] = job.progress;
+  j["stage"] = job.stage;
+  j["scheme"] = job.scheme;
+  j["parameters"] = job.query;
+  nlohmann::ordered_json t;
+  t["created"] = iso8601(job.created);
+  const bool has_started = job.started.time_since_epoch().count() != 0;
+  const bool has_finished = job.finished.time_since_epoch().count() != 0;
+  if (has_started) {
+    t["started"] = iso8601(job.started);
+    t["queued_seconds"] = std::chrono::duration<double>(job.started - job.created).count();
+  }
+  if (has_finished) {
+    t["finished"] = iso8601(job.finished);
+    if (has_started)
+      t["run_seconds"] = std::chrono::duration<double>(job.finished - job.started).count();
+  }
+  j["timings"] = t;
+  if (!job.report.empty()) j["report"] = job.report;
+  if (job.problem) j["problem"] = *job.problem;
+  nlohmann::ordered_json links;
+  links["self"] = self;
+  for (const std::string& name : job.results) {
+    const std::string key = name.substr(0, name.find('.'));  // result, contours, report
+    links[key] = self + "/" + name;
+  }
+  j["links"] = links;
+  return j;
+}
+
+JobStore::JobStore(JobsConfig config, ComputeSlots& slots, FinishedFn on_finished)
+    : config_(std::move(config)), slots_(slots), on_finished_(std::move(on_finished)) {
+  if (config_.runners == 0) config_.runners = 1;
+  fs::create_directories(config_.data_dir);
+  load_existing();
+  for (std::size_t i = 0; i < config_.runners; ++i) runners_.emplace_back([this] { run_jobs(); });
+  janitor_ = std::thread([this] { janitor(); });
+}
+
+JobStore::~JobStore() {
+  shutdown(std::chrono::milliseconds(0));
+}
+
+void JobStore::load_existing() {
+  for (const fs::directory_entry& entry : fs::directory_iterator(config_.data_dir)) {
+    const std::string id = entry.path().filename().string();
+    if (!entry.is_directory() || !well_formed_id(id)) continue;
+    try {
+      const auto j = nlohmann::json::parse(read_file(entry.path() / kJobFile));
+      auto job = std::make_shared<Job>();
+      job->id = id;
+      job->dir = entry.path();
+      job->state = state_from(j.at("state").get<std::string>());
+      job->expired = j.value("expired", false);
+      job->scheme = j.value("scheme", "");
+      job->query = j.value("parameters", "");
+      job->progress = j.value("progress", 0.0);
+      job->stage = j.value("stage", "");
+      job->created = from_epoch_ms(j.value("created_ms", std::int64_t{0}));
+      job->started = from_epoch_ms(j.value("started_ms", std::int64_t{0}));
+      job->finished = from_epoch_ms(j.value("finished_ms", std::int64_t{0}));
+      if (j.contains("report")) job->report = j["report"];
+      if (j.contains("problem")) job->problem = j["problem"];
+      job->results = j.value("results", std::vector<std::string>{});
+      job->result_bytes = j.value("result_bytes", std::uint64_t{0});
+      if (!finished(job->state)) {
+        // It was queued or running when the daemon stopped: say so, never drop it silently.
+        job->state = JobState::Failed;
+        job->stage = "interrupted";
+        job->finished = Clock::now();
+        job->problem = api::to_json(api::make_problem(
+            500, "interrupted", "the daemon stopped before this job finished; submit it again"));
+        fs::remove(job->dir / kInputFile);
+        persist(*job);
+      }
+      jobs_.emplace(id, std::move(job));
+    } catch (const std::exception& e) {
+      log_line("skipping job directory " + entry.path().string() + ": " + e.what());
+    }
+  }
+}
+
+void JobStore::persist(const Job& job) const {
+  nlohmann::ordered_json j;
+  j["id"] = job.id;
+  j["state"] = to_string(job.state);
+  j["expired"] = job.expired;
+  j["scheme"] = job.scheme;
+  j["parameters"] = job.query;
+  j["progress"] = job.progress;
+  j["stage"] = job.stage;
+  j["created_ms"] = epoch_ms(job.created);
+  j["started_ms"] = epoch_ms(job.started);
+  j["finished_ms"] = epoch_ms(job.finished);
+  if (!job.report.empty()) j["report"] = job.report;
+  if (job.problem) j["problem"] = *job.problem;
+  j["results"] = job.results;
+  j["result_bytes"] = job.result_bytes;
+  write_atomically(job.dir / kJobFile, j.dump(2) + "\n");
+}
+
+JobView JobStore::view(const Job& job) const {
+  JobView v;
+  v.id = job.id;
+  v.state = job.state;
+  v.expired = job.expired;
+  v.progress = job.progress;
+  v.stage = job.stage;
+  v.scheme = job.scheme;
+  v.query = job.query;
+  v.created = job.created;
+  v.started = job.started;
+  v.finished = job.finished;
+  v.report = job.report;
+  v.problem = job.problem;
+  if (!job.expired) v.results = job.results;
+  return v;
+}
+
+std::optional<JobView> JobStore::submit(api::RefineRequest request, std::string query,
+                                        std::string_view stl_bytes) {
+  auto job = std::make_shared<Job>();
+  job->id = new_job_id();
+  job->dir = config_.data_dir / job->id;
+  job->scheme = request.refine.scheme;
+  job->query = std::move(query);
+  job->request = std::move(request);
+  job->created = Clock::now();
+  {
+    std::lock_guard lock(mutex_);
+    if (stopping_ || queue_.size() >= config_.max_queued) return std::nullopt;
+  }
+  // The input goes to disk before the job is visible, so a queued job holds no memory.
+  fs::create_directories(job->dir);
+  write_atomically(job->dir / kInputFile, stl_bytes);
+  persist(*job);
+  std::lock_guard lock(mutex_);
+  if (stopping_ || queue_.size() >= config_.max_queued) {
+    fs::remove_all(job->dir);
+    return std::nullopt;
+  }
+  jobs_.emplace(job->id, job);
+  queue_.push_back(job);
+  work_.notify_one();
+  return view(*job);
+}
+
+JobStore::Lookup JobStore::find(const std::string& id, JobView* out) const {
+  std::lock_guard lock(mutex_);
+  const auto it = well_formed_id(id) ? jobs_.find(id) : jobs_.end();
+  if (it == jobs_.end()) return Lookup::Unknown;
+  if (out) *out = view(*it->second);
+  return it->second->expired ? Lookup::Expired : Lookup::Found;
+}
+
+JobStore::Lookup JobStore::cancel(const std::string& id, JobView* out) {
+  std::lock_guard lock(mutex_);
+  const auto it = well_formed_id(id) ? jobs_.find(id) : jobs_.end();
+  if (it == jobs_.end()) return Lookup::Unknown;
+  Job& job = *it->second;
+  if (job.expired) {
+    if (out) *out = view(job);
+    return Lookup::Expired;
+  }
+  job.cancel = true;
+  if (job.state == JobState::Queued) {
+    queue_.erase(std::remove(queue_.begin(), queue_.end(), it->second), queue_.end());
+    job.state = JobState::Cancelled;
+    job.stage = "cancelled";
+    job.finished = Clock::now();
+    job.problem = api::to_json(api::make_problem(409, "cancelled", "cancelled by the client"));
+    fs::remove(job.dir / kInputFile);
+    persist(job);
+  } else if (finished(job.state)) {
+    expire(job);  // DELETE of a finished job frees its disk space
+  }
+  if (out) *out = view(job);
+  return job.expired ? Lookup::Expired : Lookup::Found;
+}
+
+fs::path JobStore::result_path(const std::string& id, const std::string& name) const {
+  return config_.data_dir / id / name;
+}
+
+std::size_t JobStore::queued() const {
+  std::lock_guard lock(mutex_);
+  return queue_.size();
+}
+
+std::size_t JobStore::running() const {
+  std::lock_guard lock(mutex_);
+  return running_;
+}
+
+void JobStore::run_jobs() {
+  for (;;) {
+    std::shared_ptr<Job> job;
+    {
+      std::unique_lock lock(mutex_);
+      work_.wait(lock, [&] { return !queue_.empty() || stopping_; });
+      if (stopping_) return;
+      job = queue_.front();
+      queue_.pop_front();
+      ++running_;
+      job->state = JobState::Running;
+      job->stage = "waiting for a compute slot";
+    }
+    run_one(job);
+    std::lock_guard lock(mutex_);
+    --running_;
+    work_.notify_all();  // shutdown() waits for running_ == 0
+  }
+}
+
+void JobStore::run_one(const std::shared_ptr<Job>& job) {
+  // Jobs share the compute slots with the synchronous routes: wait for one, polling so a
+  // cancel or shutdown is seen.
+  std::optional<ComputeSlots::Lease> lease;
+  while (!(lease = slots_.try_acquire()) && !job->cancel && !cancel_all_)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  {
+    std::lock_guard lock(mutex_);
+    job->started = Clock::now();
+    job->stage = "starting";
+    persist(*job);
+  }
+  JobState state = JobState::Failed;
+  std::optional<api::Problem> problem;
+  nlohmann::ordered_json report;
+  std::vector<std::string> results;
+  std::uint64_t bytes = 0;
+  try {
+    if (!lease) throw Error(ErrorCode::Cancelled, "cancelled", "cancelled before it started");
+    const std::string input = read_file(job->dir / kInputFile);
+    auto progress = [&](double fraction, std::string_view stage) {
+      std::lock_guard lock(mutex_);
+      job->progress = std::clamp(fraction, 0.0, 1.0);
+      job->stage = std::string(stage);
+    };
+    api::RefineOutcome out = api::run_refine(
+        std::span(reinterpret_cast<const std::uint8_t*>(input.data()), input.size()), job->request,
+        progress, &job->cancel);
+    report = out.report;
+    write_atomically(job->dir / "result.stl", out.stl);
+    results.push_back("result.stl");
+    bytes += out.stl.size();
+    if (out.contours) {
+      const std::string name =
+          std::string("contours") + slicer::file_extension(job->request.slice->format);
+      write_atomically(job->dir / name, *out.contours);
+      results.push_back(name);
+      bytes += out.contours->size();
+    }
+    const std::string report_text = report.dump(2) + "\n";
+    write_atomically(job->dir / "report.json", report_text);
+    results.push_back("report.json");
+    bytes += report_text.size();
+    state = JobState::Done;
+  } catch (const Error& e) {
+    if (e.code() == ErrorCode::Cancelled || job->cancel || cancel_all_) {
+      state = JobState::Cancelled;
+      problem = api::make_problem(409, "cancelled",
+                                  cancel_all_ && !job->cancel ? "cancelled: the server shut down"
+                                                              : "cancelled by the client");
+    } else {
+      problem = api::problem_from_error(e);
+    }
+  } catch (const std::exception& e) {
+    log_line("job " + job->id + " failed: " + e.what());
+    problem = api::make_problem(500, "internal", "an internal error occurred");
+  }
+  lease.reset();
+  fs::remove(job->dir / kInputFile);
+
+  JobView done;
+  {
+    std::lock_guard lock(mutex_);
+    job->state = state;
+    job->finished = Clock::now();
+    job->progress = state == JobState::Done ? 1.0 : job->progress;
+    job->stage = to_string(state);
+    job->report = std::move(report);
+    if (problem) job->problem = api::to_json(*problem);
+    job->results = std::move(results);
+    job->result_bytes = bytes;
+    persist(*job);
+    done = view(*job);
+  }
+  if (on_finished_)
+    on_finished_(done, std::chrono::duration<double>(done.finished - done.started).count());
+  janitor_wake_.notify_one();  // the disk budget may now be exceeded
+}
+
+void JobStore::expire(Job& job) {
+  for (const std::string& name : job.results) fs::remove(job.dir / name);
+  job.expired = true;
+  job.result_bytes = 0;
+  persist(job);
+}
+
+void JobStore::expire_now() {
+  std::lock_guard lock(mutex_);
+  const auto now = Clock::now();
+  std::vector<Job*> kept;
+  std::uint64_t total = 0;
+  for (auto it = jobs_.begin(); it != jobs_.end();) {
+    Job& job = *it->second;
+    if (!finished(job.state)) {
+      ++it;
+      continue;
+    }
+    if (job.expired) {
+      // The tombstone answers 410 for another retention period, then the id is forgotten.
+      if (job.finished + 2 * config_.retention < now) {
+        std::error_code ignored;
+        fs::remove_all(job.dir, ignored);
+        it = jobs_.erase(it);
+        continue;
+      }
+    } else if (job.finished + config_.retention < now) {
+      expire(job);
+    } else {
+      kept.push_back(&job);
+      total += job.result_bytes;
+    }
+    ++it;
+  }
+  std::sort(kept.begin(), kept.end(),
+            [](const Job* a, const Job* b) { return a->finished < b->finished; });
+  for (Job* job : kept) {
+    if (total <= config_.disk_budget_bytes) break;
+    total -= job->result_bytes;
+    expire(*job);
+  }
+}
+
+void JobStore::janitor() {
+  const auto period = std::clamp<std::chrono::seconds>(
+      config_.retention / 4, std::chrono::seconds(1), std::chrono::seconds(60));
+  std::unique_lock lock(mutex_);
+  while (!stopping_) {
+    janitor_wake_.wait_for(lock, period);
+    if (stopping_) break;
+    lock.unlock();
+    try {
+      expire_now();
+    } catch (const std::exception& e) {
+      log_line(std::string("expiring job results failed: ") + e.what());
+    }
+    lock.lock();
+  }
+}
+
+void JobStore::cancel_running() {
+  std::lock_guard lock(mutex_);
+  cancel_all_ = true;
+  for (auto& [id, job] : jobs_)
+    if (job->state == JobState::Running) job->cancel = true;
+}
+
+void JobStore::shutdown(std::chrono::milliseconds grace) {
+  {
+    std::unique_lock lock(mutex_);
+    if (!stopping_) {
+      stopping_ = true;
+      for (const auto& job : queue_) {
+        job->state = JobState::Failed;
+        job->stage = "shutting down";
+        job->finished = Clock::now();
+        job->problem = api::to_json(api::make_problem(
+            503, "shutting-down", "the server shut down before this job started; submit it again"));
+        fs::remove(job->dir / kInputFile);
+        persist(*job);
+      }
+      queue_.clear();
+    }
+    work_.notify_all();
+    janitor_wake_.notify_all();
+    // Running jobs may finish within the grace period; then they are cancelled.
+    if (!work_.wait_for(lock, grace, [&] { return running_ == 0; })) {
+      lock.unlock();
+      cancel_running();
+    }
+  }
+  for (std::thread& t : runners_)
+    if (t.joinable()) t.join();
+  if (janitor_.joinable()) janitor_.join();
+}
+
+}  // namespace stlrefine::server

@@ -1,0 +1,121 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#include "server/metrics.h"
+
+#include <cstdio>
+#include <sstream>
+
+namespace stlrefine::server {
+
+namespace {
+
+void observe(std::array<std::uint64_t, 10>& le, std::uint64_t& count, double& sum,
+             const std::array<double, 10>& buckets, double value) {
+  for (std::size_t i = 0; i < buckets.size(); ++i) le[i] += value <= buckets[i];
+  ++count;
+  sum += value;
+}
+
+std::string number(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.9g", v);
+  return text;
+}
+
+// Label values are our own route names, schemes and outcomes; escape anyway.
+std::string label(const std::string& v) {
+  std::string out;
+  for (char c : v) {
+    if (c == '\\' || c == '"') out += '\\';
+    if (c == '\n') {
+      out += "\\n";
+      continue;
+    }
+    out += c;
+  }
+  return out;
+}
+
+}  // namespace
+
+std::string route_label(const std::string& path) {
+  static const char* const fixed[] = {"/",         "/healthz",         "/readyz",
+                                      "/metrics",  "/v1/openapi.json", "/v1/refine",
+                                      "/v1/slice", "/v1/info",         "/v1/jobs"};
+  for (const char* f : fixed)
+    if (path == f) return path;
+  const std::string prefix = "/v1/jobs/";
+  if (path.rfind(prefix, 0) == 0) {
+    const std::string rest = path.substr(prefix.size());
+    return rest.find('/') == std::string::npos ? "/v1/jobs/{id}" : "/v1/jobs/{id}/{file}";
+  }
+  if (path.rfind("/assets/", 0) == 0) return "/assets/{file}";
+  return "other";
+}
+
+void Metrics::request(const std::string& route, const std::string& method, int status,
+                      double seconds) {
+  std::lock_guard lock(mutex_);
+  ++requests_[{route, method, status}];
+  Histogram& h = request_seconds_[route];
+  observe(h.le, h.count, h.sum, kBuckets, seconds);
+}
+
+void Metrics::refinement(const std::string& scheme, const std::string& outcome, double seconds,
+                         std::uint64_t faces_in, std::uint64_t faces_out) {
+  std::lock_guard lock(mutex_);
+  Histogram& h = refine_[{scheme, outcome}];
+  observe(h.le, h.count, h.sum, kBuckets, seconds);
+  faces_in_ += faces_in;
+  faces_out_ += faces_out;
+}
+
+std::string Metrics::render(const Gauges& g) const {
+  std::lock_guard lock(mutex_);
+  std::ostringstream out;
+  out << "# HELP stlrefine_http_requests_total HTTP requests answered, by route, method and "
+         "status.\n# TYPE stlrefine_http_requests_total counter\n";
+  for (const auto& [key, n] : requests_) {
+    const auto& [route, method, status] = key;
+    out << "stlrefine_http_requests_total{route=\"" << label(route) << "\",method=\""
+        << label(method) << "\",status=\"" << status << "\"} " << n << "\n";
+  }
+  auto histogram = [&](const std::string& name, const std::string& labels, const Histogram& h) {
+    for (std::size_t i = 0; i < kBuckets.size(); ++i)
+      out << name << "_bucket{" << labels << ",le=\"" << number(kBuckets[i]) << "\"} " << h.le[i]
+          << "\n";
+    out << name << "_bucket{" << labels << ",le=\"+Inf\"} " << h.count << "\n";
+    out << name << "_sum{" << labels << "} " << number(h.sum) << "\n";
+    out << name << "_count{" << labels << "} " << h.count << "\n";
+  };
+  out << "# HELP stlrefine_http_request_duration_seconds Time from headers read to response "
+         "written, by route.\n# TYPE stlrefine_http_request_duration_seconds histogram\n";
+  for (const auto& [route, h] : request_seconds_)
+    histogram("stlrefine_http_request_duration_seconds", "route=\"" + label(route) + "\"", h);
+  out << "# HELP stlrefine_refine_duration_seconds Refinement time (synchronous and jobs), by "
+         "scheme and outcome.\n# TYPE stlrefine_refine_duration_seconds histogram\n";
+  for (const auto& [key, h] : refine_)
+    histogram("stlrefine_refine_duration_seconds",
+              "scheme=\"" + label(key.first) + "\",outcome=\"" + label(key.second) + "\"", h);
+  out << "# HELP stlrefine_triangles_in_total Input triangles of finished refinements.\n"
+         "# TYPE stlrefine_triangles_in_total counter\nstlrefine_triangles_in_total "
+      << faces_in_ << "\n";
+  out << "# HELP stlrefine_triangles_out_total Output triangles of finished refinements.\n"
+         "# TYPE stlrefine_triangles_out_total counter\nstlrefine_triangles_out_total "
+      << faces_out_ << "\n";
+  out << "# HELP stlrefine_jobs_queued Jobs waiting for a compute slot.\n"
+         "# TYPE stlrefine_jobs_queued gauge\nstlrefine_jobs_queued "
+      << g.jobs_queued << "\n";
+  out << "# HELP stlrefine_jobs_running Jobs running.\n"
+         "# TYPE stlrefine_jobs_running gauge\nstlrefine_jobs_running "
+      << g.jobs_running << "\n";
+  out << "# HELP stlrefine_compute_slots Compute slots configured.\n"
+         "# TYPE stlrefine_compute_slots gauge\nstlrefine_compute_slots "
+      << g.compute_slots << "\n";
+  out << "# HELP stlrefine_compute_slots_free Compute slots free.\n"
+         "# TYPE stlrefine_compute_slots_free gauge\nstlrefine_compute_slots_free "
+      << g.compute_slots_free << "\n";
+  return out.str();
+}
+
+}  // namespace stlrefine::server

@@ -1,0 +1,48 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <map>
+#include <mutex>
+#include <string>
+#include <tuple>
+
+namespace stlrefine::server {
+
+//! Counters and histograms for GET /metrics (Prometheus text format 0.0.4).
+class Metrics {
+ public:
+  //! One answered request: route label ("/v1/jobs/{id}", not the raw path), method, status.
+  void request(const std::string& route, const std::string& method, int status, double seconds);
+  //! One finished refinement (synchronous or job): its duration and triangle counts.
+  void refinement(const std::string& scheme, const std::string& outcome, double seconds,
+                  std::uint64_t faces_in, std::uint64_t faces_out);
+
+  //! Gauges are read at scrape time by the caller and passed in.
+  struct Gauges {
+    std::size_t jobs_queued = 0, jobs_running = 0;
+    std::size_t compute_slots = 0, compute_slots_free = 0;
+  };
+  std::string render(const Gauges& gauges) const;
+
+ private:
+  static constexpr std::array<double, 10> kBuckets = {0.01, 0.05, 0.1, 0.5, 1, 5, 10, 30, 60, 300};
+  struct Histogram {
+    std::array<std::uint64_t, kBuckets.size()> le{};
+    std::uint64_t count = 0;
+    double sum = 0;
+  };
+  mutable std::mutex mutex_;
+  std::map<std::tuple<std::string, std::string, int>, std::uint64_t> requests_;
+  std::map<std::string, Histogram> request_seconds_;                 // by route
+  std::map<std::pair<std::string, std::string>, Histogram> refine_;  // scheme, outcome
+  std::uint64_t faces_in_ = 0, faces_out_ = 0;
+};
+
+//! The route label of a request path: itself for fixed routes, "/v1/jobs/{id}" and
+//! "/v1/jobs/{id}/{file}" for job URLs, "other" for anything unknown (bounded cardinality).
+std::string route_label(const std::string& path);
+
+}  // namespace stlrefine::server

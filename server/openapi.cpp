@@ -1,0 +1,242 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+//
+// The OpenAPI 3 document of the daemon. Routes come from the daemon's own route table and
+// parameters from api/'s own name lists, so the document cannot list a route or parameter
+// the server does not serve; a parameter without a description here fails the OpenAPI test
+// (tests/server/openapi_test.cpp), so it cannot be served undocumented either.
+
+#include <map>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "api/params.h"
+#include "core/schemes/scheme.h"
+#include "server/daemon.h"
+#include "slicer/writers.h"
+
+namespace stlrefine::server {
+
+namespace {
+
+using Json = nlohmann::ordered_json;
+
+struct ParamDoc {
+  const char* type;  // "string", "number", "integer"
+  const char* description;
+};
+
+// One entry per query parameter of any route.
+const std::map<std::string, ParamDoc>& param_docs() {
+  static const std::map<std::string, ParamDoc> docs = {
+      {"scheme", {"string", "Subdivision scheme."}},
+      {"levels", {"integer", "Uniform subdivision steps, 0..8."}},
+      {"crease_angle",
+       {"number", "Dihedral angle in degrees above which an edge is a crease, 0..180."}},
+      {"max_faces",
+       {"integer", "Face budget of the output; refused with 422 before any work above it."}},
+      {"weld_tolerance", {"number", "Distance in mm below which STL corners are welded."}},
+      {"adaptive_tol",
+       {"number",
+        "Chordal tolerance in mm: curvature-adaptive refinement until every edge "
+        "point is within it (lsf, butterfly)."}},
+      {"max_level", {"integer", "Level cap of the adaptive mode, 1..8."}},
+      {"slice", {"number", "Also slice the refined mesh at this layer height (mm)."}},
+      {"slice_format", {"string", "Contour format of the slice: json, svg, cli, cli-binary."}},
+      {"layer_height", {"number", "Layer height in mm."}},
+      {"format", {"string", "Contour format: json, svg, cli, cli-binary."}},
+      {"z_min", {"number", "Lowest height to slice (mm); default the part's bottom."}},
+      {"z_max", {"number", "Highest height to slice (mm); default the part's top."}},
+      {"heights", {"string", "Explicit comma-separated slice heights in mm."}},
+      {"max_layers", {"integer", "Refuse with 422 when the plan has more layers."}},
+      {"alpha",
+       {"number", "sqrt3-unified: 1 interpolates, 0 approximates (Kobbelt), in between blends."}},
+      {"alpha_features", {"number", "sqrt3-unified: alpha of crease and corner vertices."}},
+      {"adaptive_angle",
+       {"number",
+        "sqrt3 adaptive mode: refine where neighbouring faces differ by more than "
+        "this dihedral angle (degrees)."}},
+  };
+  return docs;
+}
+
+Json problem_response(const char* description) {
+  return {
+      {"description", description},
+      {"content",
+       {{"application/problem+json", {{"schema", {{"$ref", "#/components/schemas/Problem"}}}}}}}};
+}
+
+Json query_parameters(const std::vector<std::string_view>& names) {
+  Json params = Json::array();
+  for (std::string_view name : names) {
+    const auto it = param_docs().find(std::string(name));
+    Json p;
+    p["name"] = name;
+    p["in"] = "query";
+    p["required"] = false;
+    if (it != param_docs().end()) {
+      p["description"] = it->second.description;
+      p["schema"] = {{"type", it->second.type}};
+    } else {
+      p["schema"] = {{"type", "string"}};  // undocumented: the OpenAPI test fails on this
+    }
+    if (name == "scheme") {
+      Json names_json = Json::array();
+      for (std::string_view s : scheme_names()) names_json.push_back(s);
+      p["schema"]["enum"] = names_json;
+    }
+    params.push_back(p);
+  }
+  return params;
+}
+
+Json stl_body() {
+  return {
+      {"required", true},
+      {"description", "An STL file, binary or ASCII, sent with a Content-Length."},
+      {"content",
+       {{"model/stl", {{"schema", {{"type", "string"}, {"format", "binary"}}}}},
+        {"application/octet-stream", {{"schema", {{"type", "string"}, {"format", "binary"}}}}}}}};
+}
+
+Json common_errors(Json responses, bool with_body) {
+  responses["400"] = problem_response("A parameter is malformed or out of range.");
+  if (with_body) {
+    responses["411"] = problem_response("No Content-Length, or a Transfer-Encoding.");
+    responses["413"] = problem_response("The body is larger than the server accepts.");
+    responses["415"] = problem_response("Unsupported Content-Type or Content-Encoding.");
+    responses["422"] = problem_response("Not a usable STL, or over a budget.");
+  }
+  responses["401"] = problem_response("An API key is required.");
+  responses["503"] = problem_response("Busy or shutting down; see Retry-After.");
+  return responses;
+}
+
+Json binary_response(const char* description, const char* type) {
+  return {{"description", description},
+          {"content", {{type, {{"schema", {{"type", "string"}, {"format", "binary"}}}}}}}};
+}
+
+Json json_response(const char* description) {
+  return {{"description", description},
+          {"content", {{"application/json", {{"schema", {{"type", "object"}}}}}}}};
+}
+
+Json operation(const char* summary, Json responses) {
+  return {{"summary", summary}, {"responses", std::move(responses)}};
+}
+
+Json build() {
+  const api::RequestLimits limits;  // the daemon's names (no `threads`)
+  Json paths;
+  for (const RouteInfo& route : served_routes()) {
+    Json item;
+    const std::string& p = route.path;
+    if (p == "/v1/refine" || p == "/v1/jobs") {
+      Json op = operation(
+          p == "/v1/refine" ? "Refine an STL (and optionally slice it)" : "Queue a refinement job",
+          common_errors(p == "/v1/refine"
+                            ? Json{{"200", binary_response("The refined STL (a zip with "
+                                                           "contours and report when sliced).",
+                                                           "model/stl")}}
+                            : Json{{"202", json_response("The queued job; "
+                                                         "Location names it.")}},
+                        true));
+      op["parameters"] = query_parameters(api::refine_param_names(limits));
+      op["requestBody"] = stl_body();
+      item["post"] = op;
+    } else if (p == "/v1/slice") {
+      Json op = operation(
+          "Slice an STL into layer contours",
+          common_errors({{"200", binary_response("The contours.", "application/json")}}, true));
+      op["parameters"] = query_parameters(api::slice_param_names(limits));
+      op["requestBody"] = stl_body();
+      item["post"] = op;
+    } else if (p == "/v1/info") {
+      Json op = operation("Report on an STL: ingest, features, curvature",
+                          common_errors({{"200", json_response("The report.")}}, true));
+      op["parameters"] = query_parameters(api::info_param_names());
+      op["requestBody"] = stl_body();
+      item["post"] = op;
+    } else if (p == "/v1/jobs/{id}") {
+      const Json id = Json::array(
+          {{{"name", "id"}, {"in", "path"}, {"required", true}, {"schema", {{"type", "string"}}}}});
+      item["parameters"] = id;
+      item["get"] =
+          operation("A job's state, progress, timings, report and links",
+                    {{"200", json_response("The job.")},
+                     {"404", problem_response("Unknown job.")},
+                     {"410", json_response("The job's results were removed after retention.")}});
+      item["delete"] = operation("Cancel a queued or running job; delete a finished job's results",
+                                 {{"200", json_response("The job after cancellation.")},
+                                  {"404", problem_response("Unknown job.")},
+                                  {"410", json_response("Already removed.")}});
+    } else if (p == "/v1/jobs/{id}/{file}") {
+      Json params = Json::array(
+          {{{"name", "id"}, {"in", "path"}, {"required", true}, {"schema", {{"type", "string"}}}},
+           {{"name", "file"},
+            {"in", "path"},
+            {"required", true},
+            {"schema",
+             {{"type", "string"},
+              {"enum",
+               {"result.stl", "report.json", "contours.json", "contours.svg", "contours.cli"}}}}}});
+      item["parameters"] = params;
+      item["get"] = operation("Download a result of a done job",
+                              {{"200", binary_response("The file.", "application/octet-stream")},
+                               {"404", problem_response("Unknown job or no such result.")},
+                               {"409", problem_response("The job is not done.")},
+                               {"410", problem_response("Removed after retention.")}});
+    } else if (p == "/v1/openapi.json") {
+      item["get"] = operation("This document", {{"200", json_response("OpenAPI 3.0.3")}});
+    } else if (p == "/metrics") {
+      item["get"] =
+          operation("Prometheus metrics",
+                    {{"200",
+                      {{"description", "Text format 0.0.4"},
+                       {"content", {{"text/plain", {{"schema", {{"type", "string"}}}}}}}}}});
+    } else if (p == "/healthz") {
+      item["get"] = operation("Liveness", {{"200", json_response("Alive.")}});
+    } else if (p == "/readyz") {
+      item["get"] =
+          operation("Readiness: 503 while shutting down or with no free slot",
+                    {{"200", json_response("Ready.")}, {"503", problem_response("Not ready.")}});
+    } else {
+      item["get"] = operation(route.path.c_str(), {{"200", {{"description", "OK"}}}});
+    }
+    paths[p] = item;
+  }
+
+  Json doc;
+  doc["openapi"] = "3.0.3";
+  doc["info"] = {{"title", "stlrefine"},
+                 {"version", "1"},
+                 {"description",
+                  "Refines STL meshes with interpolatory subdivision and slices them into layer "
+                  "contours. Every error is an RFC 9457 problem; every answer has an "
+                  "X-Request-Id."}};
+  doc["paths"] = paths;
+  doc["components"]["schemas"]["Problem"] = {{"type", "object"},
+                                             {"properties",
+                                              {{"type", {{"type", "string"}}},
+                                               {"title", {{"type", "string"}}},
+                                               {"status", {{"type", "integer"}}},
+                                               {"detail", {{"type", "string"}}},
+                                               {"field", {{"type", "string"}}}}}};
+  doc["components"]["securitySchemes"]["bearer"] = {{"type", "http"}, {"scheme", "bearer"}};
+  return doc;
+}
+
+}  // namespace
+
+const std::string& openapi_document() {
+  static const std::string text = build().dump(2) + "\n";
+  return text;
+}
+
+bool documented_parameter(const std::string& name) {
+  return param_docs().count(name) != 0;
+}
+
+}  // namespace stlrefine::server
