@@ -24,6 +24,7 @@ using Clock = std::chrono::system_clock;
 
 struct JobStore::Job {
   std::string id;
+  std::string owner;  // the instance running it (JobsConfig::instance)
   fs::path dir;
   api::RefineRequest request;
   std::string scheme, query;
@@ -43,6 +44,7 @@ namespace {
 
 constexpr const char* kJobFile = "job.json";
 constexpr const char* kInputFile = "input.stl";
+constexpr const char* kCancelFile = "cancel";
 
 const JobState kStates[] = {JobState::Queued, JobState::Running, JobState::Done, JobState::Failed,
                             JobState::Cancelled};
@@ -183,6 +185,11 @@ nlohmann::ordered_json job_json(const JobView& job) {
 JobStore::JobStore(JobsConfig config, ComputeSlots& slots, FinishedFn on_finished)
     : config_(std::move(config)), slots_(slots), on_finished_(std::move(on_finished)) {
   if (config_.runners == 0) config_.runners = 1;
+  if (config_.instance.empty()) {
+    char host[256] = {};
+    ::gethostname(host, sizeof host - 1);
+    config_.instance = host;
+  }
   fs::create_directories(config_.data_dir);
   load_existing();
   for (std::size_t i = 0; i < config_.runners; ++i) runners_.emplace_back([this] { run_jobs(); });
@@ -193,30 +200,38 @@ JobStore::~JobStore() {
   shutdown(std::chrono::milliseconds(0));
 }
 
+std::shared_ptr<JobStore::Job> JobStore::read_job(const fs::path& dir) const {
+  const auto j = nlohmann::json::parse(read_file(dir / kJobFile));
+  auto job = std::make_shared<Job>();
+  job->id = dir.filename().string();
+  job->dir = dir;
+  job->owner = j.value("owner", "");
+  job->state = state_from(j.at("state").get<std::string>());
+  job->expired = j.value("expired", false);
+  job->scheme = j.value("scheme", "");
+  job->query = j.value("parameters", "");
+  job->progress = j.value("progress", 0.0);
+  job->stage = j.value("stage", "");
+  job->created = from_epoch_ms(j.value("created_ms", std::int64_t{0}));
+  job->started = from_epoch_ms(j.value("started_ms", std::int64_t{0}));
+  job->finished = from_epoch_ms(j.value("finished_ms", std::int64_t{0}));
+  if (j.contains("report")) job->report = j["report"];
+  if (j.contains("problem")) job->problem = j["problem"];
+  job->results = j.value("results", std::vector<std::string>{});
+  job->result_bytes = j.value("result_bytes", std::uint64_t{0});
+  return job;
+}
+
 void JobStore::load_existing() {
   for (const fs::directory_entry& entry : fs::directory_iterator(config_.data_dir)) {
     const std::string id = entry.path().filename().string();
     if (!entry.is_directory() || !well_formed_id(id)) continue;
     try {
-      const auto j = nlohmann::json::parse(read_file(entry.path() / kJobFile));
-      auto job = std::make_shared<Job>();
-      job->id = id;
-      job->dir = entry.path();
-      job->state = state_from(j.at("state").get<std::string>());
-      job->expired = j.value("expired", false);
-      job->scheme = j.value("scheme", "");
-      job->query = j.value("parameters", "");
-      job->progress = j.value("progress", 0.0);
-      job->stage = j.value("stage", "");
-      job->created = from_epoch_ms(j.value("created_ms", std::int64_t{0}));
-      job->started = from_epoch_ms(j.value("started_ms", std::int64_t{0}));
-      job->finished = from_epoch_ms(j.value("finished_ms", std::int64_t{0}));
-      if (j.contains("report")) job->report = j["report"];
-      if (j.contains("problem")) job->problem = j["problem"];
-      job->results = j.value("results", std::vector<std::string>{});
-      job->result_bytes = j.value("result_bytes", std::uint64_t{0});
+      std::shared_ptr<Job> job = read_job(entry.path());
+      // Another replica's job (a shared data volume): it is read from disk when asked for.
+      if (!job->owner.empty() && job->owner != config_.instance) continue;
       if (!finished(job->state)) {
-        // It was queued or running when the daemon stopped: say so, never drop it silently.
+        // It was queued or running when this daemon stopped: say so, never drop it silently.
         job->state = JobState::Failed;
         job->stage = "interrupted";
         job->finished = Clock::now();
@@ -235,6 +250,7 @@ void JobStore::load_existing() {
 void JobStore::persist(const Job& job) const {
   nlohmann::ordered_json j;
   j["id"] = job.id;
+  j["owner"] = job.owner;
   j["state"] = to_string(job.state);
   j["expired"] = job.expired;
   j["scheme"] = job.scheme;
@@ -273,6 +289,7 @@ std::optional<JobView> JobStore::submit(api::RefineRequest request, std::string 
                                         std::string_view stl_bytes) {
   auto job = std::make_shared<Job>();
   job->id = new_job_id();
+  job->owner = config_.instance;
   job->dir = config_.data_dir / job->id;
   job->scheme = request.refine.scheme;
   job->query = std::move(query);
@@ -297,10 +314,23 @@ std::optional<JobView> JobStore::submit(api::RefineRequest request, std::string 
   return view(*job);
 }
 
+JobStore::Lookup JobStore::find_on_disk(const std::string& id, JobView* out) const {
+  if (!well_formed_id(id)) return Lookup::Unknown;
+  std::error_code ec;
+  if (!fs::exists(config_.data_dir / id / kJobFile, ec)) return Lookup::Unknown;
+  try {
+    const std::shared_ptr<Job> job = read_job(config_.data_dir / id);
+    if (out) *out = view(*job);
+    return job->expired ? Lookup::Expired : Lookup::Found;
+  } catch (const std::exception&) {
+    return Lookup::Unknown;  // being written by its owner for the first time
+  }
+}
+
 JobStore::Lookup JobStore::find(const std::string& id, JobView* out) const {
   std::lock_guard lock(mutex_);
   const auto it = well_formed_id(id) ? jobs_.find(id) : jobs_.end();
-  if (it == jobs_.end()) return Lookup::Unknown;
+  if (it == jobs_.end()) return find_on_disk(id, out);
   if (out) *out = view(*it->second);
   return it->second->expired ? Lookup::Expired : Lookup::Found;
 }
@@ -308,7 +338,15 @@ JobStore::Lookup JobStore::find(const std::string& id, JobView* out) const {
 JobStore::Lookup JobStore::cancel(const std::string& id, JobView* out) {
   std::lock_guard lock(mutex_);
   const auto it = well_formed_id(id) ? jobs_.find(id) : jobs_.end();
-  if (it == jobs_.end()) return Lookup::Unknown;
+  if (it == jobs_.end()) {
+    // Another replica's job: leave a note its runner picks up at the next progress step.
+    const Lookup found = find_on_disk(id, out);
+    if (found == Lookup::Found && out && !finished(out->state)) {
+      std::ofstream(config_.data_dir / id / kCancelFile) << "cancel\n";
+      out->stage = "cancel requested";
+    }
+    return found;
+  }
   Job& job = *it->second;
   if (job.expired) {
     if (out) *out = view(job);
@@ -385,6 +423,8 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
     if (!lease) throw Error(ErrorCode::Cancelled, "cancelled", "cancelled before it started");
     const std::string input = read_file(job->dir / kInputFile);
     auto progress = [&](double fraction, std::string_view stage) {
+      std::error_code ec;
+      if (fs::exists(job->dir / kCancelFile, ec)) job->cancel = true;  // from another replica
       std::lock_guard lock(mutex_);
       job->progress = std::clamp(fraction, 0.0, 1.0);
       job->stage = std::string(stage);

@@ -40,6 +40,9 @@ struct JobsConfig {
   std::uint64_t disk_budget_bytes = std::uint64_t{10} << 30;
   //! Job runners (each takes a compute slot shared with the synchronous routes).
   std::size_t runners = 1;
+  //! This daemon's name among replicas sharing data_dir (default: the host name). A job is
+  //! run, recovered and expired by its owner; any replica answers for it from disk.
+  std::string instance;
 };
 
 //! What a client sees of a job (a copy, taken under the store's lock).
@@ -105,6 +108,8 @@ class JobStore {
   void run_one(const std::shared_ptr<Job>& job);
   void janitor();
   void persist(const Job& job) const;
+  std::shared_ptr<Job> read_job(const std::filesystem::path& dir) const;
+  Lookup find_on_disk(const std::string& id, JobView* out) const;
   void load_existing();
   void expire(Job& job);
   JobView view(const Job& job) const;

@@ -269,6 +269,39 @@ TEST(Jobs, FinishedJobsSurviveARestartAndInterruptedOnesAreReportedFailed) {
   EXPECT_EQ(job["problem"]["type"], "urn:stlrefine:problem:interrupted");
 }
 
+TEST(Jobs, ReplicasSharingADataDirectoryAnswerForEachOthersJobs) {
+  const fs::path dir = fresh_dir("replicas");
+  DaemonConfig config_a = jobs_config(dir), config_b = jobs_config(dir);
+  config_a.jobs.instance = "replica-a";
+  config_b.jobs.instance = "replica-b";
+  config_a.max_faces = 20'000'000;
+  RunningDaemon a(config_a), b(config_b);
+  httplib::Client ca = a.client(), cb = b.client();
+  auto r = post(ca, "/v1/jobs?scheme=butterfly&levels=1", octahedron());
+  ASSERT_TRUE(r);
+  const std::string location = r->get_header_value("Location");
+  ASSERT_EQ(wait_for_state(cb, location, {"done", "failed"})["state"], "done");  // polled on b
+  auto from_b = cb.Get((location + "/result.stl").c_str());
+  auto from_a = ca.Get((location + "/result.stl").c_str());
+  ASSERT_TRUE(from_a && from_b);
+  EXPECT_EQ(from_b->status, 200);
+  EXPECT_TRUE(from_a->body == from_b->body);
+
+  // A long job on a, cancelled through b: a's runner sees the note at its next level.
+  std::ifstream in(fs::path(STLREFINE_EXAMPLES_DIR) / "fandisk.stl", std::ios::binary);
+  const std::string fandisk((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  auto long_job = post(ca, "/v1/jobs?scheme=butterfly&levels=4", fandisk);
+  ASSERT_TRUE(long_job);
+  ASSERT_EQ(long_job->status, 202);
+  const std::string long_location = long_job->get_header_value("Location");
+  ASSERT_EQ(wait_for_state(cb, long_location, {"running", "done"})["state"], "running");
+  auto del = cb.Delete(long_location.c_str());
+  ASSERT_TRUE(del);
+  EXPECT_EQ(del->status, 200);
+  EXPECT_EQ(wait_for_state(cb, long_location, {"cancelled", "done", "failed"}, 10s)["state"],
+            "cancelled");
+}
+
 TEST(Jobs, ExpiredResultsAnswer410AndUnknownIds404) {
   const fs::path dir = fresh_dir("expire");
   DaemonConfig config = jobs_config(dir);
