@@ -23,11 +23,17 @@ void RefineParams::validate() const {
   require_in_range("threads", threads, 0, 256);
   require_in_range("adaptive_tol", adaptive_tol, 0.0, 1e6);
   require_in_range("max_level", max_level, 1, 8);
+  require_in_range("alpha", alpha, 0.0, 1.0);
+  require_in_range("alpha_features", alpha_features, 0.0, 1.0);
   if (adaptive_tol > 0 && !adaptive_scheme(*make_scheme(scheme)))
     throw Error(
         ErrorCode::InvalidParameter, "adaptive_unsupported",
         "adaptive refinement needs an interpolating 1-to-4 scheme (lsf, butterfly), not " + scheme)
         .with_field("adaptive_tol");
+}
+
+SchemeOptions scheme_options(const RefineParams& params) {
+  return {params.alpha, params.alpha_features};
 }
 
 const Split4Stencil* adaptive_scheme(const Scheme& scheme) {
@@ -133,7 +139,7 @@ RefineResult refine(Mesh mesh, const RefineParams& params, const ProgressFn& pro
                     const std::atomic<bool>* cancel) {
   params.validate();
   check_face_budget(mesh.num_faces(), params);
-  const auto scheme = make_scheme(params.scheme);
+  const auto scheme = make_scheme(params.scheme, scheme_options(params));
   if (params.threads == 0) return run_levels(std::move(mesh), params, *scheme, progress, cancel);
   // A dedicated arena caps this request's threads without touching the global pool.
   tbb::task_arena arena(params.threads);

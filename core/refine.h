@@ -28,10 +28,19 @@ struct RefineParams {
   //! Interpolating 1-to-4 schemes only (lsf, butterfly).
   double adaptive_tol = 0;
   int max_level = 4;  //!< [1, 8]: the level cap of the adaptive mode
+  //! sqrt3-unified only (ignored by the other schemes): the Lin-Luo alpha of smooth input
+  //! vertices [0, 1] (1 interpolates, 0 is Kobbelt's sqrt3) ...
+  double alpha = 1.0;
+  //! ... and of crease and corner input vertices (boundaries included) [0, 1], so a part can
+  //! stay exact on its feature lines and be smoothed elsewhere.
+  double alpha_features = 1.0;
 
   //! \throw Error(InvalidParameter) naming the field.
   void validate() const;
 };
+
+//! The scheme options params carry (alpha, alpha_features).
+SchemeOptions scheme_options(const RefineParams& params);
 
 class Split4Stencil;
 //! The stencil the adaptive mode uses with `scheme`, or null when it has none.

@@ -10,6 +10,10 @@
 #include "core/schemes/loop.h"
 #include "core/schemes/lsf.h"
 #include "core/schemes/split4_host.h"
+#include "core/schemes/sqrt3_host.h"
+#include "core/schemes/sqrt3_interp.h"
+#include "core/schemes/sqrt3_kobbelt.h"
+#include "core/schemes/sqrt3_unified.h"
 
 namespace stlrefine {
 
@@ -17,22 +21,36 @@ namespace {
 
 struct SchemeEntry {
   std::string_view name;
-  std::unique_ptr<Scheme> (*make)();
+  std::unique_ptr<Scheme> (*make)(const SchemeOptions&);
 };
 
 // The one table of schemes: name -> factory. No static self-registration.
-constexpr std::array<SchemeEntry, 3> kSchemes = {{
+constexpr std::array<SchemeEntry, 6> kSchemes = {{
     {"butterfly",
-     []() -> std::unique_ptr<Scheme> {
+     [](const SchemeOptions&) -> std::unique_ptr<Scheme> {
        return std::make_unique<Split4Scheme>("butterfly", std::make_unique<ButterflyStencil>());
      }},
     {"loop",
-     []() -> std::unique_ptr<Scheme> {
+     [](const SchemeOptions&) -> std::unique_ptr<Scheme> {
        return std::make_unique<Split4Scheme>("loop", std::make_unique<LoopStencil>());
      }},
     {"lsf",
-     []() -> std::unique_ptr<Scheme> {
+     [](const SchemeOptions&) -> std::unique_ptr<Scheme> {
        return std::make_unique<Split4Scheme>("lsf", std::make_unique<LsfStencil>());
+     }},
+    {"sqrt3",
+     [](const SchemeOptions&) -> std::unique_ptr<Scheme> {
+       return std::make_unique<Sqrt3Scheme>("sqrt3", std::make_unique<KobbeltStencil>());
+     }},
+    {"sqrt3-interp",
+     [](const SchemeOptions&) -> std::unique_ptr<Scheme> {
+       return std::make_unique<Sqrt3Scheme>("sqrt3-interp",
+                                            std::make_unique<LabsikGreinerStencil>());
+     }},
+    {"sqrt3-unified",
+     [](const SchemeOptions& o) -> std::unique_ptr<Scheme> {
+       return std::make_unique<Sqrt3Scheme>(
+           "sqrt3-unified", std::make_unique<LinLuoStencil>(o.alpha, o.alpha_features));
      }},
 }};
 
@@ -48,9 +66,9 @@ std::span<const std::string_view> scheme_names() {
   return kNames;
 }
 
-std::unique_ptr<Scheme> make_scheme(std::string_view name) {
+std::unique_ptr<Scheme> make_scheme(std::string_view name, const SchemeOptions& options) {
   for (const SchemeEntry& entry : kSchemes)
-    if (entry.name == name) return entry.make();
+    if (entry.name == name) return entry.make(options);
   std::string known;
   for (std::string_view n : kNames) known += (known.empty() ? "" : ", ") + std::string(n);
   throw Error(ErrorCode::InvalidParameter, "unknown_scheme",

@@ -48,7 +48,15 @@ class Scheme {
 //! Names accepted by make_scheme, in a stable order ("loop", "butterfly", ...).
 std::span<const std::string_view> scheme_names();
 
+//! Parameters some schemes take; every scheme ignores the ones it has no use for.
+struct SchemeOptions {
+  //! sqrt3-unified: alpha of smooth (and dart) input vertices, [0, 1]; 1 interpolates.
+  double alpha = 1.0;
+  //! sqrt3-unified: alpha of crease and corner input vertices (boundaries included), [0, 1].
+  double alpha_features = 1.0;
+};
+
 //! \throw Error(InvalidParameter, field "scheme") for an unknown name.
-std::unique_ptr<Scheme> make_scheme(std::string_view name);
+std::unique_ptr<Scheme> make_scheme(std::string_view name, const SchemeOptions& options = {});
 
 }  // namespace stlrefine

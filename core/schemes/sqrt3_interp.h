@@ -1,0 +1,39 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#pragma once
+
+#include <vector>
+
+#include "core/schemes/sqrt3_host.h"
+
+namespace stlrefine {
+
+//! Labsik and Greiner's interpolatory sqrt3 ("Interpolatory sqrt3-Subdivision", Eurographics
+//! 2000), spec 3: the 12-point rule where every corner is regular, the single-step
+//! extraordinary rule of spec 3.3 around an interior corner of valence n != 6 (averaged
+//! over several such corners), virtual points where a stencil would cross a sharp edge,
+//! and the trisection rules (17)-(19) along sharp curves. Old vertices never move.
+class LabsikGreinerStencil final : public Sqrt3Stencil {
+ public:
+  LabsikGreinerStencil();
+  bool interpolating() const override { return true; }
+  void points(const Sqrt3Step& step, Sqrt3Points out) const override;
+  std::array<Vec3, 2> curve_points(const Sqrt3Step& step, HalfedgeId h) const override;
+
+  //! Regular rule (eq. 9): corners, tips across the edges, and the two far neighbours of
+  //! each corner. 3 kCorner + 3 kTip + 6 kFar = 1.
+  static constexpr double kCorner = 32.0 / 81.0, kTip = -1.0 / 81.0, kFar = -2.0 / 81.0;
+  //! Extraordinary rule: the centre weighs 2/3 and ring vertex i (counted counter-clockwise
+  //! from the triangle's next corner) alpha_i = (1/3 + 2/sqrt3 cos t + [n>=5] 2/3 cos 2t)/n
+  //! with t = 2 pi (i - 1/2)/n; the alpha_i sum to 1/3.
+  static constexpr double kCentre = 2.0 / 3.0;
+  static double extraordinary_weight(int n, int i);
+
+ private:
+  //! The face point from the 1-ring of the extraordinary vertex from(h) (valence n).
+  Vec3 extraordinary_point(const Mesh& mesh, HalfedgeId h, int n) const;
+  static constexpr int kCachedValences = 64;  // larger valences are computed on the fly
+  std::vector<std::vector<double>> weights_;
+};
+
+}  // namespace stlrefine
