@@ -126,9 +126,9 @@ const std::vector<std::string_view>& info_param_names() {
 }
 
 std::vector<std::string_view> refine_param_names(const RequestLimits& limits) {
-  std::vector<std::string_view> names{"scheme",    "levels",         "crease_angle",
-                                      "max_faces", "weld_tolerance", "adaptive_tol",
-                                      "max_level", "slice",          "slice_format"};
+  std::vector<std::string_view> names{
+      "scheme",    "levels", "crease_angle", "max_faces", "weld_tolerance", "adaptive_tol",
+      "max_level", "slice",  "slice_format", "alpha",     "alpha_features"};
   if (limits.accept_threads) names.push_back("threads");
   return names;
 }
@@ -211,6 +211,10 @@ RefineRequest parse_refine_params(const RawParams& params, const RequestLimits& 
       p.adaptive_tol = parse_number(name, value);
     } else if (name == "max_level") {
       p.max_level = parse_int(name, value);
+    } else if (name == "alpha") {
+      p.alpha = parse_number(name, value);
+    } else if (name == "alpha_features") {
+      p.alpha_features = parse_number(name, value);
     } else if (name == "slice") {
       if (!request.slice) request.slice.emplace();
       request.slice->params.layer_height = parse_number(name, value);

@@ -7,7 +7,8 @@
 //   stlrefine info IN.stl [--crease-angle 35] [--weld-tolerance T] [--curvature OUT.csv]
 //   stlrefine refine IN.stl -o OUT.stl [--scheme butterfly] [--levels 1] [--crease-angle 35]
 //                    [--max-faces N] [--threads N] [--weld-tolerance T] [--ascii]
-//                    [--adaptive-tol MM] [--max-level L] [--report R.json]
+//                    [--adaptive-tol MM] [--max-level L] [--alpha A] [--alpha-features A]
+//                    [--report R.json]
 //                    [--slice H --slice-out CONTOURS [--slice-format json|svg|cli|cli-binary]]
 //   stlrefine slice IN.stl -o OUT [--layer-height 0.1] [--format json|svg|cli|cli-binary]
 //                   [--z-min Z] [--z-max Z] [--heights a,b,c] [--max-layers N] [--threads N]
@@ -185,6 +186,7 @@ struct RefineOptions {
   std::string input, output, report;
   std::string scheme, levels, crease_angle, max_faces, threads, weld_tolerance;
   std::string adaptive_tol, max_level, slice, slice_format, slice_out;
+  std::string alpha, alpha_features;
   bool ascii = false;
 };
 
@@ -234,6 +236,8 @@ int run_refine(const CLI::App& cmd, const RefineOptions& o) {
   add_if_given(raw, cmd, "--weld-tolerance", "weld_tolerance", o.weld_tolerance);
   add_if_given(raw, cmd, "--adaptive-tol", "adaptive_tol", o.adaptive_tol);
   add_if_given(raw, cmd, "--max-level", "max_level", o.max_level);
+  add_if_given(raw, cmd, "--alpha", "alpha", o.alpha);
+  add_if_given(raw, cmd, "--alpha-features", "alpha_features", o.alpha_features);
   add_if_given(raw, cmd, "--slice", "slice", o.slice);
   add_if_given(raw, cmd, "--slice-format", "slice_format", o.slice_format);
   const bool slicing = cmd.get_option("--slice")->count() > 0;
@@ -345,6 +349,12 @@ int main(int argc, char** argv) {
                          "than this (mm; lsf and butterfly; 0 = uniform, default)");
   refine_cmd->add_option("--max-level", refine.max_level,
                          "Level cap of the adaptive mode [1, 8] (4)");
+  refine_cmd->add_option("--alpha", refine.alpha,
+                         "sqrt3-unified: 1 interpolates the input vertices, 0 approximates "
+                         "(Kobbelt's sqrt3) [0, 1] (1)");
+  refine_cmd->add_option("--alpha-features", refine.alpha_features,
+                         "sqrt3-unified: alpha of crease and corner vertices, so feature lines "
+                         "can stay exact while the rest is smoothed [0, 1] (1)");
   refine_cmd->add_option("--slice", refine.slice,
                          "Also slice the refined mesh with this layer height (mm)");
   refine_cmd->add_option("--slice-format", refine.slice_format,

@@ -1,0 +1,164 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+//
+// The sqrt3 schemes' parameters end to end: `alpha` and `alpha_features` parsed by api/
+// (ranges from core), `--alpha` / `--alpha-features` on the stlrefine CLI, and the same
+// query parameters on POST /v1/refine of stlrefined.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <regex>
+#include <sstream>
+#include <string>
+
+#include "api/params.h"
+#include "core/error.h"
+#include "subprocess.h"
+#include "test_stl.h"
+
+namespace stlrefine::test {
+namespace {
+
+using namespace std::chrono_literals;
+namespace fs = std::filesystem;
+
+Error refine_error(const api::RawParams& raw) {
+  try {
+    api::parse_refine_params(raw, {});
+  } catch (const Error& e) {
+    return e;
+  }
+  ADD_FAILURE() << "no Error thrown";
+  return Error(ErrorCode::Internal, "none", "none");
+}
+
+TEST(Sqrt3Params, AlphaParsedWithDefaults) {
+  const api::RefineRequest r = api::parse_refine_params(
+      {{"scheme", "sqrt3-unified"}, {"alpha", "0.25"}, {"alpha_features", "0.75"}}, {});
+  EXPECT_EQ(r.refine.scheme, "sqrt3-unified");
+  EXPECT_DOUBLE_EQ(r.refine.alpha, 0.25);
+  EXPECT_DOUBLE_EQ(r.refine.alpha_features, 0.75);
+  const api::RefineRequest d = api::parse_refine_params({{"scheme", "sqrt3"}}, {});
+  EXPECT_EQ(d.refine.alpha, RefineParams{}.alpha);
+  EXPECT_EQ(d.refine.alpha_features, RefineParams{}.alpha_features);
+  EXPECT_EQ(d.refine.alpha, 1.0);
+  for (const char* scheme : {"sqrt3", "sqrt3-interp", "sqrt3-unified"})
+    EXPECT_NO_THROW(api::parse_refine_params({{"scheme", scheme}}, {})) << scheme;
+}
+
+TEST(Sqrt3Params, AlphaErrorsNameTheField) {
+  const std::vector<std::tuple<api::RawParams, std::string, std::string>> cases{
+      {{{"alpha", "abc"}}, "alpha", "not_a_number"},
+      {{{"alpha", "nan"}}, "alpha", "not_a_number"},
+      {{{"alpha", ""}}, "alpha", "not_a_number"},
+      {{{"alpha", "1.5"}}, "alpha", "out_of_range"},
+      {{{"alpha", "-0.01"}}, "alpha", "out_of_range"},
+      {{{"alpha_features", "2"}}, "alpha_features", "out_of_range"},
+      {{{"alpha_features", "0.5x"}}, "alpha_features", "not_a_number"},
+      {{{"alpha", "0.5"}, {"alpha", "0.5"}}, "alpha", "duplicate_parameter"},
+  };
+  for (const auto& [raw, field, reason] : cases) {
+    const Error e = refine_error(raw);
+    EXPECT_EQ(e.code(), ErrorCode::InvalidParameter) << field << " " << e.what();
+    EXPECT_EQ(e.field(), field) << e.what();
+    EXPECT_EQ(e.reason(), reason) << e.what();
+  }
+}
+
+class Sqrt3BinaryTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string tmpl = (fs::temp_directory_path() / "stlrefine-sqrt3-XXXXXX").string();
+    ASSERT_NE(::mkdtemp(tmpl.data()), nullptr);
+    dir_ = tmpl;
+    input_ = path("octahedron.stl");
+    std::ofstream(input_, std::ios::binary) << binary_stl(octahedron_triangles());
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+  static std::string read(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+  }
+  static ProcessResult cli(std::vector<std::string> args) {
+    args.insert(args.begin(), STLREFINE_CLI);
+    return run_process(args, 60s);
+  }
+
+  fs::path dir_;
+  std::string input_;
+};
+
+TEST_F(Sqrt3BinaryTest, CliAlphaOptions) {
+  // Crease angle 180: the octahedron's vertices are smooth, so alpha decides alone.
+  const std::vector<std::string> base{"refine",   input_, "--scheme",       "sqrt3-unified",
+                                      "--levels", "2",    "--crease-angle", "180"};
+  auto with = [&](std::vector<std::string> extra, const std::string& out) {
+    std::vector<std::string> args = base;
+    args.insert(args.end(), {"-o", path(out), "--report", path(out + ".json")});
+    args.insert(args.end(), extra.begin(), extra.end());
+    return cli(args);
+  };
+  const auto input = octahedron_triangles();
+  ProcessResult r = with({}, "interp.stl");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(read_binary_stl(read(path("interp.stl"))).size(), 8u * 9u);
+  EXPECT_TRUE(corners_preserved(input, read_binary_stl(read(path("interp.stl")))));
+
+  r = with({"--alpha", "0"}, "approx.stl");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_FALSE(corners_preserved(input, read_binary_stl(read(path("approx.stl")))));
+  const auto report = nlohmann::json::parse(read(path("approx.stl.json")));
+  EXPECT_EQ(report.at("output").at("faces"), 72);
+
+  r = with({"--alpha", "0.5", "--alpha-features", "0"}, "blend.stl");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(read_binary_stl(read(path("blend.stl"))).size(), 72u);
+
+  r = with({"--alpha", "2"}, "bad.stl");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--alpha"), std::string::npos) << r.err;
+  r = with({"--alpha-features", "x"}, "bad.stl");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--alpha-features"), std::string::npos) << r.err;
+}
+
+TEST_F(Sqrt3BinaryTest, DaemonAlphaQueryParameters) {
+  if (!fs::exists("/usr/bin/curl")) GTEST_SKIP() << "curl is not installed";
+  Child daemon({STLREFINED, "--port", "0"});
+  const std::string line = daemon.read_line(10s);
+  std::smatch m;
+  ASSERT_TRUE(std::regex_match(line, m, std::regex(R"(^listening on (http://[0-9.]+:[0-9]+)$)")))
+      << line << daemon.stderr_text();
+  const std::string url = m[1].str();
+  auto post = [&](const std::string& target) {
+    const ProcessResult r = run_process({"/usr/bin/curl", "-sS", "--data-binary", "@" + input_,
+                                         "-o", path("body"), "-w", "%{http_code}", url + target});
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return std::atoi(r.out.c_str());
+  };
+  const auto input = octahedron_triangles();
+  ASSERT_EQ(post("/v1/refine?scheme=sqrt3-unified&levels=2&crease_angle=180&alpha=0"), 200);
+  const auto smoothed = read_binary_stl(read(path("body")));
+  EXPECT_EQ(smoothed.size(), 72u);
+  EXPECT_FALSE(corners_preserved(input, smoothed));
+  ASSERT_EQ(post("/v1/refine?scheme=sqrt3-unified&levels=2&crease_angle=180&alpha=1"), 200);
+  EXPECT_TRUE(corners_preserved(input, read_binary_stl(read(path("body")))));
+  ASSERT_EQ(post("/v1/refine?scheme=sqrt3-unified&levels=1&alpha=0.5&alpha_features=0.25"), 200);
+  ASSERT_EQ(post("/v1/refine?scheme=sqrt3-interp&levels=3"), 200);
+  EXPECT_EQ(read_binary_stl(read(path("body"))).size(), 8u * 27u);
+
+  EXPECT_EQ(post("/v1/refine?scheme=sqrt3-unified&alpha=7"), 400);
+  EXPECT_EQ(nlohmann::json::parse(read(path("body"))).at("field"), "alpha");
+  EXPECT_EQ(post("/v1/refine?scheme=sqrt3-unified&alpha_features=nan"), 400);
+  EXPECT_EQ(nlohmann::json::parse(read(path("body"))).at("field"), "alpha_features");
+}
+
+}  // namespace
+}  // namespace stlrefine::test
