@@ -38,6 +38,8 @@ JobFactory ours_read_job(const std::filesystem::path& path, OurRead variant);
 
 // --- CGAL
 JobFactory cgal_loop_job(const std::filesystem::path& path, int levels);
+//! CGAL::Subdivision_method_3::Sqrt3_subdivision (Kobbelt's sqrt3) on a Surface_mesh.
+JobFactory cgal_sqrt3_job(const std::filesystem::path& path, int levels);
 //! CGAL::IO::read_STL into a polygon soup (points + triangles; CGAL merges equal points).
 JobFactory cgal_read_soup_job(const std::filesystem::path& path);
 //! CGAL::IO::read_polygon_mesh (BGL): soup, then Surface_mesh only if it is already a
@@ -50,6 +52,10 @@ JobFactory cgal_read_mesh_repair_job(const std::filesystem::path& path);
 bool have_openmesh();
 JobFactory openmesh_loop_job(const std::filesystem::path& path, int levels);
 JobFactory openmesh_butterfly_job(const std::filesystem::path& path, int levels);
+//! OpenMesh Sqrt3T (Kobbelt's sqrt3).
+JobFactory openmesh_sqrt3_job(const std::filesystem::path& path, int levels);
+//! OpenMesh InterpolatingSqrt3LGT (Labsik-Greiner interpolatory sqrt3).
+JobFactory openmesh_sqrt3_lg_job(const std::filesystem::path& path, int levels);
 //! OpenMesh::IO::read_mesh into a TriMesh (double points).
 JobFactory openmesh_read_job(const std::filesystem::path& path);
 

@@ -31,9 +31,12 @@ std::uint64_t stl_header_triangles(const fs::path& path) {
   return size >= 84 ? (size - 84) / 50 : 0;
 }
 
-class CgalLoop final : public Job {
+enum class CgalMethod { Loop, Sqrt3 };
+
+class CgalSubdivide final : public Job {
  public:
-  CgalLoop(const fs::path& path, int levels) : levels_(levels) {
+  CgalSubdivide(const fs::path& path, int levels, CgalMethod method)
+      : levels_(levels), method_(method) {
     const IndexedSoup soup = load_ingested_triangles(path);
     const double t0 = now_seconds();
     {
@@ -52,8 +55,11 @@ class CgalLoop final : public Job {
     in_faces_ = mesh_.number_of_faces();
   }
   void run() override {
-    CGAL::Subdivision_method_3::Loop_subdivision(mesh_,
-                                                 CGAL::parameters::number_of_iterations(levels_));
+    const auto iterations = CGAL::parameters::number_of_iterations(levels_);
+    if (method_ == CgalMethod::Loop)
+      CGAL::Subdivision_method_3::Loop_subdivision(mesh_, iterations);
+    else
+      CGAL::Subdivision_method_3::Sqrt3_subdivision(mesh_, iterations);
   }
   std::uint64_t in_faces() const override { return in_faces_; }
   std::uint64_t out_faces() const override { return mesh_.number_of_faces(); }
@@ -62,6 +68,7 @@ class CgalLoop final : public Job {
 
  private:
   int levels_;
+  CgalMethod method_;
   SurfaceMesh mesh_;
   std::uint64_t in_faces_ = 0;
   double convert_seconds_ = 0;
@@ -114,7 +121,11 @@ JobFactory cgal_read(const fs::path& path, CgalRead variant) {
 }  // namespace
 
 JobFactory cgal_loop_job(const fs::path& path, int levels) {
-  return [path, levels] { return std::make_unique<CgalLoop>(path, levels); };
+  return [path, levels] { return std::make_unique<CgalSubdivide>(path, levels, CgalMethod::Loop); };
+}
+JobFactory cgal_sqrt3_job(const fs::path& path, int levels) {
+  return
+      [path, levels] { return std::make_unique<CgalSubdivide>(path, levels, CgalMethod::Sqrt3); };
 }
 JobFactory cgal_read_soup_job(const fs::path& path) {
   return cgal_read(path, CgalRead::Soup);

@@ -10,6 +10,8 @@
 #include <OpenMesh/Core/System/omstream.hh>
 #include <OpenMesh/Tools/Subdivider/Uniform/LoopT.hh>
 #include <OpenMesh/Tools/Subdivider/Uniform/ModifiedButterFlyT.hh>
+#include <OpenMesh/Tools/Subdivider/Uniform/Sqrt3InterpolatingSubdividerLabsikGreinerT.hh>
+#include <OpenMesh/Tools/Subdivider/Uniform/Sqrt3T.hh>
 #include <cstdint>
 #include <iostream>
 #include <memory>
@@ -73,7 +75,17 @@ class CaptureOpenMeshMessages {
   std::ostringstream buffer_;
 };
 
-enum class Subdivider { Loop, ModifiedButterfly };
+enum class Subdivider { Loop, ModifiedButterfly, Sqrt3, Sqrt3LabsikGreiner };
+
+//! Attaches OpenMesh subdivider S to the mesh, runs `levels` steps, detaches.
+template <template <class, class> class S, class Mesh>
+bool subdivide(Mesh& mesh, int levels) {
+  S<Mesh, double> subdivider;
+  subdivider.attach(mesh);
+  const bool ok = subdivider(std::size_t(levels));
+  subdivider.detach();
+  return ok;
+}
 
 class OpenMeshSubdivide final : public Job {
  public:
@@ -96,17 +108,21 @@ class OpenMeshSubdivide final : public Job {
     in_faces_ = mesh_.n_faces();
   }
   void run() override {
+    namespace U = OpenMesh::Subdivider::Uniform;
     bool ok = false;
-    if (kind_ == Subdivider::Loop) {
-      OpenMesh::Subdivider::Uniform::LoopT<TriMesh, double> loop;
-      loop.attach(mesh_);
-      ok = loop(std::size_t(levels_));
-      loop.detach();
-    } else {
-      OpenMesh::Subdivider::Uniform::ModifiedButterflyT<TriMesh, double> butterfly;
-      butterfly.attach(mesh_);
-      ok = butterfly(std::size_t(levels_));
-      butterfly.detach();
+    switch (kind_) {
+      case Subdivider::Loop:
+        ok = subdivide<U::LoopT>(mesh_, levels_);
+        break;
+      case Subdivider::ModifiedButterfly:
+        ok = subdivide<U::ModifiedButterflyT>(mesh_, levels_);
+        break;
+      case Subdivider::Sqrt3:
+        ok = subdivide<U::Sqrt3T>(mesh_, levels_);
+        break;
+      case Subdivider::Sqrt3LabsikGreiner:
+        ok = subdivide<U::InterpolatingSqrt3LGT>(mesh_, levels_);
+        break;
     }
     if (!ok) throw std::runtime_error("OpenMesh subdivider returned false");
   }
@@ -164,6 +180,16 @@ JobFactory openmesh_loop_job(const fs::path& path, int levels) {
 JobFactory openmesh_butterfly_job(const fs::path& path, int levels) {
   return [path, levels] {
     return std::make_unique<OpenMeshSubdivide>(path, levels, Subdivider::ModifiedButterfly);
+  };
+}
+JobFactory openmesh_sqrt3_job(const fs::path& path, int levels) {
+  return [path, levels] {
+    return std::make_unique<OpenMeshSubdivide>(path, levels, Subdivider::Sqrt3);
+  };
+}
+JobFactory openmesh_sqrt3_lg_job(const fs::path& path, int levels) {
+  return [path, levels] {
+    return std::make_unique<OpenMeshSubdivide>(path, levels, Subdivider::Sqrt3LabsikGreiner);
   };
 }
 JobFactory openmesh_read_job(const fs::path& path) {

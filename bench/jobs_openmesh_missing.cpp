@@ -23,6 +23,12 @@ JobFactory openmesh_loop_job(const std::filesystem::path&, int) {
 JobFactory openmesh_butterfly_job(const std::filesystem::path&, int) {
   return missing();
 }
+JobFactory openmesh_sqrt3_job(const std::filesystem::path&, int) {
+  return missing();
+}
+JobFactory openmesh_sqrt3_lg_job(const std::filesystem::path&, int) {
+  return missing();
+}
 JobFactory openmesh_read_job(const std::filesystem::path&) {
   return missing();
 }

@@ -2,9 +2,9 @@
 // Copyright (c) 2026 stlrefine authors
 //
 // stlrefine_bench: our subdivision schemes and STL reader beside the peers a user would
-// pick instead (CGAL Loop, OpenMesh LoopT and ModifiedButterflyT, CGAL and OpenMesh STL
-// readers), on the same inputs, in one run. Prints Markdown to stdout, progress to
-// stderr. Hand-run (see bench/README.md); never a ctest test.
+// pick instead (CGAL Loop and Sqrt3, OpenMesh LoopT, ModifiedButterflyT, Sqrt3T and
+// InterpolatingSqrt3LGT, CGAL and OpenMesh STL readers), on the same inputs, in one run. Prints
+// Markdown to stdout, progress to stderr. Hand-run (see bench/README.md); never a ctest test.
 //
 // Each (input, algorithm, level, threads, repetition) runs in its own forked child that
 // loads the input, converts it, measures its baseline RSS, resets the peak and runs once
@@ -151,7 +151,17 @@ void add_outcome(Aggregate& agg, const Outcome& outcome) {
   agg.cpu_ratio = std::max(agg.cpu_ratio, ratio);
 }
 
-enum class Family { Loop, Butterfly, Pipeline };
+enum class Family { Loop, Butterfly, Sqrt3, Pipeline };
+
+//! Faces per face and level: 3 for the sqrt3 family (ours and the peers), 4 otherwise.
+int growth_of(const std::string& key) {
+  return key.find("sqrt3") != std::string::npos ? 3 : 4;
+}
+
+std::uint64_t faces_after(std::uint64_t faces, const std::string& key, int level) {
+  for (int i = 0; i < level; ++i) faces *= std::uint64_t(growth_of(key));
+  return faces;
+}
 
 //! Makes the job for a given STL file: the real input, or the tiny warm-up mesh.
 using Maker = std::function<JobFactory(const fs::path&)>;
@@ -281,6 +291,9 @@ std::string peer_label(const std::string& key) {
   if (key == "cgal-loop") return "CGAL Loop_subdivision";
   if (key == "openmesh-loop") return "OpenMesh LoopT";
   if (key == "openmesh-butterfly") return "OpenMesh ModifiedButterflyT";
+  if (key == "cgal-sqrt3") return "CGAL Sqrt3_subdivision";
+  if (key == "openmesh-sqrt3") return "OpenMesh Sqrt3T";
+  if (key == "openmesh-sqrt3-lg") return "OpenMesh InterpolatingSqrt3LGT";
   return key;
 }
 
@@ -311,9 +324,12 @@ std::vector<RefineCase> make_refine_cases(const Options& opt, int level) {
     c.family = family;
     c.level = level;
     c.maker = [key, level](const fs::path& path) {
-      return key == "cgal-loop"       ? cgal_loop_job(path, level)
-             : key == "openmesh-loop" ? openmesh_loop_job(path, level)
-                                      : openmesh_butterfly_job(path, level);
+      return key == "cgal-loop"           ? cgal_loop_job(path, level)
+             : key == "openmesh-loop"     ? openmesh_loop_job(path, level)
+             : key == "cgal-sqrt3"        ? cgal_sqrt3_job(path, level)
+             : key == "openmesh-sqrt3"    ? openmesh_sqrt3_job(path, level)
+             : key == "openmesh-sqrt3-lg" ? openmesh_sqrt3_lg_job(path, level)
+                                          : openmesh_butterfly_job(path, level);
     };
     cases.push_back(std::move(c));
   };
@@ -324,9 +340,18 @@ std::vector<RefineCase> make_refine_cases(const Options& opt, int level) {
   add_peer("openmesh-loop", Family::Loop);
   if (butterfly) add_ours("butterfly", Family::Butterfly);
   add_peer("openmesh-butterfly", Family::Butterfly);
+  const auto wanted = [&](const char* scheme) {
+    return std::count(opt.schemes.begin(), opt.schemes.end(), scheme) > 0;
+  };
+  if (wanted("sqrt3")) add_ours("sqrt3", Family::Sqrt3);
+  add_peer("cgal-sqrt3", Family::Sqrt3);
+  add_peer("openmesh-sqrt3", Family::Sqrt3);
+  if (wanted("sqrt3-interp")) add_ours("sqrt3-interp", Family::Sqrt3);
+  add_peer("openmesh-sqrt3-lg", Family::Sqrt3);
   // Other schemes of ours (not compared with a peer).
   for (const std::string& scheme : opt.schemes) {
-    if (scheme != "loop" && scheme != "butterfly") add_ours(scheme, Family::Butterfly);
+    if (scheme != "loop" && scheme != "butterfly" && scheme != "sqrt3" && scheme != "sqrt3-interp")
+      add_ours(scheme, Family::Butterfly);
   }
   if (!opt.no_pipeline) {
     for (const std::string& scheme : opt.schemes) {
@@ -355,7 +380,7 @@ std::string case_id(const RefineCase& c) {
 //! level's measured peak of the same case (4x its growth over the baseline).
 void decide_skip(const Options& opt, RefineCase& c, std::uint64_t in_faces,
                  const std::map<std::string, RefineCase>& previous) {
-  const double out = double(in_faces) * std::pow(4.0, c.level);
+  const double out = double(in_faces) * std::pow(double(growth_of(c.key)), c.level);
   if (out > opt.max_out_tris) {
     c.skipped = true;
     c.skip_reason =
@@ -497,6 +522,9 @@ const RefineCase* find_case(const InputResult& input, const std::string& key, in
 std::vector<std::pair<std::string, std::string>> peers_of(const std::string& key) {
   if (key == "ours-loop") return {{"cgal-loop", "CGAL"}, {"openmesh-loop", "OM"}};
   if (key == "ours-butterfly") return {{"openmesh-butterfly", "OM"}};
+  if (key == "ours-sqrt3") return {{"cgal-sqrt3", "CGAL"}, {"openmesh-sqrt3", "OM"}};
+  if (key == "ours-sqrt3-interp")
+    return {{"openmesh-sqrt3-lg", "OM LG"}, {"openmesh-sqrt3", "OM Sqrt3T"}};
   return {};
 }
 
@@ -573,7 +601,7 @@ void print_input(std::ostream& out, const InputResult& input, const Options& opt
     for (const RefineCase& c : input.refines) {
       out << "| " << c.level << " | " << c.label << " | " << c.threads << " | ";
       if (c.skipped) {
-        out << group(input.info.out_faces << (2 * c.level))
+        out << group(faces_after(input.info.out_faces, c.key, c.level))
             << " | — | — | — | — | — | — | — | — | — | — | — | — | skipped: " << cell(c.skip_reason)
             << " |\n";
         continue;
@@ -585,11 +613,11 @@ void print_input(std::ostream& out, const InputResult& input, const Options& opt
       }
       const Sample& s = c.result.first;
       const Aggregate& r = c.result;
-      const std::uint64_t expected = s.in_faces << (2 * c.level);
+      const std::uint64_t expected = faces_after(s.in_faces, c.key, c.level);
       std::string note = s.note;
       if (s.out_faces != expected) {
-        note = "output faces " + group(s.out_faces) + " != 4^L x input " + group(expected) +
-               (note.empty() ? "" : "; ") + note;
+        note = "output faces " + group(s.out_faces) + " != " + std::to_string(growth_of(c.key)) +
+               "^L x input " + group(expected) + (note.empty() ? "" : "; ") + note;
       }
       out << group(s.out_faces) << " | " << fixed(rate(c) / 1e6, 2) << " | " << sig3(r.median_s())
           << " (" << sig3(r.min_s()) << "–" << sig3(r.max_s()) << ") | "
@@ -602,53 +630,96 @@ void print_input(std::ostream& out, const InputResult& input, const Options& opt
   }
 }
 
+//! "skip" / "fail" for a case without a rate, "" otherwise (also for a missing case).
+std::string state_text(const RefineCase* c) {
+  if (c == nullptr) return "";
+  if (c->skipped) return "skip";
+  if (!c->result.ok) return "fail";
+  return {};
+}
+std::string rate_text(const RefineCase* c) {
+  const std::string s = state_text(c);
+  return c == nullptr || !s.empty() ? s : fixed(rate(*c) / 1e6, 2);
+}
+std::string ratio_cell(const RefineCase* a, const RefineCase* b) {
+  if (a == nullptr || b == nullptr || !state_text(a).empty() || !state_text(b).empty()) return "";
+  return ratio_text(*a, *b);
+}
+std::string rss_text(const InputResult& input, const RefineCase* c) {
+  const std::string s = state_text(c);
+  return c == nullptr || !s.empty() ? s : fixed(rss_ratio(input, *c), 2);
+}
+std::string peak_text(const RefineCase* c) {
+  const std::string s = state_text(c);
+  return c == nullptr || !s.empty() ? s : mib(c->result.peak_kb);
+}
+
+bool has_family(const std::vector<InputResult>& inputs, Family family) {
+  for (const InputResult& input : inputs)
+    for (const RefineCase& c : input.refines)
+      if (c.family == family) return true;
+  return false;
+}
+
 void print_summary(std::ostream& out, const std::vector<InputResult>& inputs, const Options& opt) {
-  out << "\n## Targets (single-threaded)\n\n";
-  out << "M output triangles per second, cold runs (median); ratio = ours / peer, with the "
-         "warm-rerun ratio in brackets where both were rerun. Targets: loop ≥ 2× CGAL Loop, "
-         "butterfly ≥ 4× OpenMesh modified butterfly. Request RSS = peak RSS of the whole "
-         "request (STL bytes in memory → read, weld, ingest, refine, write STL) / (input + "
-         "output STL bytes), target ≤ 1.5; refine RSS = the same for refine() alone on the "
-         "loaded mesh.\n\n";
-  out << "| input | L | ours loop | CGAL Loop | ratio | OM Loop | ratio | ours butterfly "
-         "| OM butterfly | ratio | refine RSS loop | refine RSS butterfly | request RSS loop "
-         "| request RSS butterfly |\n";
-  out << "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|\n";
   std::vector<int> levels = opt.levels;
   std::sort(levels.begin(), levels.end());
-  for (const InputResult& input : inputs) {
-    for (const int level : levels) {
-      const auto get = [&](const std::string& key) { return find_case(input, key, level, 1); };
-      const auto state = [](const RefineCase* c) -> std::string {
-        if (c == nullptr) return "";
-        if (c->skipped) return "skip";
-        if (!c->result.ok) return "fail";
-        return {};
-      };
-      const auto rate_text = [&](const RefineCase* c) -> std::string {
-        const std::string s = state(c);
-        return c == nullptr || !s.empty() ? s : fixed(rate(*c) / 1e6, 2);
-      };
-      const auto ratio = [&](const RefineCase* a, const RefineCase* b) -> std::string {
-        if (a == nullptr || b == nullptr || !state(a).empty() || !state(b).empty()) return "";
-        return ratio_text(*a, *b);
-      };
-      const auto rss_text = [&](const RefineCase* c) -> std::string {
-        const std::string s = state(c);
-        return c == nullptr || !s.empty() ? s : fixed(rss_ratio(input, *c), 2);
-      };
-      const RefineCase* loop = get("ours-loop");
-      const RefineCase* cgal = get("cgal-loop");
-      const RefineCase* om_loop = get("openmesh-loop");
-      const RefineCase* bfly = get("ours-butterfly");
-      const RefineCase* om_bfly = get("openmesh-butterfly");
-      if (!loop && !cgal && !bfly) continue;
-      out << "| " << input.name << " | " << level << " | " << rate_text(loop) << " | "
-          << rate_text(cgal) << " | " << ratio(loop, cgal) << " | " << rate_text(om_loop) << " | "
-          << ratio(loop, om_loop) << " | " << rate_text(bfly) << " | " << rate_text(om_bfly)
-          << " | " << ratio(bfly, om_bfly) << " | " << rss_text(loop) << " | " << rss_text(bfly)
-          << " | " << rss_text(get("pipeline-loop")) << " | " << rss_text(get("pipeline-butterfly"))
-          << " |\n";
+  out << "\n## Targets (single-threaded)\n\n";
+  if (has_family(inputs, Family::Loop) || has_family(inputs, Family::Butterfly)) {
+    out << "M output triangles per second, cold runs (median); ratio = ours / peer, with the "
+           "warm-rerun ratio in brackets where both were rerun. Targets: loop ≥ 2× CGAL Loop, "
+           "butterfly ≥ 4× OpenMesh modified butterfly. Request RSS = peak RSS of the whole "
+           "request (STL bytes in memory → read, weld, ingest, refine, write STL) / (input + "
+           "output STL bytes), target ≤ 1.5; refine RSS = the same for refine() alone on the "
+           "loaded mesh.\n\n";
+    out << "| input | L | ours loop | CGAL Loop | ratio | OM Loop | ratio | ours butterfly "
+           "| OM butterfly | ratio | refine RSS loop | refine RSS butterfly | request RSS loop "
+           "| request RSS butterfly |\n";
+    out << "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|\n";
+    for (const InputResult& input : inputs) {
+      for (const int level : levels) {
+        const auto get = [&](const std::string& key) { return find_case(input, key, level, 1); };
+        const RefineCase* loop = get("ours-loop");
+        const RefineCase* cgal = get("cgal-loop");
+        const RefineCase* om_loop = get("openmesh-loop");
+        const RefineCase* bfly = get("ours-butterfly");
+        const RefineCase* om_bfly = get("openmesh-butterfly");
+        if (!loop && !cgal && !bfly) continue;
+        out << "| " << input.name << " | " << level << " | " << rate_text(loop) << " | "
+            << rate_text(cgal) << " | " << ratio_cell(loop, cgal) << " | " << rate_text(om_loop)
+            << " | " << ratio_cell(loop, om_loop) << " | " << rate_text(bfly) << " | "
+            << rate_text(om_bfly) << " | " << ratio_cell(bfly, om_bfly) << " | "
+            << rss_text(input, loop) << " | " << rss_text(input, bfly) << " | "
+            << rss_text(input, get("pipeline-loop")) << " | "
+            << rss_text(input, get("pipeline-butterfly")) << " |\n";
+      }
+    }
+  }
+  if (has_family(inputs, Family::Sqrt3)) {
+    out << "\nsqrt3 family: M output triangles per second, cold runs (median); ratio = ours / "
+           "peer (warm-rerun ratio in brackets). Targets: sqrt3 ≥ 2× CGAL Sqrt3_subdivision, "
+           "sqrt3-interp ≥ 4× OpenMesh InterpolatingSqrt3LGT. Peak RSS of the refinement "
+           "process in MiB.\n\n";
+    out << "| input | L | ours sqrt3 | CGAL Sqrt3 | ratio | OM Sqrt3T | ratio | ours "
+           "sqrt3-interp | OM LG | ratio | vs OM Sqrt3T | peak MiB ours sqrt3 / CGAL / ours "
+           "interp / OM LG |\n";
+    out << "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|\n";
+    for (const InputResult& input : inputs) {
+      for (const int level : levels) {
+        const auto get = [&](const std::string& key) { return find_case(input, key, level, 1); };
+        const RefineCase* kob = get("ours-sqrt3");
+        const RefineCase* cgal = get("cgal-sqrt3");
+        const RefineCase* om = get("openmesh-sqrt3");
+        const RefineCase* lg = get("ours-sqrt3-interp");
+        const RefineCase* om_lg = get("openmesh-sqrt3-lg");
+        if (!kob && !lg) continue;
+        out << "| " << input.name << " | " << level << " | " << rate_text(kob) << " | "
+            << rate_text(cgal) << " | " << ratio_cell(kob, cgal) << " | " << rate_text(om) << " | "
+            << ratio_cell(kob, om) << " | " << rate_text(lg) << " | " << rate_text(om_lg) << " | "
+            << ratio_cell(lg, om_lg) << " | " << ratio_cell(lg, om) << " | " << peak_text(kob)
+            << " / " << peak_text(cgal) << " / " << peak_text(lg) << " / " << peak_text(om_lg)
+            << " |\n";
+      }
     }
   }
 
@@ -756,7 +827,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 8))
       ->capture_default_str();
   app.add_option("--schemes", opt.schemes, "Our schemes")->delimiter(',')->capture_default_str();
-  app.add_option("--peers", opt.peers, "Peers: cgal-loop, openmesh-loop, openmesh-butterfly, none")
+  app.add_option("--peers", opt.peers,
+                 "Peers: cgal-loop, openmesh-loop, openmesh-butterfly, cgal-sqrt3, "
+                 "openmesh-sqrt3, openmesh-sqrt3-lg, none")
       ->delimiter(',')
       ->capture_default_str();
   app.add_option("--threads", opt.threads, "RefineParams::threads values for ours")
