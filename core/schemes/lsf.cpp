@@ -2,9 +2,11 @@
 // Copyright (c) 2026 stlrefine authors
 #include "core/schemes/lsf.h"
 
-#include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
+#include <utility>
 #include <vector>
 
 #include "core/parallel.h"
@@ -26,16 +28,133 @@ constexpr double kSingularCutoff = 1e-3;
 // for valence < 5, and small enough that the determined terms are not biased (~1e-6).
 constexpr double kIllConditionedMu = 1e-6;
 
+// The 5x5 symmetric systems of the fit are small enough that Eigen's general-size LDLT
+// machinery (dynamic blocks, blocked triangular solves) costs more than the arithmetic;
+// it was the largest share of LSF's time. Ldlt5 is the same algorithm written for 5x5:
+// Eigen 3.4's LDLT (lower storage, diagonal pivoting on the largest remaining |d|, the
+// same order of every sum and update), so the results are bit for bit those of
+// Eigen::LDLT. They must be: the damping of spec 5 gap 1 (mu = 1e-9) leaves the fits of
+// low-valence vertices so ill-conditioned that a last-bit change grows to ~1e-8 of the
+// model size one level later.
+using Mat5 = std::array<std::array<double, 5>, 5>;  // [col][row]; the lower part is read
+
+struct Ldlt5 {
+  Mat5 a{};                   // column-major: L strictly below the diagonal, D on it
+  std::array<int, 5> perm{};  // transposition k <-> perm[k] at step k
+  bool success = true;        // Eigen's info() == Success
+  bool positive = true;       // Eigen's isPositive(): no negative pivot
+
+  // Element (row r, column c); columns are contiguous, so the per-column divisions and
+  // updates below vectorise (each element still sees the same operations in the same order).
+  double& at(int r, int c) { return a[c][r]; }
+  double at(int r, int c) const { return a[c][r]; }
+
+  explicit Ldlt5(const Mat5& m) : a(m) {
+    bool found_zero_pivot = false;
+    // Unrolled, so every inner loop below has fixed bounds.
+#pragma GCC unroll 5
+    for (int k = 0; k < 5; ++k) {
+      int p = k;
+      double biggest = std::abs(at(k, k));
+      for (int i = k + 1; i < 5; ++i) {
+        if (std::abs(at(i, i)) > biggest) biggest = std::abs(at(i, i)), p = i;
+      }
+      perm[k] = p;
+      if (p != k) {
+        for (int j = 0; j < k; ++j) std::swap(at(k, j), at(p, j));
+        for (int i = p + 1; i < 5; ++i) std::swap(at(i, k), at(i, p));
+        std::swap(at(k, k), at(p, p));
+        for (int i = k + 1; i < p; ++i) std::swap(at(i, k), at(p, i));
+      }
+      if (k > 0) {
+        std::array<double, 5> temp;
+        for (int j = 0; j < k; ++j) temp[j] = at(j, j) * at(k, j);
+        double s = at(k, 0) * temp[0];
+        for (int j = 1; j < k; ++j) s += at(k, j) * temp[j];
+        at(k, k) -= s;
+        for (int i = k + 1; i < 5; ++i) {
+          double c = 0;
+          for (int j = 0; j < k; ++j) c += at(i, j) * temp[j];
+          at(i, k) -= c;
+        }
+      }
+      const double akk = at(k, k);
+      const bool pivot_valid = std::abs(akk) > 0;
+      if (k == 0 && !pivot_valid) {
+        // A zero diagonal: Eigen stops here (sign "zero", positive semi-definite).
+        for (int j = 0; j < 5; ++j) perm[j] = j;
+        for (int j = 0; j < 5; ++j)
+          for (int i = j + 1; i < 5; ++i) success = success && at(i, j) == 0;
+        return;
+      }
+      if (pivot_valid) {
+        for (int i = k + 1; i < 5; ++i) at(i, k) /= akk;
+      } else {
+        for (int i = k + 1; i < 5; ++i) success = success && at(i, k) == 0;
+      }
+      if (found_zero_pivot && pivot_valid)
+        success = false;
+      else if (!pivot_valid)
+        found_zero_pivot = true;
+      if (akk < 0) positive = false;
+    }
+  }
+
+  double min_pivot() const {
+    double m = at(0, 0);
+    for (int i = 1; i < 5; ++i) m = std::min(m, at(i, i));
+    return m;
+  }
+  double max_pivot() const {
+    double m = at(0, 0);
+    for (int i = 1; i < 5; ++i) m = std::max(m, at(i, i));
+    return m;
+  }
+
+  // Solves for three right-hand sides (x, y, z), in place, as Eigen's solve() does.
+  void solve(std::array<std::array<double, 3>, 5>& x) const {
+    for (int k = 0; k < 5; ++k)
+      if (perm[k] != k) std::swap(x[k], x[perm[k]]);
+    // L y = P b: rows 0-3 column by column (Eigen's triangular panel), row 4 as one sum.
+    for (int i = 0; i < 3; ++i)
+      for (int r = i + 1; r < 4; ++r)
+        for (int j = 0; j < 3; ++j) x[r][j] -= x[i][j] * at(r, i);
+    for (int j = 0; j < 3; ++j) {
+      double c = 0;
+      for (int k = 0; k < 4; ++k) c += at(4, k) * x[k][j];
+      x[4][j] -= c;
+    }
+    for (int i = 0; i < 5; ++i) {
+      const double d = at(i, i);
+      for (int j = 0; j < 3; ++j)
+        x[i][j] = std::abs(d) > std::numeric_limits<double>::min() ? x[i][j] / d : 0.0;
+    }
+    // L^T x = D^-1 y, from the last row up, each row as one sum.
+    for (int i = 3; i >= 0; --i) {
+      for (int j = 0; j < 3; ++j) {
+        double b = 0;
+        for (int r = i + 1; r < 5; ++r) b += at(r, i) * x[r][j];
+        x[i][j] -= b;
+      }
+    }
+    for (int k = 4; k >= 0; --k)
+      if (perm[k] != k) std::swap(x[k], x[perm[k]]);
+  }
+};
+
 // True when the unit-diagonal (Jacobi-scaled) normal matrix has a pivot below the squared
 // cut-off: a test independent of units and parameter scale, cheap enough for every vertex.
-bool poorly_conditioned(const Eigen::Matrix<double, 5, 5>& normal) {
-  const Eigen::Matrix<double, 5, 1> diag = normal.diagonal();
-  if ((diag.array() <= 0).any()) return true;
-  const Eigen::Matrix<double, 5, 1> inv_sqrt = diag.cwiseSqrt().cwiseInverse();
-  const Eigen::Matrix<double, 5, 5> unit = inv_sqrt.asDiagonal() * normal * inv_sqrt.asDiagonal();
-  const Eigen::LDLT<Eigen::Matrix<double, 5, 5>> ldlt(unit);
-  return ldlt.info() != Eigen::Success ||
-         ldlt.vectorD().minCoeff() < kSingularCutoff * kSingularCutoff;
+bool poorly_conditioned(const Mat5& normal) {
+  std::array<double, 5> inv_sqrt;
+  for (int i = 0; i < 5; ++i) {
+    if (normal[i][i] <= 0) return true;
+    inv_sqrt[i] = 1.0 / std::sqrt(normal[i][i]);
+  }
+  Mat5 unit;
+  for (int i = 0; i < 5; ++i)
+    for (int j = 0; j <= i; ++j) unit[j][i] = (inv_sqrt[i] * normal[j][i]) * inv_sqrt[j];
+  const Ldlt5 ldlt(unit);
+  return !ldlt.success || ldlt.min_pivot() < kSingularCutoff * kSingularCutoff;
 }
 
 }  // namespace
@@ -43,36 +162,52 @@ bool poorly_conditioned(const Eigen::Matrix<double, 5, 5>& normal) {
 void polar_parameters(const Vec3& origin, std::span<const Vec3> points, bool closed,
                       double total_angle, std::span<std::array<double, 2>> params) {
   const std::size_t n = points.size();
+  if (n == 0) return;
   const std::size_t gaps = closed ? n : n - 1;
+  // One atan2 per gap: params[i][0] holds the angle of gap i until the walk below
+  // overwrites it with point i's own parameters.
   double sum = 0;
-  for (std::size_t i = 0; i < gaps; ++i)
-    sum += angle_between(points[i] - origin, points[(i + 1) % n] - origin);
+  const Vec3 first = points[0] - origin;
+  Vec3 here = first;
+  for (std::size_t i = 0; i < gaps; ++i) {
+    const Vec3 next = i + 1 < n ? points[i + 1] - origin : first;
+    const double angle = angle_between(here, next);
+    params[i][0] = angle;
+    sum += angle;
+    here = next;
+  }
   const double scale = (total_angle > 0 && sum > 0) ? total_angle / sum : 1.0;
   double phi = 0;
   for (std::size_t i = 0; i < n; ++i) {
+    const double angle = params[i][0];  // unset for the last point of an open fan: unused
     const double r = distance(points[i], origin);
-    params[i] = {r * std::cos(phi), r * std::sin(phi)};
-    if (i + 1 < n) phi += scale * angle_between(points[i] - origin, points[i + 1] - origin);
+    if (i == 0) {
+      params[i] = {r, 0.0};  // r cos 0, r sin 0
+    } else {
+      params[i] = {r * std::cos(phi), r * std::sin(phi)};
+    }
+    if (i + 1 < n) phi += scale * angle;
   }
 }
 
 QuadricFit fit_quadric(const Vec3& origin, std::span<const Vec3> points,
                        std::span<const std::array<double, 2>> params, double mu) {
-  using Mat5 = Eigen::Matrix<double, 5, 5>;
-  using Mat53 = Eigen::Matrix<double, 5, 3>;
-  Mat5 normal = Mat5::Zero();
-  Mat53 rhs = Mat53::Zero();
+  // Normal equations (S^T S) c = S^T q, accumulated point by point (lower part only).
+  Mat5 normal{};
+  std::array<std::array<double, 3>, 5> rhs{};
   double mean_radius = 0;
   for (std::size_t i = 0; i < points.size(); ++i) {
     const auto [u, v] = params[i];
-    Eigen::Matrix<double, 5, 1> row;
-    row << u, v, 0.5 * u * u, u * v, 0.5 * v * v;
+    const std::array<double, 5> row = {u, v, 0.5 * u * u, u * v, 0.5 * v * v};
     const Vec3 q = points[i] - origin;
-    normal.selfadjointView<Eigen::Lower>().rankUpdate(row);
-    rhs += row * Eigen::RowVector3d(q.x, q.y, q.z);
+    for (int c = 0; c < 5; ++c) {
+      for (int r = c; r < 5; ++r) normal[c][r] += row[c] * row[r];
+      rhs[c][0] += q.x * row[c];
+      rhs[c][1] += q.y * row[c];
+      rhs[c][2] += q.z * row[c];
+    }
     mean_radius += std::hypot(u, v);
   }
-  normal.triangularView<Eigen::StrictlyUpper>() = normal.transpose();
   QuadricFit fit;
   fit.origin = origin;
   if (points.empty()) return fit;
@@ -85,15 +220,17 @@ QuadricFit fit_quadric(const Vec3& origin, std::span<const Vec3> points,
   // Damp only the second-order terms: below valence 5 S^T S is singular, and the damped
   // solution tends to the interpolating quadric with the smallest curvature terms.
   const double damping = mu * std::pow(mean_radius, 4);
-  for (int k = 2; k < 5; ++k) normal(k, k) += damping;
-  const Eigen::LDLT<Mat5> ldlt(normal);
-  if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return fit;
-  const Mat53 c = ldlt.solve(rhs);
-  if (!c.allFinite()) return fit;
+  for (int k = 2; k < 5; ++k) normal[k][k] += damping;
+  const Ldlt5 ldlt(normal);
+  if (!ldlt.success || !ldlt.positive) return fit;
+  std::array<std::array<double, 3>, 5> c = rhs;
+  ldlt.solve(c);
+  for (const auto& row : c)
+    for (double x : row)
+      if (!std::isfinite(x)) return fit;
   // A rank-deficient linear part (collinear sample) shows as a tiny pivot: refuse it.
-  const auto d = ldlt.vectorD();
-  if (d.minCoeff() <= 1e-14 * d.maxCoeff()) return fit;
-  for (int k = 0; k < 5; ++k) fit.c[k] = {c(k, 0), c(k, 1), c(k, 2)};
+  if (ldlt.min_pivot() <= 1e-14 * ldlt.max_pivot()) return fit;
+  for (int k = 0; k < 5; ++k) fit.c[k] = {c[k][0], c[k][1], c[k][2]};
   fit.valid = true;
   return fit;
 }
@@ -172,8 +309,12 @@ void for_each_sector_fit(const Mesh& m, const Features& f, VertexId v, OnSector&
 
 }  // namespace
 
-void LsfStencil::half_edge_estimates(const Mesh& m, const Features& f, VertexId v,
-                                     std::span<Vec3> out) {
+namespace {
+
+// The fitted surface of v at half of each smooth spoke's parameter, passed to
+// sink(spoke, point); a degenerate sample gives the chord midpoint.
+template <class Sink>
+void vertex_estimates(const Mesh& m, const Features& f, VertexId v, Sink&& sink) {
   const Vec3& p = m.position(v);
   for_each_sector_fit(
       m, f, v,
@@ -182,11 +323,17 @@ void LsfStencil::half_edge_estimates(const Mesh& m, const Features& f, VertexId 
         for (std::size_t i = 0; i < spokes.size(); ++i) {
           const HalfedgeId s = spokes[i];
           if (!s.valid() || sharp[i]) continue;
-          // A degenerate sample falls back to the chord midpoint.
-          out[s.idx] = fit.valid ? fit.evaluate(0.5 * prm[i][0], 0.5 * prm[i][1])
-                                 : 0.5 * (p + m.position(m.to(s)));
+          sink(s, fit.valid ? fit.evaluate(0.5 * prm[i][0], 0.5 * prm[i][1])
+                            : 0.5 * (p + m.position(m.to(s))));
         }
       });
+}
+
+}  // namespace
+
+void LsfStencil::half_edge_estimates(const Mesh& m, const Features& f, VertexId v,
+                                     std::span<Vec3> out) {
+  vertex_estimates(m, f, v, [&](HalfedgeId s, const Vec3& point) { out[s.idx] = point; });
 }
 
 QuadricFit vertex_fit(const Mesh& m, const Features& f, VertexId v) {
@@ -223,15 +370,30 @@ Vec3 lsf_curve_point(const Mesh& m, const Features& f, HalfedgeId h) {
 void LsfStencil::edge_points(const Level& coarse, std::span<Vec3> out) const {
   const Mesh& m = coarse.mesh;
   const Features& f = coarse.features;
-  BigVector<Vec3> estimate(m.num_halfedges());
+  // Each smooth edge gets one estimate from each endpoint: the one along the edge's own
+  // half-edge goes straight into `out`, the other into `twin_estimate` (one slot per edge,
+  // not per half-edge: half the memory, and the averaging pass below reads both arrays in
+  // order). Every half-edge belongs to one vertex, so the writes never collide.
+  // std::array, unlike Vec3, is left uninitialised: every slot read is written first.
+  BigVector<std::array<double, 3>> twin_estimate(m.num_edges());
   parallel_for_each_index(m.num_vertices(), [&](std::size_t v) {
-    half_edge_estimates(m, f, VertexId(static_cast<std::uint32_t>(v)), estimate);
+    vertex_estimates(m, f, VertexId(static_cast<std::uint32_t>(v)),
+                     [&](HalfedgeId s, const Vec3& point) {
+                       const EdgeId e = m.edge(s);
+                       if (m.halfedge(e) == s)
+                         out[e.idx] = point;
+                       else
+                         twin_estimate[e.idx] = {point.x, point.y, point.z};
+                     });
   });
   parallel_for_each_index(m.num_edges(), [&](std::size_t e) {
     const EdgeId edge(static_cast<std::uint32_t>(e));
-    const HalfedgeId h = m.halfedge(edge);
-    out[e] = f.is_sharp(edge) ? lsf_curve_point(m, f, h)
-                              : 0.5 * (estimate[h.idx] + estimate[m.twin(h).idx]);
+    if (f.is_sharp(edge)) {
+      out[e] = lsf_curve_point(m, f, m.halfedge(edge));
+      return;
+    }
+    const auto& [x, y, z] = twin_estimate[e];
+    out[e] = 0.5 * (out[e] + Vec3(x, y, z));
   });
 }
 
