@@ -5,12 +5,37 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <atomic>
 #include <cstddef>
+
+#include "core/error.h"
 
 namespace stlrefine {
 
+namespace detail {
+inline thread_local const std::atomic<bool>* current_cancel_flag = nullptr;
+}
+
+//! While alive, parallel loops started from this thread stop early when `cancel` is raised
+//! and then throw Error(Cancelled), so a cancelled request frees its cores within one chunk
+//! of work, not at the end of a level.
+class CancelScope {
+ public:
+  explicit CancelScope(const std::atomic<bool>* cancel) : previous_(detail::current_cancel_flag) {
+    detail::current_cancel_flag = cancel;
+  }
+  ~CancelScope() { detail::current_cancel_flag = previous_; }
+  CancelScope(const CancelScope&) = delete;
+  CancelScope& operator=(const CancelScope&) = delete;
+
+ private:
+  const std::atomic<bool>* previous_;
+};
+
 //! Runs fn(i) for i in [0, n) on the TBB pool (the caller's task arena decides how many
 //! threads). Small ranges run inline: spawning costs more than it saves.
+//! Under a CancelScope a raised flag skips the remaining chunks and throws
+//! Error(Cancelled) here, in the calling thread.
 template <class Fn>
 void parallel_for_each_index(std::size_t n, Fn&& fn) {
   constexpr std::size_t kGrain = 4096;
@@ -18,10 +43,14 @@ void parallel_for_each_index(std::size_t n, Fn&& fn) {
     for (std::size_t i = 0; i < n; ++i) fn(i);
     return;
   }
+  const std::atomic<bool>* cancel = detail::current_cancel_flag;
+  auto cancelled = [cancel] { return cancel && cancel->load(std::memory_order_relaxed); };
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, kGrain),
                     [&](const tbb::blocked_range<std::size_t>& r) {
+                      if (cancelled()) return;
                       for (std::size_t i = r.begin(); i != r.end(); ++i) fn(i);
                     });
+  if (cancelled()) throw Error(ErrorCode::Cancelled, "cancelled", "cancelled");
 }
 
 }  // namespace stlrefine

@@ -11,6 +11,7 @@
 #include <string>
 
 #include "core/error.h"
+#include "core/parallel.h"
 #include "core/schemes/adaptive_split4.h"
 
 namespace stlrefine {
@@ -64,6 +65,7 @@ void throw_if_cancelled(const std::atomic<bool>* cancel) {
 
 RefineResult run_levels(Mesh mesh, const RefineParams& params, const Scheme& scheme,
                         const ProgressFn& progress, const std::atomic<bool>* cancel) {
+  const CancelScope cancel_scope(cancel);  // parallel loops of this request stop early
   const auto start = std::chrono::steady_clock::now();
   RefineResult result;
   RefineReport& r = result.report;

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/error.h"
+#include "core/parallel.h"
 #include "tests/core/test_util.h"
 #include "tests/support/mesh_queries.h"
 #include "tests/support/shapes.h"
@@ -226,6 +227,25 @@ TEST(Refine, ReportsFoldFallbacksOfTheSteps) {
   std::size_t steps = 0;
   refine_levels("butterfly", make_level(cyl, 180), 2, &steps);
   EXPECT_EQ(refine(cyl, params("butterfly", 2, 180)).report.fold_fallbacks, steps);
+}
+
+TEST(Refine, CancelInsideALevelStopsTheParallelLoops) {
+  // Raised from another thread while a level runs: the loops skip their remaining chunks
+  // and refine() throws Cancelled long before the level would have finished.
+  std::atomic<bool> cancel{false};
+  std::atomic<std::size_t> visited{0};
+  const CancelScope scope(&cancel);
+  EXPECT_THROW(parallel_for_each_index(1u << 22,
+                                       [&](std::size_t i) {
+                                         if (i == 5000) cancel = true;
+                                         ++visited;
+                                       }),
+               Error);
+  EXPECT_LT(visited.load(), std::size_t{1} << 21);
+  cancel = false;
+  visited = 0;
+  parallel_for_each_index(1u << 16, [&](std::size_t) { ++visited; });  // not raised: all run
+  EXPECT_EQ(visited.load(), std::size_t{1} << 16);
 }
 
 }  // namespace
