@@ -37,6 +37,7 @@
 #include "core/error.h"
 #include "server/metrics.h"
 #include "slicer/writers.h"
+#include "web/assets.h"
 
 // Hardening around cpp-httplib 0.11.4 (Debian 12), and why each piece is needed:
 //
@@ -135,6 +136,7 @@ enum class RouteKind {
   Submit,   // POST /v1/jobs: an STL body queued as a job
   JobItem,  // /v1/jobs/{id} and /v1/jobs/{id}/{file}
   Plain,    // GET without a body
+  Page,     // the web page: / and /assets/{file}, embedded at build time (web/), no API key
 };
 
 struct Route {
@@ -153,13 +155,15 @@ constexpr Route kRoutes[] = {
     {"/metrics", "GET, HEAD", RouteKind::Plain},
     {"/healthz", "GET, HEAD", RouteKind::Plain},
     {"/readyz", "GET, HEAD", RouteKind::Plain},
+    {"/", "GET, HEAD", RouteKind::Page},
+    {"/assets/", "GET, HEAD", RouteKind::Page},
 };
 
 const Route* find_route(const std::string& path) {
   for (const Route& r : kRoutes) {
-    if (r.kind == RouteKind::JobItem ? path.rfind(r.path, 0) == 0 && path.size() > 9
-                                     : path == r.path)
-      return &r;
+    const std::string_view p = r.path;
+    const bool prefix = p.size() > 1 && p.back() == '/';  // "/v1/jobs/", "/assets/"
+    if (prefix ? path.size() > p.size() && path.starts_with(p) : path == p) return &r;
   }
   return nullptr;
 }
@@ -300,6 +304,7 @@ struct Daemon::Impl {
   void compute(const Request& req, std::string_view body, Response& res, const Route& route);
   void submit_job(const Request& req, std::string_view body, Response& res);
   void job_item(const Request& req, Response& res);
+  void page(const Request& req, Response& res, std::string_view name) const;
   void readyz(Response& res) const;
   bool authorized(const Request& req) const;
 
@@ -570,9 +575,10 @@ api::Problem Daemon::Impl::library_problem(int status, const Request& req) const
 bool Daemon::Impl::authorized(const Request& req) const {
   if (config.api_keys.empty()) return true;
   const Route* route = find_route(req.path);
+  // The page is public: the API calls it makes carry the key the user types in.
   if (route &&
-      (std::string_view(route->path) == "/healthz" || std::string_view(route->path) == "/readyz" ||
-       std::string_view(route->path) == "/metrics"))
+      (route->kind == RouteKind::Page || std::string_view(route->path) == "/healthz" ||
+       std::string_view(route->path) == "/readyz" || std::string_view(route->path) == "/metrics"))
     return true;
   const std::string header = req.get_header_value("Authorization");
   constexpr std::string_view kBearer = "Bearer ";
@@ -665,6 +671,39 @@ void Daemon::Impl::job_item(const Request& req, Response& res) {
                              return got > 0 &&
                                     sink.write(buffer.data(), static_cast<std::size_t>(got));
                            });
+}
+
+// The embedded page (web/assets.h). Cache-Control no-cache with a strong ETag: a browser
+// revalidates and gets 304, and never keeps a page from an older daemon.
+void Daemon::Impl::page(const Request& req, Response& res, std::string_view name) const {
+  if (web::assets().empty())
+    return respond(res,
+                   api::make_problem(404, "page-not-built", std::string(web::missing_reason())));
+  const web::Asset* asset = web::find_asset(name);
+  if (!asset)
+    return respond(res, api::make_problem(404, "not-found", "no route " + shortened(req.path)));
+  res.set_header("ETag", std::string(asset->etag));
+  res.set_header("Cache-Control", "no-cache");
+  res.set_header("X-Content-Type-Options", "nosniff");
+  if (name == "index.html") {
+    res.set_header("Content-Security-Policy",
+                   "default-src 'self'; img-src 'self' data: blob:; object-src 'none'; "
+                   "base-uri 'none'; form-action 'none'; frame-ancestors 'none'");
+    res.set_header("Referrer-Policy", "no-referrer");
+  }
+  const std::string match = req.get_header_value("If-None-Match");
+  if (!match.empty() && (match == "*" || match.find(asset->etag) != std::string::npos)) {
+    res.status = 304;
+    // The library writes "Content-Length: 0" on an empty answer; a 304 may only carry the
+    // length the 200 would have had (RFC 9110 8.6).
+    res.set_header("Content-Length", std::to_string(asset->bytes.size()));
+    return;
+  }
+  res.set_content_provider(
+      asset->bytes.size(), std::string(asset->content_type),
+      [asset](std::size_t offset, std::size_t length, httplib::DataSink& sink) {
+        return sink.write(asset->bytes.data() + offset, length);
+      });
 }
 
 void Daemon::Impl::readyz(Response& res) const {
@@ -761,6 +800,9 @@ void Daemon::Impl::install() {
     }
     res.set_content(metrics.render(g), "text/plain; version=0.0.4");
   });
+  http.Get("/", [this](const Request& req, Response& res) { page(req, res, "index.html"); });
+  http.Get(R"(/assets/([^/]+))",
+           [this](const Request& req, Response& res) { page(req, res, req.matches[1].str()); });
   http.Get("/healthz", [this](const Request&, Response& res) {
     if (config.test_hook) config.test_hook("/healthz");
     res.set_content("{\"status\":\"ok\"}\n", kJsonContentType);
@@ -876,6 +918,8 @@ std::vector<RouteInfo> served_routes() {
     if (r.kind == RouteKind::JobItem) {
       out.push_back({"/v1/jobs/{id}", r.allow});
       out.push_back({"/v1/jobs/{id}/{file}", "GET, HEAD"});
+    } else if (r.path == std::string_view("/assets/")) {
+      out.push_back({"/assets/{file}", r.allow});
     } else {
       out.push_back({r.path, r.allow});
     }

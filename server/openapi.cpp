@@ -202,6 +202,28 @@ Json build() {
       item["get"] =
           operation("Readiness: 503 while shutting down or with no free slot",
                     {{"200", json_response("Ready.")}, {"503", problem_response("Not ready.")}});
+    } else if (p == "/") {
+      item["get"] = operation(
+          "The web page: upload an STL, run a job, view the part and its layers, download",
+          {{"200",
+            {{"description", "The page (HTML). ETag and Cache-Control: no-cache."},
+             {"content", {{"text/html", {{"schema", {{"type", "string"}}}}}}}}},
+           {"304", {{"description", "Not modified (If-None-Match)."}}},
+           {"404", problem_response("The daemon was built without the page (page-not-built).")}});
+    } else if (p == "/assets/{file}") {
+      item["parameters"] = Json::array({{{"name", "file"},
+                                         {"in", "path"},
+                                         {"required", true},
+                                         {"description",
+                                          "A file the page loads (app.js, "
+                                          "three.module.js, ...)."},
+                                         {"schema", {{"type", "string"}}}}});
+      item["get"] =
+          operation("A script or style sheet of the web page, embedded at build time",
+                    {{"200", binary_response("The file (text/javascript, text/css, ...).",
+                                             "application/octet-stream")},
+                     {"304", {{"description", "Not modified (If-None-Match)."}}},
+                     {"404", problem_response("No such file, or the page was not built.")}});
     } else {
       item["get"] = operation(route.path.c_str(), {{"200", {{"description", "OK"}}}});
     }
