@@ -14,11 +14,18 @@ jobs=$(nproc 2>/dev/null || echo 2)
 packages=(build-essential cmake pkg-config curl ca-certificates
   libcgal-dev libeigen3-dev libcpp-httplib-dev nlohmann-json3-dev libcli11-dev libtbb-dev
   libgtest-dev libgmock-dev libbenchmark-dev libopenmesh-dev libzip-dev)
+# The web page (web/) needs node and npm at build time (npm ci fetches three.js), and its
+# browser test (tests/web/) chromium. Checked by command, not by package: nodejs from
+# elsewhere (NodeSource) bundles npm and conflicts with Debian's npm package.
+web_tools=(nodejs:node npm:npm chromium:chromium)
 
 install_missing() {
   local missing=()
   for p in "${packages[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+  done
+  for t in "${web_tools[@]}"; do
+    command -v "${t#*:}" >/dev/null 2>&1 || missing+=("${t%%:*}")
   done
   [ ${#missing[@]} -eq 0 ] && return 0
   echo "installing: ${missing[*]}"
