@@ -214,6 +214,11 @@ std::string iso8601_now() {
   return text;
 }
 
+// Bodies up to this size are read and dropped before a refusal (see the pre-routing
+// handler). curl asks `Expect: 100-continue` above 1 MiB, which is answered before any upload,
+// so larger bodies are refused at once without reading them.
+constexpr std::uint64_t kDrainLimit = std::uint64_t{1} << 20;
+
 // Result files a job may have.
 bool job_file_name(const std::string& name) {
   return name == "result.stl" || name == "report.json" || name == "contours.json" ||
@@ -297,6 +302,7 @@ struct Daemon::Impl {
 
   void install();
   std::optional<api::Problem> precheck(const Request& req) const;
+  bool drain_before_refusal(const Request& req, const api::Problem& problem) const;
   api::Problem busy_problem(bool stopping) const;
   //! The body for an answer httplib made itself (status set, body empty).
   api::Problem library_problem(int status, const Request& req) const;
@@ -461,6 +467,23 @@ std::optional<api::Problem> Daemon::Impl::precheck(const Request& req) const {
   }
   if (stopping || slots.available() == 0) return busy_problem(stopping);
   return std::nullopt;
+}
+
+bool Daemon::Impl::drain_before_refusal(const Request& req, const api::Problem& problem) const {
+  const Route* route = find_route(req.path);
+  if (!route || !has_body(*route) || req.has_header("Expect")) return false;
+  // Never for framing problems (no length, chunked, over the cap) nor for an encoded body:
+  // httplib would inflate it while reading.
+  if (problem.status == 411 || problem.status == 413 || req.has_header("Content-Encoding") ||
+      req.has_header("Transfer-Encoding"))
+    return false;
+  const std::string length_text = req.get_header_value("Content-Length");
+  std::uint64_t length = 0;
+  const auto [end, ec] =
+      std::from_chars(length_text.data(), length_text.data() + length_text.size(), length);
+  return ec == std::errc() && end == length_text.data() + length_text.size() &&
+         req.get_header_value_count("Content-Length") == 1 && length <= kDrainLimit &&
+         length <= config.max_body_bytes;
 }
 
 api::Problem Daemon::Impl::busy_problem(bool is_stopping) const {
@@ -749,11 +772,24 @@ void Daemon::Impl::install() {
   http.set_pre_routing_handler([this](const Request& req, Response& res) {
     mark_request_start();
     if (std::optional<api::Problem> problem = precheck(req)) {
+      // A small body the client is already sending is read and dropped before the answer
+      // (the route handler does it): closing with unread bytes makes the kernel send a
+      // reset, and a client like `curl --data-binary` then loses the answer to EPIPE.
+      if (drain_before_refusal(req, *problem)) return HandlerResponse::Unhandled;
       respond(res, *problem);
       return HandlerResponse::Handled;
     }
     return HandlerResponse::Unhandled;
   });
+  // Handlers of body routes start here: a refusal the pre-routing check deferred.
+  auto refused_after_drain = [this](const Request& req, Response& res,
+                                    const httplib::ContentReader& reader) {
+    std::optional<api::Problem> problem = precheck(req);
+    if (!problem) return false;
+    reader([](const char*, std::size_t) { return true; });
+    respond(res, *problem);
+    return true;
+  };
 
   auto read_body = [this](const Request& req, const httplib::ContentReader& reader) {
     // Content-Length was validated by the pre-routing check (one number, under the cap).
@@ -773,16 +809,20 @@ void Daemon::Impl::install() {
       // A content-reader route gets the body bytes as sent (payload limit still applied).
       // httplib's default reader would form-decode an application/x-www-form-urlencoded
       // body (curl's default label) and refuse it above 8 KiB.
-      http.Post(route.path, [this, &route, read_body](const Request& req, Response& res,
-                                                      const httplib::ContentReader& reader) {
-        compute(req, read_body(req, reader), res, route);
-      });
+      http.Post(route.path,
+                [this, &route, read_body, refused_after_drain](
+                    const Request& req, Response& res, const httplib::ContentReader& reader) {
+                  if (refused_after_drain(req, res, reader)) return;
+                  compute(req, read_body(req, reader), res, route);
+                });
     }
   }
-  http.Post("/v1/jobs", [this, read_body](const Request& req, Response& res,
-                                          const httplib::ContentReader& reader) {
-    submit_job(req, read_body(req, reader), res);
-  });
+  http.Post("/v1/jobs",
+            [this, read_body, refused_after_drain](const Request& req, Response& res,
+                                                   const httplib::ContentReader& reader) {
+              if (refused_after_drain(req, res, reader)) return;
+              submit_job(req, read_body(req, reader), res);
+            });
   http.Get(R"(/v1/jobs/[^/]+(/[^/]+)?)",
            [this](const Request& req, Response& res) { job_item(req, res); });
   http.Delete(R"(/v1/jobs/[^/]+(/[^/]+)?)",

@@ -208,11 +208,11 @@ TEST_F(DaemonTest, BadParametersNameTheField) {
 }
 
 TEST_F(DaemonTest, BadParametersAreRejectedBeforeTheUpload) {
-  // Headers only, announcing a body that never comes: the answer must not wait for it.
+  // Asked first (Expect: 100-continue): refused before a byte of the body is sent.
   test::RawConnection c(port_);
   c.send(
       "POST /v1/refine?levels=abc HTTP/1.1\r\nHost: x\r\nContent-Type: model/stl\r\n"
-      "Content-Length: 60000\r\n\r\n");
+      "Expect: 100-continue\r\nContent-Length: 60000\r\n\r\n");
   const auto responses = test::parse_responses(c.read_all(2s));
   ASSERT_EQ(responses.size(), 1u);
   EXPECT_EQ(responses[0].status, 400);
@@ -220,7 +220,29 @@ TEST_F(DaemonTest, BadParametersAreRejectedBeforeTheUpload) {
   expect_good_request_still_works();
 }
 
-// --- 411 / 413 / 415: body framing and encoding
+TEST_F(DaemonTest, ARefusedSmallBodyIsDrainedSoTheClientReadsTheAnswer) {
+  // Sent without asking (what curl does below 1 MiB): the server reads and drops the body
+  // before answering, so closing never resets the connection under the client's upload.
+  for (int i = 0; i < 20; ++i) {
+    test::RawConnection c(port_);
+    ASSERT_TRUE(c.send(
+        test::post_text("/v1/refine?levels=abc", "model/stl", std::string(200 * 1024, 'x'))));
+    const auto responses = test::parse_responses(c.read_all(5s));
+    ASSERT_EQ(responses.size(), 1u);
+    EXPECT_EQ(responses[0].status, 400);
+    EXPECT_TRUE(c.closed());
+  }
+  // Announced but never sent: answered once the read times out, not never.
+  test::RawConnection c(port_);
+  c.send(
+      "POST /v1/refine?levels=abc HTTP/1.1\r\nHost: x\r\nContent-Type: model/stl\r\n"
+      "Content-Length: 60000\r\n\r\n");
+  const auto late = test::parse_responses(c.read_all(5s));
+  EXPECT_TRUE(c.closed());
+  ASSERT_EQ(late.size(), 1u);
+  EXPECT_EQ(late[0].status, 400);
+  expect_good_request_still_works();
+}
 
 TEST_F(DaemonTest, WrongContentTypeIs415) {
   for (const char* type : {"text/plain", "application/json", "model/stl-ascii", ""}) {
