@@ -13,38 +13,6 @@
 namespace stlrefine::fidelity {
 namespace {
 
-// The adaptive mode (issue 4 item 3) is being added to RefineParams / RefineReport. These
-// concepts let this file compile before and after that lands: the adaptive rows run once
-// the fields exist and refine() reports the tolerance back (i.e. it honoured it).
-template <class P>
-concept HasAdaptiveParams = requires(P p) {
-  p.adaptive_tol = 1.0;
-  p.max_level = 1;
-};
-template <class R>
-concept HasAdaptiveReport = requires(R r) {
-  r.adaptive_tol = 1.0;
-};
-
-template <class P>
-bool set_adaptive(P& params, double tol, int max_level) {
-  if constexpr (HasAdaptiveParams<P>) {
-    params.adaptive_tol = tol;
-    params.max_level = max_level;
-    return true;
-  } else {
-    return false;
-  }
-}
-
-template <class R>
-bool adaptive_honoured(const R& report, double tol) {
-  if constexpr (HasAdaptiveReport<R>)
-    return report.adaptive_tol == tol;
-  else
-    return false;
-}
-
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   return v[v.size() / 2];
@@ -70,10 +38,6 @@ std::string Variant::label() const {
   return {};
 }
 
-bool adaptive_available() {
-  return HasAdaptiveParams<RefineParams>;
-}
-
 RunOutput run_variant(const Variant& variant, const Mesh& input, const RunSettings& settings) {
   RunOutput out;
   std::vector<double> times;
@@ -89,21 +53,14 @@ RunOutput run_variant(const Variant& variant, const Mesh& input, const RunSettin
     params.levels = variant.level;
     params.features.crease_angle_deg = settings.crease_angle_deg;
     params.threads = settings.threads;
-    if (variant.kind == Variant::Kind::OursAdaptive &&
-        !set_adaptive(params, variant.adaptive_tol, variant.level)) {
-      out.note = "skipped: RefineParams has no adaptive mode yet";
-      return out;
+    if (variant.kind == Variant::Kind::OursAdaptive) {
+      params.adaptive_tol = variant.adaptive_tol;  // curvature-adaptive, red-green closed
+      params.max_level = variant.level;
     }
     Mesh copy = input;  // refine takes its mesh by value; the copy is not timed
     const auto t0 = std::chrono::steady_clock::now();
     RefineResult result = refine(std::move(copy), params);
     times.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-    if (variant.kind == Variant::Kind::OursAdaptive &&
-        !adaptive_honoured(result.report, variant.adaptive_tol)) {
-      out.note = "skipped: refine() did not report the adaptive tolerance (not implemented yet)";
-      out.mesh = Mesh();
-      return out;
-    }
     out.mesh = std::move(result.mesh);
     out.fold_fallbacks = result.report.fold_fallbacks;
   }

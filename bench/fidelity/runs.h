@@ -3,8 +3,8 @@
 #pragma once
 
 // The refinements the fidelity benchmark compares: our schemes through stlrefine::refine
-// (uniform levels, or the curvature-adaptive mode once RefineParams has it) and OpenMesh's
-// ModifiedButterflyT.
+// (uniform levels, or the curvature-adaptive mode: RefineParams::adaptive_tol / max_level)
+// and OpenMesh's ModifiedButterflyT.
 
 #include <cstddef>
 #include <string>
@@ -32,11 +32,7 @@ struct RunOutput {
   Mesh mesh;
   double seconds = 0;
   std::size_t fold_fallbacks = 0;
-  std::string note;  //!< set when the run was skipped (and `mesh` is empty)
 };
-
-//! True when core/refine.h's RefineParams has the adaptive fields (adaptive_tol, max_level).
-bool adaptive_available();
 
 RunOutput run_variant(const Variant& variant, const Mesh& input, const RunSettings& settings);
 
