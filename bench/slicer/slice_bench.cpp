@@ -3,7 +3,9 @@
 //
 // stlrefine_slice_bench: our slicer beside CGAL::Polygon_mesh_slicer (AABB tree built once,
 // one call per plane: what a CGAL user writes) on the same meshes and the same planes, in
-// one run. Prints Markdown to stdout, progress to stderr. Hand-run (bench/slicer/README.md).
+// one run; and, each as its own process timed from fork to exit, our `stlrefine slice` beside
+// Debian's slic3r 1.3 (`--export-svg`) when it is installed. Prints Markdown to stdout,
+// progress to stderr. Hand-run (bench/slicer/README.md).
 //
 // Each (input, layer height, case, repetition) runs in its own forked child (bench/measure.h):
 // it loads its input untimed, records its RSS, resets the peak, and runs once. Inputs that
@@ -14,20 +16,30 @@
 #include <CGAL/Polygon_mesh_slicer.h>
 #include <CGAL/Surface_mesh.h>
 #include <CGAL/version.h>
+#include <fcntl.h>
+#include <sys/prctl.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <csignal>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <iterator>
 #include <map>
 #include <memory>
 #include <sstream>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "bench/machine.h"
@@ -70,6 +82,13 @@ struct Options {
   int idle_wait = 120;
   bool no_cgal = false, no_whole = false;
   fs::path tmp_dir = "/tmp/stlrefine_slice_bench";
+  //! slic3r to run beside us: a path, or a name looked up on PATH; "none" leaves it out.
+  std::string slic3r = "slic3r";
+  int slic3r_reps = 1;
+  int slic3r_threads = 0;  //!< 0: the largest of `threads`
+  //! Our command line for the process rows; empty: `stlrefine` next to this program.
+  std::string stlrefine;
+  bool no_process = false;
 };
 
 // ------------------------------------------------------------------------- formatting
@@ -252,6 +271,184 @@ class CgalJob final : public Job {
   double convert_ = 0, read_s_ = 0, tree_s_ = 0, slice_s_ = 0;
   std::uint64_t in_ = 0, points_ = 0;
 };
+
+// ------------------------------------------------------------------------- slic3r
+
+//! The executable `name` stands for: itself when it contains a '/', else the first match on
+//! PATH; empty when there is none.
+fs::path find_executable(const std::string& name) {
+  if (name.empty() || name == "none") return {};
+  if (name.find('/') != std::string::npos) return ::access(name.c_str(), X_OK) == 0 ? name : "";
+  const char* path = std::getenv("PATH");
+  std::stringstream dirs(path ? path : "");
+  for (std::string dir; std::getline(dirs, dir, ':');) {
+    const fs::path candidate = fs::path(dir.empty() ? "." : dir) / name;
+    if (::access(candidate.c_str(), X_OK) == 0) return candidate;
+  }
+  return {};
+}
+
+//! The first line `slic3r --version` prints ("unknown" when it prints nothing).
+std::string slic3r_version(const fs::path& exe) {
+  const std::string cmd = "'" + exe.string() + "' --version 2>&1";
+  FILE* pipe = ::popen(cmd.c_str(), "r");
+  if (!pipe) return "unknown";
+  char line[256] = {};
+  const bool got = std::fgets(line, sizeof(line), pipe) != nullptr;
+  ::pclose(pipe);
+  std::string v = got ? line : "unknown";
+  while (!v.empty() && (v.back() == '\n' || v.back() == '\r')) v.pop_back();
+  return v;
+}
+
+//! What an SVG of layers holds. slic3r: one <g id="layerN" slic3r:z="..."> per layer (z in
+//! its scaled integer units: mm x 1e-6, measured from the part's bottom), one <polygon
+//! slic3r:type="contour"|"hole" points="x,y x,y ..."> per loop, each point once. Ours: one
+//! <g class="layer" data-z="..."> per layer (z in mm), one <path d="M.. L.. Z"> per layer
+//! holding every loop.
+struct SvgCounts {
+  std::uint64_t layers = 0, contours = 0, holes = 0, points = 0, bytes = 0;
+  std::vector<double> z;  //!< each layer's plane as written, in the file's own unit
+};
+
+SvgCounts count_svg(const fs::path& svg, bool slic3r) {
+  std::ifstream in(svg, std::ios::binary);
+  if (!in) throw std::runtime_error("no SVG written: " + svg.string());
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  SvgCounts c;
+  c.bytes = text.size();
+  const auto count = [&](std::string_view what) {
+    std::uint64_t n = 0;
+    for (std::size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1))
+      ++n;
+    return n;
+  };
+  const std::string_view z_attr = slic3r ? "slic3r:z=\"" : "data-z=\"";
+  for (std::size_t at = text.find(z_attr); at != std::string::npos; at = text.find(z_attr, at)) {
+    at += z_attr.size();
+    c.z.push_back(std::strtod(text.c_str() + at, nullptr));
+  }
+  c.layers = c.z.size();
+  c.contours = slic3r ? count("slic3r:type=\"contour\"") : 0;
+  c.holes = slic3r ? count("slic3r:type=\"hole\"") : 0;
+  const std::string_view attr = slic3r ? "points=\"" : " d=\"";
+  for (std::size_t at = text.find(attr); at != std::string::npos; at = text.find(attr, at)) {
+    at += attr.size();
+    const std::size_t end = text.find('"', at);
+    if (end == std::string::npos) break;
+    const auto first = text.begin() + std::ptrdiff_t(at), last = text.begin() + std::ptrdiff_t(end);
+    // slic3r: one comma per point; ours: one M or L command per point.
+    c.points += std::uint64_t(slic3r ? std::count(first, last, ',')
+                                     : std::count(first, last, 'M') + std::count(first, last, 'L'));
+    at = end;
+  }
+  return c;
+}
+
+//! Whether an SVG's layers are our planes: same count, and each z (times `unit`, plus
+//! `offset`) within 1e-6 mm of ours. Text for the row's note.
+std::string compare_planes(const SvgCounts& c, const std::vector<double>& heights, double unit,
+                           double offset) {
+  if (c.z.size() != heights.size())
+    return "**layer count differs from ours: " + std::to_string(c.z.size()) + " vs " +
+           std::to_string(heights.size()) + "**";
+  double worst = 0;
+  for (std::size_t k = 0; k < heights.size(); ++k)
+    worst = std::max(worst, std::fabs(c.z[k] * unit + offset - heights[k]));
+  char text[160];
+  std::snprintf(text, sizeof(text), "%s our planes (max |dz| %.1e mm)",
+                worst <= 1e-6 ? "layers are" : "**layers differ from**", worst);
+  return text;
+}
+
+//! The last non-empty line of a log file (the program's error, when it fails).
+std::string last_line(const fs::path& log) {
+  std::ifstream in(log);
+  std::string line, last;
+  while (std::getline(in, line))
+    if (line.find_first_not_of(" \t\r") != std::string::npos) last = line;
+  return last;
+}
+
+//! Runs `args` as its own process (fork + exec, output to `log`) and times it from fork to
+//! exit; its CPU time and peak RSS come from wait4. Throws when it fails.
+Sample run_process(std::vector<std::string> args, const fs::path& log) {
+  std::vector<char*> argv;
+  for (std::string& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  const double t0 = now_seconds();
+  const pid_t pid = ::fork();
+  if (pid < 0) throw std::runtime_error(std::string("fork: ") + std::strerror(errno));
+  if (pid == 0) {
+    ::prctl(PR_SET_PDEATHSIG, SIGKILL);  // dies with us (a timeout kills us)
+    const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (fd >= 0) ::dup2(fd, 1), ::dup2(fd, 2), ::close(fd);
+    ::execv(argv[0], argv.data());
+    ::_exit(127);
+  }
+  int status = 0;
+  rusage usage{};
+  while (::wait4(pid, &status, 0, &usage) < 0 && errno == EINTR) {
+  }
+  Sample s;
+  s.seconds = now_seconds() - t0;
+  const auto to_s = [](const timeval& t) { return double(t.tv_sec) + 1e-6 * double(t.tv_usec); };
+  s.cpu_seconds = to_s(usage.ru_utime) + to_s(usage.ru_stime);
+  s.peak_kb = s.maxrss_kb = usage.ru_maxrss;
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+    throw std::runtime_error(fs::path(args[0]).filename().string() + " " +
+                             (WIFEXITED(status)
+                                  ? "exited with status " + std::to_string(WEXITSTATUS(status))
+                                  : "was killed by signal " + std::to_string(WTERMSIG(status))) +
+                             ": " + last_line(log));
+  }
+  return s;
+}
+
+//! `slic3r --export-svg` on `stl`. Layers at z_min + (k + 1/2) h like ours: the first layer
+//! is as thick as the others. Then counts what the SVG holds and checks its planes.
+Sample run_slic3r(const fs::path& exe, const fs::path& stl, double h, int threads,
+                  const std::vector<double>& heights, double z_min, const fs::path& svg,
+                  const fs::path& log) {
+  fs::remove(svg);
+  const std::string height = fixed(h, 4);
+  Sample s = run_process(
+      {exe.string(), "--no-gui", "--export-svg", "--layer-height", height, "--first-layer-height",
+       height, "--threads", std::to_string(threads), "--output", svg.string(), stl.string()},
+      log);
+  const SvgCounts c = count_svg(svg, true);
+  s.out_faces = c.layers;
+  s.out_vertices = c.points;
+  std::ostringstream note;
+  note << compare_planes(c, heights, 1e6, z_min) << "; " << c.contours << " contours, " << c.holes
+       << " holes (its SVG has no open polylines); " << fixed(double(c.bytes) / 1e6, 1)
+       << " MB SVG; CPU " << fixed(s.cpu_seconds, 1) << " s (user + sys)";
+  copy_note(s, note.str());
+  return s;
+}
+
+//! Our command line, `stlrefine slice IN --layer-height h --format F --threads T -o OUT`, as
+//! its own process like slic3r: read, ingest, slice, write, exit.
+Sample run_ours_process(const fs::path& exe, const fs::path& stl, double h, int threads,
+                        const std::string& format, const std::vector<double>& heights,
+                        const fs::path& out, const fs::path& log) {
+  fs::remove(out);
+  Sample s =
+      run_process({exe.string(), "slice", stl.string(), "--layer-height", fixed(h, 4), "--format",
+                   format, "--threads", std::to_string(threads), "-o", out.string()},
+                  log);
+  std::ostringstream note;
+  if (format == "svg") {
+    const SvgCounts c = count_svg(out, false);
+    s.out_faces = c.layers;
+    s.out_vertices = c.points;
+    note << compare_planes(c, heights, 1, 0) << "; ";
+  }
+  note << fixed(double(fs::file_size(out)) / 1e6, 1) << " MB " << format << "; CPU "
+       << fixed(s.cpu_seconds, 1) << " s (user + sys)";
+  copy_note(s, note.str());
+  return s;
+}
 
 // ------------------------------------------------------------------------- inputs
 
@@ -468,6 +665,26 @@ Result measure(const Options& opt, const JobFactory& make, const JobFactory& war
   return r;
 }
 
+//! A separate program, `reps` processes, each after waiting for idle CPUs like ours.
+Result measure_process(const Options& opt, int reps, const std::function<Sample()>& run_once) {
+  Result r;
+  for (int rep = 0; rep < reps; ++rep) {
+    wait_until_idle(opt);
+    const Outcome o = run_in_child(run_once, opt.timeout);
+    r.others = std::max(r.others, o.others_busy);
+    if (!o.ok) {
+      r.failure = o.failure;
+      r.ok = false;
+      return r;
+    }
+    if (r.seconds.empty()) r.first = o.sample;
+    r.seconds.push_back(o.sample.seconds);
+    r.peak_kb = std::max(r.peak_kb, o.sample.peak_kb);
+    r.ok = true;
+  }
+  return r;
+}
+
 }  // namespace
 
 int run(int argc, char** argv) {
@@ -485,7 +702,27 @@ int run(int argc, char** argv) {
   app.add_flag("--no-cgal", opt.no_cgal, "Leave CGAL out");
   app.add_flag("--no-whole", opt.no_whole, "Leave out the whole-process cases");
   app.add_option("--tmp-dir", opt.tmp_dir, "Prepared meshes and output files");
+  app.add_option("--slic3r", opt.slic3r,
+                 "slic3r executable (path or name on PATH) run beside us; \"none\": leave out");
+  app.add_option("--slic3r-reps", opt.slic3r_reps, "slic3r processes per case (it is slow)");
+  app.add_option("--slic3r-threads", opt.slic3r_threads,
+                 "slic3r --threads (0: the largest of --threads)");
+  app.add_option("--stlrefine", opt.stlrefine,
+                 "stlrefine executable for the process rows (default: next to this program)");
+  app.add_flag("--no-process", opt.no_process, "Leave out the `stlrefine slice` process rows");
   CLI11_PARSE(app, argc, argv);
+  if (opt.slic3r_threads <= 0)
+    opt.slic3r_threads = *std::max_element(opt.threads.begin(), opt.threads.end());
+  const fs::path slic3r = find_executable(opt.slic3r);
+  const std::string slic3r_ver = slic3r.empty() ? "" : slic3r_version(slic3r);
+  const int tmax = *std::max_element(opt.threads.begin(), opt.threads.end());
+  fs::path stlrefine;
+  if (!opt.no_process) {
+    stlrefine = opt.stlrefine.empty()
+                    ? fs::read_symlink("/proc/self/exe").parent_path() / "stlrefine"
+                    : find_executable(opt.stlrefine);
+    if (::access(stlrefine.c_str(), X_OK) != 0) stlrefine.clear();
+  }
 
   fs::create_directories(opt.tmp_dir);
   const fs::path warm_stl = write_warmup_mesh(opt.tmp_dir);
@@ -497,8 +734,45 @@ int run(int argc, char** argv) {
                "the first point of a closed polyline. Times are wall seconds of the first run in "
                "a fresh process, median of "
             << opt.reps << "; peak RSS is the process's (input included).\n\n";
+  if (!slic3r.empty()) {
+    std::cout << "slic3r: `" << slic3r.string() << "` (version " << slic3r_ver
+              << "), a separate process per run: `slic3r --no-gui --export-svg --layer-height H "
+                 "--first-layer-height H --threads "
+              << opt.slic3r_threads
+              << " --output OUT.svg IN.stl` on the same prepared STL, timed from fork to exit "
+                 "(read, slice, write the SVG), peak RSS and CPU time from wait4; median of "
+              << opt.slic3r_reps << ". Its points are those of its SVG polygons.\n\n";
+  } else if (opt.slic3r != "none") {
+    std::cout << "**slic3r: `" << opt.slic3r
+              << "` not found, its rows are left out** (Debian: `apt-get install slic3r`).\n\n";
+  }
+  if (!stlrefine.empty()) {
+    std::cout << "Ours as a process: `" << stlrefine.string()
+              << " slice IN.stl --layer-height H --format svg|cli-binary --threads " << tmax
+              << " -o OUT`, timed like slic3r (fork to exit, wait4), median of " << opt.reps
+              << ".\n\n";
+  } else if (!opt.no_process) {
+    std::cout << "**stlrefine not found next to this program: the process rows are left out** "
+                 "(build the `stlrefine` target, or give --stlrefine).\n\n";
+  }
 
   const std::vector<Case> cases = make_cases(opt);
+  const auto print_row = [](const std::string& label, int threads, const Result& r,
+                            std::size_t layers, double h) {
+    std::cout << "| " << h << " | " << group(layers) << " | " << label << " | " << threads << " | ";
+    if (!r.ok) {
+      std::cout << "failed | | | | | | | " << r.failure << " |\n";
+      return;
+    }
+    const double s = median(r.seconds);
+    const auto [lo, hi] = std::minmax_element(r.seconds.begin(), r.seconds.end());
+    std::cout << fixed(s, 3) << " | " << fixed(*lo, 3) << "–" << fixed(*hi, 3) << " | "
+              << sig3(double(r.first.out_vertices) / s / 1e6) << " | " << sig3(double(layers) / s)
+              << " | " << (r.first.out_vertices > 0 ? group(r.first.out_vertices) : "—") << " | "
+              << mib(r.peak_kb) << " (" << (r.base_kb > 0 ? mib(r.base_kb) : "—") << ") | "
+              << (r.others < 0 ? "—" : std::to_string(int(std::lround(r.others * 100))) + "%")
+              << " | " << r.first.note << " |\n";
+  };
   for (const std::string& spec : opt.inputs) {
     Input in = parse_input(opt, spec);
     std::cerr << "== " << in.name << '\n';
@@ -523,25 +797,36 @@ int run(int argc, char** argv) {
         const std::vector<double> warm_heights = {0.0};
         const Result r =
             measure(opt, c.make(in.prepared, heights, h), c.make(warm_stl, warm_heights, 0.5));
-        std::cout << "| " << h << " | " << group(heights.size()) << " | " << c.label << " | "
-                  << c.threads << " | ";
-        if (!r.ok) {
-          std::cout << "failed | | | | | | | " << r.failure << " |\n";
-          continue;
-        }
+        print_row(c.label, c.threads, r, heights.size(), h);
+        if (!r.ok) continue;
         const double s = median(r.seconds);
-        const auto [lo, hi] = std::minmax_element(r.seconds.begin(), r.seconds.end());
-        best[c.kind + (c.ours ? "/ours" : "/cgal")] =
-            std::min(best.count(c.kind + (c.ours ? "/ours" : "/cgal"))
-                         ? best[c.kind + (c.ours ? "/ours" : "/cgal")]
-                         : 1e300,
-                     s);
-        std::cout << fixed(s, 3) << " | " << fixed(*lo, 3) << "–" << fixed(*hi, 3) << " | "
-                  << sig3(double(r.first.out_vertices) / s / 1e6) << " | "
-                  << sig3(double(heights.size()) / s) << " | " << group(r.first.out_vertices)
-                  << " | " << mib(r.peak_kb) << " (" << mib(r.base_kb) << ") | "
-                  << (r.others < 0 ? "—" : std::to_string(int(std::lround(r.others * 100))) + "%")
-                  << " | " << r.first.note << " |\n";
+        const std::string key = c.kind + (c.ours ? "/ours" : "/cgal");
+        best[key] = std::min(best.count(key) ? best[key] : 1e300, s);
+      }
+      if (!stlrefine.empty()) {
+        for (const std::string format : {"svg", "cli-binary"}) {
+          std::cerr << "  h " << h << ": stlrefine slice --format " << format << " thr " << tmax
+                    << '\n';
+          const fs::path out = opt.tmp_dir / ("out_process." + format);
+          const fs::path log = opt.tmp_dir / "stlrefine.log";
+          const Result r = measure_process(opt, opt.reps, [&] {
+            return run_ours_process(stlrefine, in.prepared, h, tmax, format, heights, out, log);
+          });
+          print_row("**ours** `stlrefine slice --format " + format + "` (own process)", tmax, r,
+                    heights.size(), h);
+          if (r.ok) best["process/ours/" + format] = median(r.seconds);
+        }
+      }
+      if (!slic3r.empty()) {
+        std::cerr << "  h " << h << ": slic3r --export-svg thr " << opt.slic3r_threads << '\n';
+        const fs::path svg = opt.tmp_dir / "out_slic3r.svg", log = opt.tmp_dir / "slic3r.log";
+        const Result r = measure_process(opt, opt.slic3r_reps, [&] {
+          return run_slic3r(slic3r, in.prepared, h, opt.slic3r_threads, heights, in.z_min, svg,
+                            log);
+        });
+        print_row("slic3r " + slic3r_ver + " `--export-svg` (own process)", opt.slic3r_threads, r,
+                  heights.size(), h);
+        if (r.ok) best["process/slic3r"] = median(r.seconds);
       }
       if (best.count("slice/ours") && best.count("slice/cgal"))
         std::cerr << "  slice speed-up " << best["slice/cgal"] / best["slice/ours"] << '\n';
@@ -550,6 +835,15 @@ int run(int argc, char** argv) {
         std::cout << "| " << h << " | | *ours vs CGAL* | | | | | | | | | slicing "
                   << fixed(best["slice/cgal"] / best["slice/ours"], 1) << "× faster, whole process "
                   << fixed(best["whole/cgal"] / best["whole/ours"], 1) << "× faster |\n";
+      }
+      if (best.count("process/ours/svg") && best.count("process/slic3r")) {
+        std::cout << "| " << h << " | | *ours vs slic3r* | | | | | | | | | process to SVG "
+                  << fixed(best["process/slic3r"] / best["process/ours/svg"], 0) << "× faster";
+        if (best.count("whole/cgal"))
+          std::cout << " (CGAL whole, in-process: "
+                    << fixed(best["process/slic3r"] / best["whole/cgal"], 1)
+                    << "× faster than slic3r)";
+        std::cout << " |\n";
       }
     }
     std::cout << '\n';
