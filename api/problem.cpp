@@ -32,6 +32,8 @@ const char* title_for_status(int status) {
       return "Expectation failed";
     case 422:
       return "Unprocessable content";
+    case 431:
+      return "Request header fields too large";
     case 500:
       return "Internal server error";
     case 503:

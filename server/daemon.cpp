@@ -5,7 +5,10 @@
 // httplib.h must see the same CPPHTTPLIB_*_SUPPORT macros Debian's libcpp-httplib.so was
 // built with (Request has an extra member under OPENSSL): they come from the
 // httplib::httplib target (pkg-config cflags), never from here.
+#include <arpa/inet.h>
 #include <httplib.h>
+#include <netinet/in.h>
+#include <poll.h>
 #include <sys/socket.h>
 
 #include <algorithm>
@@ -15,6 +18,7 @@
 #include <cmath>
 #include <condition_variable>
 #include <cstdio>
+#include <cstring>
 #include <ctime>
 #include <deque>
 #include <filesystem>
@@ -35,31 +39,40 @@
 #include "api/problem.h"
 #include "api/zip.h"
 #include "core/error.h"
+#include "server/front_end.h"
 #include "server/metrics.h"
+#include "server/request_watch.h"
 #include "slicer/writers.h"
 #include "web/assets.h"
 
 // Hardening around cpp-httplib 0.11.4 (Debian 12), and why each piece is needed:
 //
-//  - The pre-routing handler runs after the headers are read and before the body is, so
-//    every check that needs only the request line and headers happens there: route (404),
-//    method (405), Transfer-Encoding or no Content-Length on POST (411: 0.11.4 reads such
-//    bodies without applying the payload limit), any Content-Encoding (415: the library
-//    would inflate gzip/brotli bodies with no limit on the inflated size), Content-Type
-//    (415), Content-Length over the cap (413, without reading the body), parameters (400)
-//    and a full house (503). The same checks answer `Expect: 100-continue`, so a client
-//    that asks first never uploads a body that would be refused.
-//  - A refused body is never read. keep_alive_max_count(1) closes every connection after
-//    its response, so unread body bytes can never be parsed as the next request.
-//  - set_payload_max_length stays as the library's own backstop (413 after skipping the
-//    body); the error handler gives its 413, like every other library answer >= 400 with
-//    an empty body (400 parse errors, 404, 414, ...), a problem+json body.
-//  - The library's ThreadPool queues accepted connections without bound; BoundedTaskQueue
-//    blocks the accept loop instead, so excess connections wait in the kernel's backlog.
+//  - No library thread ever reads from a client. 0.11.4 reads a connection's head and body
+//    on a pool thread with a per-recv timeout and no limit on the head's size or field
+//    count: a few hundred clients trickling bytes starve every other request, and a 100 MB
+//    header line is buffered whole. HttpServer hands every accepted socket to the
+//    FrontEnd (front_end.h), one epoll thread that reads heads (bounded size, field count
+//    and time: 431 / 408), decides on them here (Impl::decide), reads accepted bodies at a
+//    minimum rate, and only then gives the complete request to a worker, which runs the
+//    library's own request processing on a stream that replays the head. /healthz and
+//    /readyz are answered on the event loop itself, so they never wait for a worker.
+//  - decide() runs every check that needs only the request line and headers before the
+//    body is read: route (404), method (405), Transfer-Encoding or no Content-Length on
+//    POST (411: 0.11.4 reads such bodies without applying the payload limit), any
+//    Content-Encoding (415: the library would inflate gzip/brotli bodies with no limit on
+//    the inflated size), Content-Type (415), Content-Length over the cap (413), a body on
+//    a route that takes none (400), parameters (400) and a full house (503). An
+//    `Expect: 100-continue` gets the refusal instead of 100, so a refused upload is never
+//    sent. After any answer the front end drops what the client still sends and then
+//    closes, so a client still uploading is not reset and reads its answer.
+//  - keep_alive_max_count(1): every connection carries one request.
+//  - set_payload_max_length stays as the library's own backstop; the error handler gives
+//    every library answer >= 400 with an empty body (400, 404, 413, ...) a problem+json body.
 //  - Compute requests take a ComputeSlots lease and get 503 + Retry-After at once when
-//    none is free.
+//    none is free. A RequestWatch cancels them when the client hangs up.
 //  - httplib's default socket options set SO_REUSEPORT: a second daemon on the same port
-//    would bind successfully and share the traffic. Ours set SO_REUSEADDR only.
+//    would bind successfully and share the traffic. Ours set SO_REUSEADDR only. The
+//    library listens with a backlog of 5; HttpServer widens it.
 //  - Without an exception handler 0.11.4 copies what() into an EXCEPTION_WHAT response
 //    header; ours answers a generic 500 and logs what() on stderr only.
 
@@ -76,59 +89,90 @@ constexpr const char* kJsonContentType = "application/json";
 constexpr const char* kReportHeader = "X-Stlrefine-Report";
 constexpr const char* kZipContentType = "application/zip";
 
-//! httplib::TaskQueue with a bounded backlog: enqueue() blocks while `max_queued` accepted
-//! connections already wait for a worker, which stalls the accept loop (the kernel's listen
-//! backlog then holds further clients) instead of growing a list without limit.
-class BoundedTaskQueue : public httplib::TaskQueue {
+//! The accept loop's task queue: runs the task at once. The task only hands the socket to
+//! the FrontEnd (HttpServer::process_and_close_socket), so the accept loop never waits.
+class InlineTaskQueue : public httplib::TaskQueue {
  public:
-  BoundedTaskQueue(std::size_t threads, std::size_t max_queued) : max_queued_(max_queued) {
-    for (std::size_t i = 0; i < threads; ++i) workers_.emplace_back([this] { work(); });
-  }
-  ~BoundedTaskQueue() override = default;
+  void enqueue(std::function<void()> fn) override { fn(); }
+  void shutdown() override {}
+};
 
-  void enqueue(std::function<void()> fn) override {
-    std::unique_lock lock(mutex_);
-    space_.wait(lock, [&] { return jobs_.size() < max_queued_ || shutdown_; });
-    jobs_.push_back(std::move(fn));
-    work_.notify_one();
-  }
+//! httplib::Server whose accepted sockets go to the FrontEnd instead of a pool thread, and
+//! whose request processing runs on a stream the FrontEnd has already read.
+class HttpServer : public httplib::Server {
+ public:
+  std::function<void(socket_t)> on_accept;
 
-  void shutdown() override {
-    {
-      std::lock_guard lock(mutex_);
-      shutdown_ = true;
-    }
-    work_.notify_all();
-    space_.notify_all();
-    for (std::thread& t : workers_) t.join();
+  //! The library's processing of one request (parse, route, handlers, answer, logger).
+  bool serve(httplib::Stream& stream) {
+    bool closed = false;
+    return process_request(stream, true, closed, nullptr);
+  }
+  //! 0.11.4 listens with a backlog of 5 (CPPHTTPLIB_LISTEN_BACKLOG, built into the shared
+  //! library); listen() again on the bound socket raises it.
+  void widen_backlog() {
+    const socket_t sock = svr_sock_;
+    if (sock != INVALID_SOCKET) ::listen(sock, SOMAXCONN);
   }
 
  private:
-  void work() {
+  bool process_and_close_socket(socket_t sock) override {
+    on_accept(sock);
+    return true;
+  }
+};
+
+//! A connection whose request the FrontEnd has read: reads replay the head (the body is
+//! taken from FrontEnd::current() by the handlers, without a copy); writes go to the socket.
+class ConnectionStream : public httplib::Stream {
+ public:
+  ConnectionStream(const ReadRequest& request, std::chrono::milliseconds write_timeout)
+      : request_(request), write_timeout_(write_timeout) {}
+
+  bool is_readable() const override { return read_ < request_.head.size(); }
+  bool is_writable() const override {
+    pollfd p{request_.fd, POLLOUT, 0};
+    return ::poll(&p, 1, static_cast<int>(write_timeout_.count())) > 0 &&
+           (p.revents & (POLLERR | POLLHUP)) == 0;
+  }
+  ssize_t read(char* ptr, std::size_t size) override {
+    const std::size_t n = std::min(size, request_.head.size() - read_);
+    std::memcpy(ptr, request_.head.data() + read_, n);
+    read_ += n;
+    return static_cast<ssize_t>(n);
+  }
+  ssize_t write(const char* ptr, std::size_t size) override {
     for (;;) {
-      std::function<void()> fn;
-      {
-        std::unique_lock lock(mutex_);
-        work_.wait(lock, [&] { return !jobs_.empty() || shutdown_; });
-        if (jobs_.empty()) return;  // shut down and drained: queued connections are served
-        fn = std::move(jobs_.front());
-        jobs_.pop_front();
-      }
-      space_.notify_one();
-      try {
-        fn();
-      } catch (...) {
-        // httplib catches handler exceptions itself; anything else must not kill the pool.
-      }
+      if (!is_writable()) return -1;
+      const ssize_t n = ::send(request_.fd, ptr, size, MSG_NOSIGNAL);
+      if (n >= 0 || (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)) return n;
     }
   }
+  void get_remote_ip_and_port(std::string& ip, int& port) const override {
+    ip = request_.remote_ip;
+    port = request_.remote_port;
+  }
+  void get_local_ip_and_port(std::string& ip, int& port) const override {
+    sockaddr_storage addr{};
+    socklen_t len = sizeof addr;
+    if (::getsockname(request_.fd, reinterpret_cast<sockaddr*>(&addr), &len) != 0) return;
+    char text[INET6_ADDRSTRLEN] = {};
+    const void* where =
+        addr.ss_family == AF_INET6
+            ? static_cast<const void*>(&reinterpret_cast<const sockaddr_in6*>(&addr)->sin6_addr)
+            : &reinterpret_cast<const sockaddr_in*>(&addr)->sin_addr;
+    ::inet_ntop(addr.ss_family, where, text, sizeof text);
+    ip = text;
+    port =
+        ntohs(addr.ss_family == AF_INET6 ? reinterpret_cast<const sockaddr_in6*>(&addr)->sin6_port
+                                         : reinterpret_cast<const sockaddr_in*>(&addr)->sin_port);
+  }
+  socket_t socket() const override { return request_.fd; }
 
-  const std::size_t max_queued_;
-  std::mutex mutex_;
-  std::condition_variable work_, space_;
-  std::deque<std::function<void()>> jobs_;
-  std::vector<std::thread> workers_;
-  bool shutdown_ = false;
+ private:
+  const ReadRequest& request_;
+  std::chrono::milliseconds write_timeout_;
+  std::size_t read_ = 0;
 };
 
 enum class RouteKind {
@@ -214,11 +258,6 @@ std::string iso8601_now() {
   return text;
 }
 
-// Bodies up to this size are read and dropped before a refusal (see the pre-routing
-// handler). curl asks `Expect: 100-continue` above 1 MiB, which is answered before any upload,
-// so larger bodies are refused at once without reading them.
-constexpr std::uint64_t kDrainLimit = std::uint64_t{1} << 20;
-
 // Result files a job may have.
 bool job_file_name(const std::string& name) {
   return name == "result.stl" || name == "report.json" || name == "contours.json" ||
@@ -238,8 +277,7 @@ bool same_secret(std::string_view a, std::string_view b) {
 }
 
 // A client's X-Request-Id is kept when it is short and plain; otherwise we make one.
-std::string request_id(const Request& req) {
-  const std::string given = req.get_header_value("X-Request-Id");
+std::string request_id(const std::string& given) {
   const bool plain =
       !given.empty() && given.size() <= 64 && std::all_of(given.begin(), given.end(), [](char c) {
         return std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.';
@@ -249,6 +287,10 @@ std::string request_id(const Request& req) {
   char text[17];
   std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(engine()));
   return text;
+}
+
+std::string request_id(const Request& req) {
+  return request_id(req.get_header_value("X-Request-Id"));
 }
 
 std::string lowercase(std::string_view s) {
@@ -295,32 +337,110 @@ void send_problem(Response& res, const api::Problem& problem) {
   res.set_content(api::problem_body(problem), api::kProblemContentType);
 }
 
+const char* reason_phrase(int status) {
+  switch (status) {
+    case 200:
+      return "OK";
+    case 400:
+      return "Bad Request";
+    case 401:
+      return "Unauthorized";
+    case 404:
+      return "Not Found";
+    case 405:
+      return "Method Not Allowed";
+    case 408:
+      return "Request Timeout";
+    case 411:
+      return "Length Required";
+    case 413:
+      return "Payload Too Large";
+    case 414:
+      return "URI Too Long";
+    case 415:
+      return "Unsupported Media Type";
+    case 422:
+      return "Unprocessable Content";
+    case 431:
+      return "Request Header Fields Too Large";
+    case 500:
+      return "Internal Server Error";
+    case 503:
+      return "Service Unavailable";
+    default:
+      return status >= 500 ? "Server Error" : "Client Error";
+  }
+}
+
+//! A complete HTTP/1.1 answer the front end writes itself (one request per connection).
+std::string raw_answer(int status, const std::string& content_type, const std::string& body,
+                       const httplib::Headers& headers, bool head_only) {
+  std::string out = "HTTP/1.1 " + std::to_string(status) + " " + reason_phrase(status) + "\r\n";
+  out += "Content-Type: " + content_type + "\r\n";
+  out += "Content-Length: " + std::to_string(body.size()) + "\r\n";
+  out += "Connection: close\r\n";
+  for (const auto& [name, value] : headers) out += name + ": " + value + "\r\n";
+  out += "\r\n";
+  if (!head_only) out += body;
+  return out;
+}
+
+//! A request as httplib would have parsed it from the head, for the checks in decide().
+Request to_request(const RequestHead& head) {
+  Request req;
+  req.method = head.method;
+  req.target = head.target;
+  req.version = head.version;
+  const std::size_t q = head.target.find('?');
+  req.path = httplib::detail::decode_url(head.target.substr(0, q), false);
+  if (q != std::string::npos)
+    httplib::detail::parse_query_text(head.target.substr(q + 1), req.params);
+  for (const auto& [name, value] : head.fields) req.headers.emplace(name, value);
+  req.remote_addr = head.remote_ip;
+  req.remote_port = head.remote_port;
+  return req;
+}
+
 }  // namespace
 
-struct Daemon::Impl {
+struct Daemon::Impl : FrontEndDelegate {
   explicit Impl(DaemonConfig c);
 
   void install();
   std::optional<api::Problem> precheck(const Request& req) const;
-  bool drain_before_refusal(const Request& req, const api::Problem& problem) const;
   api::Problem busy_problem(bool stopping) const;
   //! The body for an answer httplib made itself (status set, body empty).
   api::Problem library_problem(int status, const Request& req) const;
+  //! Headers a problem's status calls for (Retry-After, Allow, WWW-Authenticate).
+  httplib::Headers problem_headers(const api::Problem& problem) const;
   void respond(Response& res, const api::Problem& problem) const;
   void compute(const Request& req, std::string_view body, Response& res, const Route& route);
   void submit_job(const Request& req, std::string_view body, Response& res);
   void job_item(const Request& req, Response& res);
   void page(const Request& req, Response& res, std::string_view name) const;
-  void readyz(Response& res) const;
+  //! /readyz: 200 with the slots, or the busy / shutting-down problem.
+  std::pair<std::string, std::optional<api::Problem>> readiness() const;
   bool authorized(const Request& req) const;
+  //! Metrics and the access log line of one answer.
+  void record(const std::string& method, const std::string& path, int status, std::size_t bytes,
+              double seconds, const std::string& id, const std::string& remote);
+
+  // FrontEndDelegate
+  Verdict decide(const RequestHead& head) override;
+  void serve(ReadRequest& request) override;
+  std::string refusal(const RequestHead* head, int status, std::string_view slug,
+                      std::string detail) override;
+  //! A problem answer written by the front end, recorded like any other.
+  std::string front_answer(const Request* req, const api::Problem& problem);
 
   DaemonConfig config;
   api::RequestLimits limits;
   ComputeSlots slots;
-  httplib::Server http;
+  HttpServer http;
+  std::unique_ptr<FrontEnd> front;
+  RequestWatch watch;
   std::atomic<bool> running{false};   // run() is active
   std::atomic<bool> stopping{false};  // stop() was called
-  std::atomic<bool> cancel{false};    // running refinements should give up
   Metrics metrics;
   std::unique_ptr<JobStore> jobs;  // null when jobs are not enabled
 };
@@ -340,6 +460,8 @@ DaemonConfig checked(DaemonConfig c) {
   if (c.max_slice_points < 1 || c.max_slice_points > (std::uint64_t{1} << 40))
     throw std::invalid_argument("max_slice_points must be in [1, 2^40]");
   if (c.retry_after_seconds < 0) throw std::invalid_argument("retry_after_seconds must be >= 0");
+  if (c.max_connections < 1 || c.max_connections > (std::size_t{1} << 20))
+    throw std::invalid_argument("max_connections must be in [1, 2^20]");
   if (!c.jobs.data_dir.empty() && (c.jobs.max_queued < 1 || c.jobs.max_queued > 100000))
     throw std::invalid_argument("the job queue length must be in [1, 100000]");
   if (!c.jobs.data_dir.empty() && c.jobs.retention.count() < 1)
@@ -368,6 +490,14 @@ Daemon::Impl::Impl(DaemonConfig c)
       metrics.refinement(job.scheme, to_string(job.state), seconds, in, out);
     });
   }
+  FrontEnd::Options fo;
+  fo.workers = config.http_threads;
+  fo.max_queued = 4 * config.http_threads;
+  fo.max_connections = config.max_connections;
+  fo.head_timeout = config.read_timeout;
+  fo.idle_timeout = config.read_timeout;
+  fo.write_timeout = config.write_timeout;
+  front = std::make_unique<FrontEnd>(fo, *this);
   install();
 }
 
@@ -391,7 +521,19 @@ std::optional<api::Problem> Daemon::Impl::precheck(const Request& req) const {
   if ((route->kind == RouteKind::Submit || route->kind == RouteKind::JobItem) && !jobs)
     return make_problem(404, "jobs-disabled",
                         "jobs are not enabled on this server (start it with --data-dir DIR)");
-  if (!has_body(*route)) return std::nullopt;
+  if (!has_body(*route)) {
+    // The library reads a DELETE body (a chunked one without any limit) and leaves a GET
+    // body unread; neither route takes one.
+    std::string_view length = req.get_header_value("Content-Length");
+    while (length.size() > 1 && length.front() == '0') length.remove_prefix(1);
+    if (req.has_header("Transfer-Encoding") || (!length.empty() && length != "0")) {
+      api::Problem p = make_problem(400, "bad-request",
+                                    req.method + " " + route->path + " takes no request body");
+      p.field = req.has_header("Transfer-Encoding") ? "Transfer-Encoding" : "Content-Length";
+      return p;
+    }
+    return std::nullopt;
+  }
 
   // Body framing. Only Content-Length bodies are accepted: 0.11.4 applies its payload limit
   // to nothing else.
@@ -469,23 +611,6 @@ std::optional<api::Problem> Daemon::Impl::precheck(const Request& req) const {
   return std::nullopt;
 }
 
-bool Daemon::Impl::drain_before_refusal(const Request& req, const api::Problem& problem) const {
-  const Route* route = find_route(req.path);
-  if (!route || !has_body(*route) || req.has_header("Expect")) return false;
-  // Never for framing problems (no length, chunked, over the cap) nor for an encoded body:
-  // httplib would inflate it while reading.
-  if (problem.status == 411 || problem.status == 413 || req.has_header("Content-Encoding") ||
-      req.has_header("Transfer-Encoding"))
-    return false;
-  const std::string length_text = req.get_header_value("Content-Length");
-  std::uint64_t length = 0;
-  const auto [end, ec] =
-      std::from_chars(length_text.data(), length_text.data() + length_text.size(), length);
-  return ec == std::errc() && end == length_text.data() + length_text.size() &&
-         req.get_header_value_count("Content-Length") == 1 && length <= kDrainLimit &&
-         length <= config.max_body_bytes;
-}
-
 api::Problem Daemon::Impl::busy_problem(bool is_stopping) const {
   if (is_stopping) return api::make_problem(503, "shutting-down", "the server is shutting down");
   api::Problem p = api::make_problem(
@@ -495,18 +620,119 @@ api::Problem Daemon::Impl::busy_problem(bool is_stopping) const {
   return p;
 }
 
-void Daemon::Impl::respond(Response& res, const api::Problem& problem) const {
-  if (problem.status == 503)
-    res.set_header("Retry-After", std::to_string(config.retry_after_seconds));
-  if (problem.status == 401) res.set_header("WWW-Authenticate", "Bearer");
+httplib::Headers Daemon::Impl::problem_headers(const api::Problem& problem) const {
+  httplib::Headers h;
+  if (problem.status == 503) h.emplace("Retry-After", std::to_string(config.retry_after_seconds));
+  if (problem.status == 401) h.emplace("WWW-Authenticate", "Bearer");
   if (problem.status == 405 && problem.extensions.contains("allow"))
-    res.set_header("Allow", problem.extensions["allow"].get<std::string>());
+    h.emplace("Allow", problem.extensions["allow"].get<std::string>());
+  return h;
+}
+
+void Daemon::Impl::respond(Response& res, const api::Problem& problem) const {
+  for (const auto& [name, value] : problem_headers(problem)) res.set_header(name, value);
   send_problem(res, problem);
 }
+
+void Daemon::Impl::record(const std::string& method, const std::string& path, int status,
+                          std::size_t bytes, double seconds, const std::string& id,
+                          const std::string& remote) {
+  const std::string route = route_label(path);
+  metrics.request(route, method, status, seconds);
+  if (!config.access_log) return;
+  nlohmann::ordered_json line;
+  line["time"] = iso8601_now();
+  line["request_id"] = id;
+  line["remote"] = remote;
+  line["method"] = method;
+  line["path"] = shortened(path);
+  line["route"] = route;
+  line["status"] = status;
+  line["bytes"] = bytes;
+  line["ms"] = std::round(seconds * 1e4) / 10;
+  log_line(line.dump(-1, ' ', true, nlohmann::json::error_handler_t::replace));
+}
+
+std::string Daemon::Impl::front_answer(const Request* req, const api::Problem& problem) {
+  const std::string id = req ? request_id(*req) : request_id(std::string());
+  httplib::Headers headers = problem_headers(problem);
+  headers.emplace("X-Request-Id", id);
+  const std::string body = api::problem_body(problem);
+  const bool head_only = req && req->method == "HEAD";
+  record(req ? req->method : "-", req ? req->path : "-", problem.status,
+         head_only ? 0 : body.size(), 0.0, id, req ? req->remote_addr : "");
+  return raw_answer(problem.status, api::kProblemContentType, body, headers, head_only);
+}
+
+std::string Daemon::Impl::refusal(const RequestHead* head, int status, std::string_view slug,
+                                  std::string detail) {
+  api::Problem problem = api::make_problem(status, std::string(slug), std::move(detail));
+  if (!head) return front_answer(nullptr, problem);
+  const Request req = to_request(*head);
+  return front_answer(&req, problem);
+}
+
+Verdict Daemon::Impl::decide(const RequestHead& head) {
+  const Request req = to_request(head);
+  Verdict verdict;
+  // Probes are answered here, on the event loop: they never wait behind a worker.
+  const bool probe = (req.path == "/healthz" || req.path == "/readyz") &&
+                     (req.method == "GET" || req.method == "HEAD");
+  std::optional<api::Problem> problem = precheck(req);
+  if (probe && !problem) {
+    std::string body = "{\"status\":\"ok\"}\n";
+    if (req.path == "/readyz") {
+      auto [ready, busy] = readiness();
+      if (busy) {
+        verdict.kind = Verdict::Kind::Answer;
+        verdict.response = front_answer(&req, *busy);
+        return verdict;
+      }
+      body = std::move(ready);
+    }
+    const std::string id = request_id(req);
+    const bool head_only = req.method == "HEAD";
+    record(req.method, req.path, 200, head_only ? 0 : body.size(), 0.0, id, req.remote_addr);
+    verdict.kind = Verdict::Kind::Answer;
+    verdict.response = raw_answer(200, kJsonContentType, body, {{"X-Request-Id", id}}, head_only);
+    return verdict;
+  }
+  if (problem) {
+    verdict.kind = Verdict::Kind::Answer;
+    verdict.response = front_answer(&req, *problem);
+    return verdict;
+  }
+  const Route* route = find_route(req.path);
+  if (route && has_body(*route)) {
+    verdict.kind = Verdict::Kind::ReadBody;
+    // precheck validated it: one decimal number, under the cap
+    const std::string length = req.get_header_value("Content-Length");
+    std::from_chars(length.data(), length.data() + length.size(), verdict.body_bytes);
+  }
+  return verdict;
+}
+
+void Daemon::Impl::serve(ReadRequest& request) {
+  ConnectionStream stream(request, std::chrono::milliseconds(config.write_timeout));
+  http.serve(stream);
+}
+
+namespace {
+// Keeps the failed allocation of the `oom` test fault observable, so it is not elided.
+std::atomic<void*> fault_sink{nullptr};
+}  // namespace
 
 void Daemon::Impl::compute(const Request& req, std::string_view raw_body, Response& res,
                            const Route& route) {
   if (config.test_hook) config.test_hook(route.path);
+  if (config.test_faults) {
+    const std::string fault = req.get_header_value("X-Stlrefine-Test-Fault");
+    if (fault == "throw") throw std::runtime_error("test fault secret-4711 in " + req.path);
+    if (fault == "oom") {
+      volatile std::size_t huge = std::size_t{1} << 62;
+      fault_sink = ::operator new(huge);  // throws std::bad_alloc
+    }
+  }
   try {
     // Parsed again (cheap): the pre-routing check only validated.
     const auto body =
@@ -524,6 +750,11 @@ void Daemon::Impl::compute(const Request& req, std::string_view raw_body, Respon
 
     std::optional<ComputeSlots::Lease> lease = slots.try_acquire();
     if (!lease || stopping) return respond(res, busy_problem(stopping));
+    // Cancelled when the client hangs up (or on a second SIGTERM).
+    const ReadRequest* connection = FrontEnd::current();
+    const std::shared_ptr<RequestWatch::Ticket> ticket =
+        watch.watch(connection ? connection->fd : -1, std::chrono::milliseconds(0));
+    const std::atomic<bool>* cancel = &ticket->cancel;
 
     // Large answers are handed over by a provider, not copied into res.body: a refined STL
     // can be a GiB.
@@ -537,7 +768,7 @@ void Daemon::Impl::compute(const Request& req, std::string_view raw_body, Respon
     };
     if (refine_request) {
       const auto started = std::chrono::steady_clock::now();
-      api::RefineOutcome out = api::run_refine(body, *refine_request, {}, &cancel);
+      api::RefineOutcome out = api::run_refine(body, *refine_request, {}, cancel);
       metrics.refinement(
           refine_request->refine.scheme, "done",
           std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(),
@@ -561,7 +792,7 @@ void Daemon::Impl::compute(const Request& req, std::string_view raw_body, Respon
         provide(std::move(out.stl), kStlContentType);
       }
     } else if (slice_request) {
-      api::SliceOutcome out = api::run_slice(body, *slice_request, {}, &cancel);
+      api::SliceOutcome out = api::run_slice(body, *slice_request, {}, cancel);
       lease.reset();
       res.set_header(kReportHeader, out.report.dump(-1, ' ', true));
       provide(std::move(out.contours), slicer::media_type(slice_request->slice.format));
@@ -729,19 +960,18 @@ void Daemon::Impl::page(const Request& req, Response& res, std::string_view name
       });
 }
 
-void Daemon::Impl::readyz(Response& res) const {
-  if (stopping || slots.available() == 0) return respond(res, busy_problem(stopping));
+std::pair<std::string, std::optional<api::Problem>> Daemon::Impl::readiness() const {
+  if (stopping || slots.available() == 0) return {std::string(), busy_problem(stopping)};
   nlohmann::ordered_json j;
   j["status"] = "ready";
   j["compute_slots"] = slots.capacity();
   j["available"] = slots.available();
-  res.set_content(j.dump() + "\n", kJsonContentType);
+  return {j.dump() + "\n", std::nullopt};
 }
 
 void Daemon::Impl::install() {
-  http.new_task_queue = [threads = config.http_threads] {
-    return new BoundedTaskQueue(threads, 4 * threads);
-  };
+  http.new_task_queue = [] { return new InlineTaskQueue; };
+  http.on_accept = [this](socket_t sock) { front->adopt(sock); };
   http.set_keep_alive_max_count(1);
   // The library's default options add SO_REUSEPORT, with which a second daemon binds the
   // same port and silently takes half the connections. SO_REUSEADDR alone still allows a
@@ -754,74 +984,35 @@ void Daemon::Impl::install() {
   http.set_write_timeout(config.write_timeout.count(), 0);
   http.set_payload_max_length(config.max_body_bytes);
 
-  http.set_expect_100_continue_handler([this](const Request& req, Response& res) {
-    try {
-      if (std::optional<api::Problem> problem = precheck(req)) {
-        respond(res, *problem);
-        // 0.11.4 writes this answer without a Content-Length of its own.
-        res.set_header("Content-Length", std::to_string(res.body.size()));
-        return res.status;
-      }
-      return 100;
-    } catch (...) {  // not inside httplib's try: an escape would terminate the process
-      respond(res, api::make_problem(500, "internal", "an internal error occurred"));
-      return 500;
-    }
-  });
-
+  // decide() ran the same checks on the event loop; they run again here because the state
+  // may have changed while the body arrived (every slot taken, shutting down).
   http.set_pre_routing_handler([this](const Request& req, Response& res) {
     mark_request_start();
     if (std::optional<api::Problem> problem = precheck(req)) {
-      // A small body the client is already sending is read and dropped before the answer
-      // (the route handler does it): closing with unread bytes makes the kernel send a
-      // reset, and a client like `curl --data-binary` then loses the answer to EPIPE.
-      if (drain_before_refusal(req, *problem)) return HandlerResponse::Unhandled;
       respond(res, *problem);
       return HandlerResponse::Handled;
     }
     return HandlerResponse::Unhandled;
   });
-  // Handlers of body routes start here: a refusal the pre-routing check deferred.
-  auto refused_after_drain = [this](const Request& req, Response& res,
-                                    const httplib::ContentReader& reader) {
-    std::optional<api::Problem> problem = precheck(req);
-    if (!problem) return false;
-    reader([](const char*, std::size_t) { return true; });
-    respond(res, *problem);
-    return true;
-  };
 
-  auto read_body = [this](const Request& req, const httplib::ContentReader& reader) {
-    // Content-Length was validated by the pre-routing check (one number, under the cap).
-    const std::string length_text = req.get_header_value("Content-Length");
-    std::uint64_t length = 0;
-    std::from_chars(length_text.data(), length_text.data() + length_text.size(), length);
-    std::string body;
-    body.reserve(static_cast<std::size_t>(std::min<std::uint64_t>(length, config.max_body_bytes)));
-    reader([&](const char* data, std::size_t n) {
-      body.append(data, n);
-      return true;
-    });
-    return body;
+  // The body was read by the front end (exactly Content-Length bytes): take it from there
+  // rather than through the library's reader, which would copy it (and form-decode an
+  // application/x-www-form-urlencoded body, curl's default label).
+  auto body_of = []() -> std::string_view {
+    const ReadRequest* request = FrontEnd::current();
+    return request ? std::string_view(request->body) : std::string_view();
   };
   for (const Route& route : kRoutes) {
     if (route.kind == RouteKind::Compute) {
-      // A content-reader route gets the body bytes as sent (payload limit still applied).
-      // httplib's default reader would form-decode an application/x-www-form-urlencoded
-      // body (curl's default label) and refuse it above 8 KiB.
-      http.Post(route.path,
-                [this, &route, read_body, refused_after_drain](
-                    const Request& req, Response& res, const httplib::ContentReader& reader) {
-                  if (refused_after_drain(req, res, reader)) return;
-                  compute(req, read_body(req, reader), res, route);
-                });
+      http.Post(route.path, [this, &route, body_of](const Request& req, Response& res,
+                                                    const httplib::ContentReader&) {
+        compute(req, body_of(), res, route);
+      });
     }
   }
   http.Post("/v1/jobs",
-            [this, read_body, refused_after_drain](const Request& req, Response& res,
-                                                   const httplib::ContentReader& reader) {
-              if (refused_after_drain(req, res, reader)) return;
-              submit_job(req, read_body(req, reader), res);
+            [this, body_of](const Request& req, Response& res, const httplib::ContentReader&) {
+              submit_job(req, body_of(), res);
             });
   http.Get(R"(/v1/jobs/[^/]+(/[^/]+)?)",
            [this](const Request& req, Response& res) { job_item(req, res); });
@@ -849,7 +1040,9 @@ void Daemon::Impl::install() {
   });
   http.Get("/readyz", [this](const Request&, Response& res) {
     if (config.test_hook) config.test_hook("/readyz");
-    readyz(res);
+    auto [ready, busy] = readiness();
+    if (busy) return respond(res, *busy);
+    res.set_content(ready, kJsonContentType);
   });
 
   // Every answer >= 400 passes here, ours included: only fill in empty bodies (httplib's
@@ -889,22 +1082,9 @@ void Daemon::Impl::install() {
     if (!res.has_header("X-Request-Id")) res.set_header("X-Request-Id", request_id(req));
   });
   http.set_logger([this](const Request& req, const Response& res) {
-    const double seconds = request_seconds();
-    const std::string route = route_label(req.path);
-    metrics.request(route, req.method, res.status, seconds);
-    if (!config.access_log) return;
     const std::size_t bytes = res.body.empty() ? res.content_length_ : res.body.size();
-    nlohmann::ordered_json line;
-    line["time"] = iso8601_now();
-    line["request_id"] = res.get_header_value("X-Request-Id");
-    line["remote"] = req.remote_addr;
-    line["method"] = req.method;
-    line["path"] = shortened(req.path);
-    line["route"] = route;
-    line["status"] = res.status;
-    line["bytes"] = bytes;
-    line["ms"] = std::round(seconds * 1e4) / 10;
-    log_line(line.dump(-1, ' ', true, nlohmann::json::error_handler_t::replace));
+    record(req.method, req.path, res.status, bytes, request_seconds(),
+           res.get_header_value("X-Request-Id"), req.remote_addr);
   });
 }
 
@@ -920,16 +1100,21 @@ int Daemon::bind(const std::string& host, int port) {
   if (port == 0) {
     const int bound = impl_->http.bind_to_any_port(host);
     if (bound < 0) throw std::runtime_error("cannot bind " + host + " (any port)");
+    impl_->http.widen_backlog();
     return bound;
   }
   if (!impl_->http.bind_to_port(host, port))
     throw std::runtime_error("cannot bind " + host + ":" + std::to_string(port));
+  impl_->http.widen_backlog();
   return port;
 }
 
 void Daemon::run() {
   impl_->running = true;
+  impl_->front->start();
   if (!impl_->stopping) impl_->http.listen_after_bind();
+  // Requests already read are answered; bodies still arriving are refused.
+  impl_->front->stop(impl_->front_answer(nullptr, impl_->busy_problem(true)));
   impl_->running = false;
   if (impl_->jobs) impl_->jobs->shutdown(impl_->config.shutdown_grace);
 }
@@ -944,7 +1129,7 @@ void Daemon::stop() {
 }
 
 void Daemon::cancel_running() {
-  impl_->cancel = true;
+  impl_->watch.cancel_all();
   if (impl_->jobs) impl_->jobs->cancel_running();
 }
 

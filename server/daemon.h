@@ -34,6 +34,8 @@ struct DaemonConfig {
   //! Idle time allowed in one socket read / write before the connection is dropped.
   std::chrono::seconds read_timeout{10};
   std::chrono::seconds write_timeout{60};
+  //! Connections open at once (reading, computing, answering); one more gets 503 at once.
+  std::size_t max_connections = 1024;
   //! Value of Retry-After on 503 answers.
   int retry_after_seconds = 2;
   //! One JSON line per request on stderr: time, request id, method, path, route, status,
@@ -49,6 +51,10 @@ struct DaemonConfig {
   //! For tests only: called with the route ("/v1/refine", ...) at the start of each route
   //! handler. It may throw, to exercise the generic 500 path.
   std::function<void(std::string_view route)> test_hook;
+  //! For tests only (stlrefined --test-faults): a compute request with the header
+  //! `X-Stlrefine-Test-Fault: throw` throws from its handler, `oom` fails a real allocation
+  //! there, to exercise the generic 500 path in the real process. Never set in production.
+  bool test_faults = false;
 };
 
 //! The HTTP daemon: routes, hardening around cpp-httplib 0.11.4 (see daemon.cpp), and the

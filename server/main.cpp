@@ -8,6 +8,7 @@
 
 #include <pthread.h>
 #include <signal.h>
+#include <sys/resource.h>
 
 #include <CLI/CLI.hpp>
 #include <atomic>
@@ -60,6 +61,11 @@ int main(int argc, char** argv) {
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
   // A client that hangs up mid-response must cost an EPIPE, not the process.
   std::signal(SIGPIPE, SIG_IGN);
+  // Every connection is a descriptor: take the hard limit, not the (often 1024) soft one.
+  if (rlimit files{}; ::getrlimit(RLIMIT_NOFILE, &files) == 0 && files.rlim_cur < files.rlim_max) {
+    files.rlim_cur = files.rlim_max;
+    ::setrlimit(RLIMIT_NOFILE, &files);
+  }
 
   CLI::App app{"stlrefined: HTTP daemon that refines STL files with interpolatory subdivision"};
   app.set_version_flag("--version", std::string(STLREFINE_VERSION));
@@ -79,6 +85,8 @@ int main(int argc, char** argv) {
   std::uint64_t disk_budget_mib = 10240;
   int shutdown_grace = 30;
   std::string api_key_file;
+  std::size_t max_connections = 1024;
+  bool test_faults = false;
   app.set_config("--config", "", "Read options from this TOML/INI file (key = value)");
   app.add_option("--host", host, "Address to listen on")->capture_default_str();
   app.add_option("--port", port, "Port to listen on; 0 picks a free one")
@@ -130,6 +138,12 @@ int main(int argc, char** argv) {
   app.add_option("--api-key-file", api_key_file,
                  "File with one API key per line (>= 16 characters); then every route but "
                  "/healthz, /readyz and /metrics needs Authorization: Bearer <key>");
+  app.add_option("--max-connections", max_connections,
+                 "Connections open at once; one more gets 503 at once")
+      ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 20))
+      ->capture_default_str();
+  // Tests only: lets a request header make its handler throw or fail an allocation.
+  app.add_flag("--test-faults", test_faults, "")->group("");
   // Every option can also come from the environment: STLREFINED_PORT=9000, ...
   for (CLI::Option* option : app.get_options()) {
     std::string name = option->get_single_name();
@@ -159,6 +173,8 @@ int main(int argc, char** argv) {
     config.jobs.retention = std::chrono::seconds(static_cast<long long>(retention_hours * 3600));
     config.jobs.disk_budget_bytes = disk_budget_mib << 20;
     config.shutdown_grace = std::chrono::seconds(shutdown_grace);
+    config.max_connections = max_connections;
+    config.test_faults = test_faults;
     if (!api_key_file.empty()) {
       std::ifstream keys(api_key_file);
       if (!keys) throw std::runtime_error("cannot read --api-key-file " + api_key_file);

@@ -108,8 +108,10 @@ Json common_errors(Json responses, bool with_body) {
     responses["415"] = problem_response("Unsupported Content-Type or Content-Encoding.");
     responses["422"] = problem_response("Not a usable STL, or over a budget.");
   }
+  if (with_body) responses["408"] = problem_response("The body stalled or arrived too slowly.");
+  responses["431"] = problem_response("Header fields too large or too many.");
   responses["401"] = problem_response("An API key is required.");
-  responses["503"] = problem_response("Busy or shutting down; see Retry-After.");
+  responses["503"] = problem_response("Busy, overloaded or shutting down; see Retry-After.");
   return responses;
 }
 

@@ -72,6 +72,8 @@ TEST(ApiProblem, BodyIsAsciiEvenForHostileDetails) {
 TEST(ApiProblem, TitlesFollowTheStatus) {
   EXPECT_EQ(make_problem(411, "length-required", "x").title, "Length required");
   EXPECT_EQ(make_problem(503, "busy", "x").title, "Service unavailable");
+  EXPECT_EQ(make_problem(431, "header-fields-too-large", "x").title,
+            "Request header fields too large");
 }
 
 }  // namespace
