@@ -36,6 +36,7 @@ class Child {
   //! Exit code after waiting at most `timeout` (-1: killed by a signal, or still running).
   int wait(std::chrono::milliseconds timeout);
   std::string stderr_text() const;
+  pid_t pid() const { return pid_; }
 
  private:
   pid_t pid_ = -1;
