@@ -17,7 +17,7 @@ double ButterflyStencil::extraordinary_weight(int k, int j) {
   return (0.25 + std::cos(t) + 0.5 * std::cos(2.0 * t)) / k;
 }
 
-ButterflyStencil::ButterflyStencil() : weights_(kCachedValences) {
+ButterflyStencil::ButterflyStencil(Extraordinary rule) : rule_(rule), weights_(kCachedValences) {
   for (int k = 3; k < kCachedValences; ++k) {
     weights_[k].resize(k);
     for (int j = 0; j < k; ++j) weights_[k][j] = extraordinary_weight(k, j);
@@ -84,7 +84,9 @@ Vec3 ButterflyStencil::one_sided_point(const Mesh& m, HalfedgeId h, int k) const
 void ButterflyStencil::edge_points(const Level& coarse, std::span<Vec3> out) const {
   const Mesh& m = coarse.mesh;
   const Features& f = coarse.features;
-  const std::vector<int> extraordinary = extraordinary_valences(m, f);
+  const std::vector<int> extraordinary = rule_ == Extraordinary::Zorin
+                                             ? extraordinary_valences(m, f)
+                                             : std::vector<int>(m.num_vertices(), 0);
   parallel_for_each_index(m.num_edges(), [&](std::size_t e) {
     const EdgeId edge(static_cast<std::uint32_t>(e));
     const HalfedgeId h = m.halfedge(edge);

@@ -14,7 +14,12 @@ namespace stlrefine {
 //! a sharp edge. Interpolating: old vertices never move.
 class ButterflyStencil final : public Split4Stencil {
  public:
-  ButterflyStencil();
+  //! Rule at an edge with an extraordinary end: Zorin et al.'s one-ring rule (the modified
+  //! butterfly, our `butterfly`), or the 8-point stencil of Dyn, Levin and Gregory's
+  //! original butterfly (w = 1/16) at every vertex, the base of Prautzsch and Umlauf's G1
+  //! butterfly (spec 6).
+  enum class Extraordinary { Zorin, EightPoint };
+  explicit ButterflyStencil(Extraordinary rule = Extraordinary::Zorin);
   void edge_points(const Level& coarse, std::span<Vec3> out) const override;
   bool interpolating() const override { return true; }
 
@@ -27,6 +32,7 @@ class ButterflyStencil final : public Split4Stencil {
   Vec3 one_sided_point(const Mesh& mesh, HalfedgeId h, int valence) const;
   //! Rows of s_j for valences below kCachedValences; larger ones are computed on the fly.
   static constexpr int kCachedValences = 64;
+  Extraordinary rule_;
   std::vector<std::vector<double>> weights_;
 };
 

@@ -224,13 +224,14 @@ std::uint64_t Split4Scheme::predict_faces(std::uint64_t faces, int levels) const
   return faces;
 }
 
-Level split4(const Level& coarse, const Split4Stencil& stencil, StepStats& stats) {
+Level split4(const Level& coarse, const Split4Stencil& stencil, StepStats& stats, FoldGuard guard) {
   const Mesh& m = coarse.mesh;
   const std::size_t nv = m.num_vertices();
   BigVector<Vec3> positions(nv + m.num_edges());
   stencil.vertex_points(coarse, std::span<Vec3>(positions.data(), nv));
   stencil.edge_points(coarse, std::span<Vec3>(positions.data() + nv, m.num_edges()));
-  if (stencil.interpolating()) stats.fold_fallbacks += guard_folds(m, coarse.features, positions);
+  if (guard == FoldGuard::AsStencil && stencil.guards_folds())
+    stats.fold_fallbacks += guard_folds(m, coarse.features, positions);
 
   Split4Topology t = split4_topology(m, coarse.features);
   Level fine;

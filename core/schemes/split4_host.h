@@ -20,14 +20,22 @@ class Split4Stencil {
   //! Writes one point per coarse vertex. Interpolating stencils keep the default (copy).
   virtual void vertex_points(const Level& coarse, std::span<Vec3> out) const;
   virtual bool interpolating() const = 0;
+  //! Whether the host runs its fold guard after this stencil: interpolating stencils by
+  //! default; butterfly-g1 (which moves a few later-level vertices) asks for it too.
+  virtual bool guards_folds() const { return interpolating(); }
 };
+
+//! Whether split4 runs the fold guard: as the stencil asks (production), or never (the
+//! spectral analysis, which must see the stencil's linear rules alone).
+enum class FoldGuard { AsStencil, Off };
 
 //! 1-to-4 split (Loop / butterfly / LSF topology). New vertex ids: old vertices keep
 //! theirs, then one per coarse edge (V + e). Face 4f+k is the corner triangle at corner
 //! k of coarse face f, 4f+3 the middle one. Halves of sharp edges stay sharp.
 //! For interpolating stencils the fold guard runs: an edge point whose child faces would
 //! turn more than 90 degrees from their parent is moved back towards its chord midpoint.
-Level split4(const Level& coarse, const Split4Stencil& stencil, StepStats& stats);
+Level split4(const Level& coarse, const Split4Stencil& stencil, StepStats& stats,
+             FoldGuard guard = FoldGuard::AsStencil);
 
 //! The fold guard on its own: `positions` holds the coarse vertices then one edge point
 //! per coarse edge (V + e). Pulls edge points whose 1-to-4 children would turn more than
