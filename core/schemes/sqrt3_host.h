@@ -53,6 +53,10 @@ class Sqrt3Stencil {
   //! Writes out.vertices[v] for every coarse vertex and out.faces[f] for every face with
   //! step.has_face_point(f).
   virtual void points(const Sqrt3Step& step, Sqrt3Points out) const = 0;
+  //! What points() writes for face f (step.has_face_point(f)) and for old vertex v, one at
+  //! a time: the adaptive host evaluates the stencil on small patches of a level.
+  virtual Vec3 face_point(const Sqrt3Step& step, FaceId f) const = 0;
+  virtual Vec3 vertex_point(const Sqrt3Step& step, VertexId v) const = 0;
   //! Trisecting steps only: the new points at 1/3 and 2/3 of sharp half-edge h, counted
   //! from from(h). Uses curve vertices only, so both sides of a crease agree.
   virtual std::array<Vec3, 2> curve_points(const Sqrt3Step& step, HalfedgeId h) const = 0;

@@ -27,15 +27,18 @@ LabsikGreinerStencil::LabsikGreinerStencil() : weights_(kCachedValences) {
 
 namespace {
 
-// Per vertex: its valence when it is an extraordinary centre (an interior vertex whose
-// ring no sharp edge cuts, valence != 6), else 0. Sharp vertices are never centres.
+// A vertex's valence when it is an extraordinary centre (an interior vertex whose ring no
+// sharp edge cuts, valence != 6), else 0. Sharp vertices are never centres.
+int extraordinary_valence(const Mesh& m, const Features& f, VertexId v) {
+  if (f.cuts_ring(v) || m.is_isolated(v) || m.is_boundary(v)) return 0;
+  const int valence = m.valence(v);
+  return valence == 6 ? 0 : valence;
+}
+
 std::vector<int> extraordinary_valences(const Mesh& m, const Features& f) {
   std::vector<int> n(m.num_vertices(), 0);
   parallel_for_each_index(m.num_vertices(), [&](std::size_t i) {
-    const VertexId v(static_cast<std::uint32_t>(i));
-    if (f.cuts_ring(v) || m.is_isolated(v) || m.is_boundary(v)) return;
-    const int valence = m.valence(v);
-    n[i] = valence == 6 ? 0 : valence;
+    n[i] = extraordinary_valence(m, f, VertexId(static_cast<std::uint32_t>(i)));
   });
   return n;
 }
@@ -100,6 +103,26 @@ Vec3 LabsikGreinerStencil::extraordinary_point(const Mesh& m, HalfedgeId h, int 
   return sum;
 }
 
+Vec3 LabsikGreinerStencil::face_point_from(const Mesh& m, const Features& f, FaceId face,
+                                           const std::array<int, 3>& extraordinary) const {
+  // Several extraordinary corners (coarsest level only): the average of their rules.
+  Vec3 sum;
+  int centres = 0;
+  for (int k = 0; k < 3; ++k) {
+    if (extraordinary[k] == 0) continue;
+    sum += extraordinary_point(m, Mesh::halfedge(face, k), extraordinary[k]);
+    ++centres;
+  }
+  return centres == 0 ? regular_point(m, f, face) : centres == 1 ? sum : sum * (1.0 / centres);
+}
+
+Vec3 LabsikGreinerStencil::face_point(const Sqrt3Step& step, FaceId face) const {
+  std::array<int, 3> n{};
+  for (int k = 0; k < 3; ++k)
+    n[k] = extraordinary_valence(step.mesh, step.features, step.mesh.from(Mesh::halfedge(face, k)));
+  return face_point_from(step.mesh, step.features, face, n);
+}
+
 void LabsikGreinerStencil::points(const Sqrt3Step& step, Sqrt3Points out) const {
   const Mesh& m = step.mesh;
   const Features& f = step.features;
@@ -109,19 +132,9 @@ void LabsikGreinerStencil::points(const Sqrt3Step& step, Sqrt3Points out) const 
   parallel_for_each_index(m.num_faces(), [&](std::size_t fi) {
     const FaceId face(static_cast<std::uint32_t>(fi));
     if (!step.has_face_point(face)) return;
-    // Several extraordinary corners (coarsest level only): the average of their rules.
-    Vec3 sum;
-    int centres = 0;
-    for (int k = 0; k < 3; ++k) {
-      const HalfedgeId h = Mesh::halfedge(face, k);
-      const int n = extraordinary[m.from(h).idx];
-      if (n == 0) continue;
-      sum += extraordinary_point(m, h, n);
-      ++centres;
-    }
-    out.faces[fi] = centres == 0   ? regular_point(m, f, face)
-                    : centres == 1 ? sum
-                                   : sum * (1.0 / centres);
+    std::array<int, 3> n{};
+    for (int k = 0; k < 3; ++k) n[k] = extraordinary[m.from(Mesh::halfedge(face, k)).idx];
+    out.faces[fi] = face_point_from(m, f, face, n);
   });
 }
 

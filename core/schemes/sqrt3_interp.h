@@ -18,6 +18,10 @@ class LabsikGreinerStencil final : public Sqrt3Stencil {
   LabsikGreinerStencil();
   bool interpolating() const override { return true; }
   void points(const Sqrt3Step& step, Sqrt3Points out) const override;
+  Vec3 face_point(const Sqrt3Step& step, FaceId f) const override;
+  Vec3 vertex_point(const Sqrt3Step& step, VertexId v) const override {
+    return step.mesh.position(v);
+  }
   std::array<Vec3, 2> curve_points(const Sqrt3Step& step, HalfedgeId h) const override;
 
   //! Regular rule (eq. 9): corners, tips across the edges, and the two far neighbours of
@@ -32,6 +36,9 @@ class LabsikGreinerStencil final : public Sqrt3Stencil {
  private:
   //! The face point from the 1-ring of the extraordinary vertex from(h) (valence n).
   Vec3 extraordinary_point(const Mesh& mesh, HalfedgeId h, int n) const;
+  //! The face point of `face` given the extraordinary valence of each corner (0: regular).
+  Vec3 face_point_from(const Mesh& mesh, const Features& features, FaceId face,
+                       const std::array<int, 3>& extraordinary) const;
   static constexpr int kCachedValences = 64;  // larger valences are computed on the fly
   std::vector<std::vector<double>> weights_;
 };

@@ -49,16 +49,24 @@ std::array<Vec3, 2> bspline_trisection(const std::array<Vec3, 4>& w) {
           (10.0 * w[1] + 16.0 * w[2] + w[3]) * (1.0 / 27.0)};
 }
 
+Vec3 KobbeltStencil::face_point(const Sqrt3Step& step, FaceId f) const {
+  const Mesh& m = step.mesh;
+  const auto [a, b, c] = m.face_vertices(f);
+  return (m.position(a) + m.position(b) + m.position(c)) * (1.0 / 3.0);
+}
+
+Vec3 KobbeltStencil::vertex_point(const Sqrt3Step& step, VertexId v) const {
+  return step.mesh.position(v) + relaxation_.displacement(step, v);
+}
+
 void KobbeltStencil::points(const Sqrt3Step& step, Sqrt3Points out) const {
   const Mesh& m = step.mesh;
   parallel_for_each_index(m.num_vertices(), [&](std::size_t i) {
-    const VertexId v(static_cast<std::uint32_t>(i));
-    out.vertices[i] = m.position(v) + relaxation_.displacement(step, v);
+    out.vertices[i] = vertex_point(step, VertexId(static_cast<std::uint32_t>(i)));
   });
   parallel_for_each_index(m.num_faces(), [&](std::size_t f) {
     if (!step.has_face_point(FaceId(static_cast<std::uint32_t>(f)))) return;
-    const auto [a, b, c] = m.face_vertices(FaceId(static_cast<std::uint32_t>(f)));
-    out.faces[f] = (m.position(a) + m.position(b) + m.position(c)) * (1.0 / 3.0);
+    out.faces[f] = face_point(step, FaceId(static_cast<std::uint32_t>(f)));
   });
 }
 

@@ -43,6 +43,8 @@ class KobbeltStencil final : public Sqrt3Stencil {
  public:
   bool interpolating() const override { return false; }
   void points(const Sqrt3Step& step, Sqrt3Points out) const override;
+  Vec3 face_point(const Sqrt3Step& step, FaceId f) const override;
+  Vec3 vertex_point(const Sqrt3Step& step, VertexId v) const override;
   std::array<Vec3, 2> curve_points(const Sqrt3Step& step, HalfedgeId h) const override;
 
  private:

@@ -17,6 +17,34 @@ BigVector<double> LinLuoStencil::initial_alpha(const Level& input) const {
   return alpha;
 }
 
+namespace {
+
+// Old vertex: P + (1 - alpha) Delta. Alpha 1 copies the position, so interpolation is
+// bit-exact even for -0.0.
+Vec3 relaxed(const Vec3& p, double alpha, const Vec3& delta) {
+  const double keep = 1.0 - alpha;
+  return keep == 0.0 ? p : p + keep * delta;
+}
+
+// Face point: the sum of (P - alpha_P Delta(P)) / 3 over the corners.
+template <class DeltaOf>
+Vec3 unified_face_point(const Sqrt3Step& step, FaceId f, DeltaOf&& delta_of) {
+  Vec3 sum;
+  for (const VertexId v : step.mesh.face_vertices(f))
+    sum += step.mesh.position(v) - step.alpha[v.idx] * delta_of(v);
+  return sum * (1.0 / 3.0);
+}
+
+}  // namespace
+
+Vec3 LinLuoStencil::face_point(const Sqrt3Step& step, FaceId f) const {
+  return unified_face_point(step, f, [&](VertexId v) { return relaxation_.displacement(step, v); });
+}
+
+Vec3 LinLuoStencil::vertex_point(const Sqrt3Step& step, VertexId v) const {
+  return relaxed(step.mesh.position(v), step.alpha[v.idx], relaxation_.displacement(step, v));
+}
+
 void LinLuoStencil::points(const Sqrt3Step& step, Sqrt3Points out) const {
   const Mesh& m = step.mesh;
   // Each Delta is used by the vertex itself and by every face around it: compute it once.
@@ -24,17 +52,12 @@ void LinLuoStencil::points(const Sqrt3Step& step, Sqrt3Points out) const {
   parallel_for_each_index(m.num_vertices(), [&](std::size_t i) {
     const VertexId v(static_cast<std::uint32_t>(i));
     delta[i] = relaxation_.displacement(step, v);
-    const double keep = 1.0 - step.alpha[i];
-    // alpha 1 copies the position, so interpolation is bit-exact even for -0.0.
-    out.vertices[i] = keep == 0.0 ? m.position(v) : m.position(v) + keep * delta[i];
+    out.vertices[i] = relaxed(m.position(v), step.alpha[i], delta[i]);
   });
   parallel_for_each_index(m.num_faces(), [&](std::size_t fi) {
     const FaceId f(static_cast<std::uint32_t>(fi));
     if (!step.has_face_point(f)) return;
-    Vec3 sum;
-    for (const VertexId v : m.face_vertices(f))
-      sum += m.position(v) - step.alpha[v.idx] * delta[v.idx];
-    out.faces[fi] = sum * (1.0 / 3.0);
+    out.faces[fi] = unified_face_point(step, f, [&](VertexId v) { return delta[v.idx]; });
   });
 }
 

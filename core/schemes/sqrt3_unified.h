@@ -24,6 +24,8 @@ class LinLuoStencil final : public Sqrt3Stencil {
   bool interpolating() const override { return alpha_ == 1.0 && alpha_features_ == 1.0; }
   BigVector<double> initial_alpha(const Level& input) const override;
   void points(const Sqrt3Step& step, Sqrt3Points out) const override;
+  Vec3 face_point(const Sqrt3Step& step, FaceId f) const override;
+  Vec3 vertex_point(const Sqrt3Step& step, VertexId v) const override;
   std::array<Vec3, 2> curve_points(const Sqrt3Step& step, HalfedgeId h) const override;
 
  private:

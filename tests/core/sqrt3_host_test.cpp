@@ -34,11 +34,16 @@ class LinearSqrt3Stencil final : public Sqrt3Stencil {
   void points(const Sqrt3Step& step, Sqrt3Points out) const override {
     const Mesh& m = step.mesh;
     std::copy(m.positions().begin(), m.positions().end(), out.vertices.begin());
-    for (std::uint32_t f = 0; f < m.num_faces(); ++f) {
-      if (!step.has_face_point(FaceId(f))) continue;
-      const auto [a, b, c] = m.face_vertices(FaceId(f));
-      out.faces[f] = (m.position(a) + m.position(b) + m.position(c)) * (1.0 / 3.0);
-    }
+    for (std::uint32_t f = 0; f < m.num_faces(); ++f)
+      if (step.has_face_point(FaceId(f))) out.faces[f] = face_point(step, FaceId(f));
+  }
+  Vec3 face_point(const Sqrt3Step& step, FaceId f) const override {
+    const Mesh& m = step.mesh;
+    const auto [a, b, c] = m.face_vertices(f);
+    return (m.position(a) + m.position(b) + m.position(c)) * (1.0 / 3.0);
+  }
+  Vec3 vertex_point(const Sqrt3Step& step, VertexId v) const override {
+    return step.mesh.position(v);
   }
   std::array<Vec3, 2> curve_points(const Sqrt3Step& step, HalfedgeId h) const override {
     const Vec3 a = step.mesh.position(step.mesh.from(h)), b = step.mesh.position(step.mesh.to(h));
