@@ -13,6 +13,7 @@
 #include "core/error.h"
 #include "core/parallel.h"
 #include "core/schemes/adaptive_split4.h"
+#include "core/schemes/adaptive_sqrt3.h"
 
 namespace stlrefine {
 
@@ -23,14 +24,19 @@ void RefineParams::validate() const {
   require_in_range<std::uint64_t>("max_faces", max_faces, 1, (std::uint64_t{1} << 31) - 1);
   require_in_range("threads", threads, 0, 256);
   require_in_range("adaptive_tol", adaptive_tol, 0.0, 1e6);
+  require_in_range("adaptive_angle", adaptive_angle, 0.0, 180.0);
   require_in_range("max_level", max_level, 1, 8);
   require_in_range("alpha", alpha, 0.0, 1.0);
   require_in_range("alpha_features", alpha_features, 0.0, 1.0);
-  if (adaptive_tol > 0 && !adaptive_scheme(*make_scheme(scheme)))
-    throw Error(
-        ErrorCode::InvalidParameter, "adaptive_unsupported",
-        "adaptive refinement needs an interpolating 1-to-4 scheme (lsf, butterfly), not " + scheme)
-        .with_field("adaptive_tol");
+  if (adaptive()) {
+    const auto s = make_scheme(scheme);
+    if (!adaptive_scheme(*s) && !adaptive_sqrt3_scheme(*s))
+      throw Error(ErrorCode::InvalidParameter, "adaptive_unsupported",
+                  "adaptive refinement needs a sqrt3 scheme or an interpolating 1-to-4 scheme "
+                  "(lsf, butterfly), not " +
+                      scheme)
+          .with_field(adaptive_tol > 0 ? "adaptive_tol" : "adaptive_angle");
+  }
 }
 
 SchemeOptions scheme_options(const RefineParams& params) {
@@ -42,9 +48,15 @@ const Split4Stencil* adaptive_scheme(const Scheme& scheme) {
   return split4 && split4->interpolating() ? &split4->stencil() : nullptr;
 }
 
+const Sqrt3Stencil* adaptive_sqrt3_scheme(const Scheme& scheme) {
+  const auto* sqrt3 = dynamic_cast<const Sqrt3Scheme*>(&scheme);
+  return sqrt3 ? &sqrt3->stencil() : nullptr;
+}
+
 std::uint64_t check_face_budget(std::size_t faces, const RefineParams& params) {
-  // Adaptive output size depends on the geometry: each step checks its exact count.
-  if (params.adaptive_tol > 0) return faces;
+  // Adaptive output size depends on the geometry: the uniform count at the level cap bounds
+  // it, and the refinement stops as soon as its exact count would pass max_faces.
+  if (params.adaptive()) return make_scheme(params.scheme)->predict_faces(faces, params.max_level);
   const std::uint64_t predicted = make_scheme(params.scheme)->predict_faces(faces, params.levels);
   if (predicted > params.max_faces) {
     throw Error(ErrorCode::BudgetExceeded, "face_budget",
@@ -85,29 +97,45 @@ RefineResult run_levels(Mesh mesh, const RefineParams& params, const Scheme& sch
   r.darts = level.features.count(VertexKind::Dart);
 
   StepStats stats;
-  if (params.adaptive_tol > 0) {
+  r.adaptive_tol = params.adaptive_tol;
+  r.adaptive_angle = params.adaptive_angle;
+  auto adaptive_progress = [&](int i) {
+    if (progress)
+      progress(double(i - 1) / params.max_level,
+               "adaptive level " + std::to_string(i) + "/" + std::to_string(params.max_level));
+  };
+  if (params.adaptive() && adaptive_sqrt3_scheme(scheme)) {
+    const Sqrt3AdaptiveCriteria criteria{params.adaptive_angle, params.adaptive_tol,
+                                         params.max_level};
+    AdaptiveSqrt3 adaptive(level, *adaptive_sqrt3_scheme(scheme), criteria);
+    adaptive.run(params.max_faces, cancel, [&](int l) { adaptive_progress(l + 1); });
+    throw_if_cancelled(cancel);
+    level = adaptive.result();
+    r.levels = adaptive.stats().levels;
+    r.faces_over_criterion = adaptive.stats().over_criterion_at_cap;
+  } else if (params.adaptive()) {
     const Split4Stencil& stencil = *adaptive_scheme(scheme);
-    r.adaptive_tol = params.adaptive_tol;
     AdaptiveSplit4 adaptive(level);
     int made = 0;
     for (int i = 1; i <= params.max_level; ++i) {
       throw_if_cancelled(cancel);
-      if (progress)
-        progress(double(i - 1) / params.max_level,
-                 "adaptive level " + std::to_string(i) + "/" + std::to_string(params.max_level));
+      adaptive_progress(i);
       AdaptiveStepStats step;
-      if (!adaptive.step(stencil, params.adaptive_tol, params.max_faces, stats, step)) break;
+      if (!adaptive.step(stencil, params.adaptive_tol, params.max_faces, stats, step,
+                         params.adaptive_angle))
+        break;
       made = i;
     }
     level = adaptive.release();
     r.levels = made;
-    // At the cap some edges may still be over tolerance: say how many.
+    // At the cap some edges may still be over a criterion: say how many.
     if (made == params.max_level)
-      r.edges_over_tolerance = count_edges_over_tolerance(level, stencil, params.adaptive_tol);
+      r.edges_over_tolerance =
+          count_edges_over_tolerance(level, stencil, params.adaptive_tol, params.adaptive_angle);
   }
   // Work per level grows 4x (3x for sqrt3), so weight progress by output faces.
   std::uint64_t total = 0;
-  const int uniform_levels = params.adaptive_tol > 0 ? 0 : params.levels;
+  const int uniform_levels = params.adaptive() ? 0 : params.levels;
   for (int i = 1; i <= uniform_levels; ++i) total += scheme.predict_faces(input_faces, i);
   std::uint64_t done = 0;
   for (int i = 1; i <= uniform_levels; ++i) {

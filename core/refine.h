@@ -22,11 +22,16 @@ struct RefineParams {
   FeatureParams features;
   std::uint64_t max_faces = 20'000'000;  //!< [1, 2^31): refuse before work above this
   int threads = 0;                       //!< [0, 256]; 0 = every core
-  //! Curvature-adaptive mode when > 0: chordal tolerance in model units (mm) [0, 1e6].
-  //! Edges whose edge point leaves the chord by more than this are split, red-green
-  //! closed, until none does or `max_level` steps were made; `levels` is then unused.
-  //! Interpolating 1-to-4 schemes only (lsf, butterfly).
+  //! Curvature-adaptive mode when this or adaptive_angle is > 0 (`levels` is then unused):
+  //! chordal tolerance in model units (mm) [0, 1e6]. 1-to-4 schemes (interpolating ones:
+  //! lsf, butterfly) split edges whose edge point leaves the chord by more than this,
+  //! red-green closed; sqrt3 schemes refine triangles whose new point leaves the flat
+  //! triangle (a trisection point its chord) by more, forward adaptive (spec 3.6).
   double adaptive_tol = 0;
+  //! Curvature-adaptive criterion in degrees [0, 180]: refine where the normals of two
+  //! neighbouring faces across a non-sharp edge differ by more than this (Labsik-Greiner
+  //! use 20 and 10). With adaptive_tol as well, either criterion refines.
+  double adaptive_angle = 0;
   int max_level = 4;  //!< [1, 8]: the level cap of the adaptive mode
   //! sqrt3-unified only (ignored by the other schemes): the Lin-Luo alpha of smooth input
   //! vertices [0, 1] (1 interpolates, 0 is Kobbelt's sqrt3) ...
@@ -34,6 +39,9 @@ struct RefineParams {
   //! ... and of crease and corner input vertices (boundaries included) [0, 1], so a part can
   //! stay exact on its feature lines and be smoothed elsewhere.
   double alpha_features = 1.0;
+
+  //! True when a curvature-adaptive criterion is on.
+  bool adaptive() const { return adaptive_tol > 0 || adaptive_angle > 0; }
 
   //! \throw Error(InvalidParameter) naming the field.
   void validate() const;
@@ -43,8 +51,12 @@ struct RefineParams {
 SchemeOptions scheme_options(const RefineParams& params);
 
 class Split4Stencil;
-//! The stencil the adaptive mode uses with `scheme`, or null when it has none.
+//! The 1-to-4 stencil the adaptive mode uses with `scheme`, or null when it has none (the
+//! red-green mode needs an interpolating 1-to-4 scheme).
 const Split4Stencil* adaptive_scheme(const Scheme& scheme);
+class Sqrt3Stencil;
+//! The stencil of a sqrt3 scheme (every one has the forward adaptive mode), or null.
+const Sqrt3Stencil* adaptive_sqrt3_scheme(const Scheme& scheme);
 
 //! Progress sink: fraction in [0, 1] and a short stage name ("level 2/3").
 using ProgressFn = std::function<void(double fraction, std::string_view stage)>;
@@ -57,9 +69,12 @@ struct RefineReport {
   std::size_t sharp_edges_in = 0, sharp_edges_out = 0;
   std::size_t corners = 0, creases = 0, darts = 0;
   std::size_t fold_fallbacks = 0;
-  //! Adaptive mode: the tolerance, steps made and edges left above the tolerance at the cap.
+  //! Adaptive mode: the criteria, steps made (`levels`: the finest level reached) and, at
+  //! the cap, the edges (1-to-4) or faces (sqrt3) a criterion would still refine.
   double adaptive_tol = 0;
+  double adaptive_angle = 0;
   std::size_t edges_over_tolerance = 0;
+  std::size_t faces_over_criterion = 0;
   //! Largest distance any input vertex moved (0 for interpolating schemes).
   double max_input_displacement = 0;
   double seconds = 0;
@@ -71,7 +86,9 @@ struct RefineResult {
 };
 
 //! Predicted face count; \throw Error(BudgetExceeded, field "max_faces") with the
-//! number in the message when it exceeds params.max_faces.
+//! number in the message when it exceeds params.max_faces. In the adaptive mode it is an
+//! upper bound (the uniform count at max_level) and is not enforced here: the refinement
+//! stops with the same error as soon as its exact count would pass max_faces.
 std::uint64_t check_face_budget(std::size_t faces, const RefineParams& params);
 
 //! Applies params.scheme params.levels times. Checks the face budget before any work,

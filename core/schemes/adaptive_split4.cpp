@@ -3,7 +3,9 @@
 #include "core/schemes/adaptive_split4.h"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
+#include <numbers>
 #include <string>
 
 #include "core/error.h"
@@ -33,14 +35,24 @@ BigVector<Vec3> candidate_points(const Level& level, const Split4Stencil& stenci
   return pos;
 }
 
-std::vector<std::uint8_t> over_tolerance(const Mesh& m, const BigVector<Vec3>& pos,
-                                         double tolerance) {
+std::vector<std::uint8_t> over_tolerance(const Level& level, const BigVector<Vec3>& pos,
+                                         double tolerance, double angle_deg) {
+  const Mesh& m = level.mesh;
   const std::size_t nv = m.num_vertices();
+  const double cos_limit = std::cos(angle_deg * std::numbers::pi / 180.0);
   std::vector<std::uint8_t> marked(m.num_edges(), 0);
   parallel_for_each_index(m.num_edges(), [&](std::size_t e) {
     const HalfedgeId h = m.halfedge(EdgeId(static_cast<std::uint32_t>(e)));
     const Vec3 mid = 0.5 * (pos[m.from(h).idx] + pos[m.to(h).idx]);
-    marked[e] = distance(pos[nv + e], mid) > tolerance;
+    bool over = tolerance > 0 && distance(pos[nv + e], mid) > tolerance;
+    // The dihedral criterion of Labsik-Greiner's comparison; creases are meant to be sharp.
+    const HalfedgeId t = m.twin(h);
+    if (!over && angle_deg > 0 && t.valid() && !level.features.is_sharp(EdgeId(e))) {
+      const Vec3 n1 = m.face_normal(Mesh::face(h)), n2 = m.face_normal(Mesh::face(t));
+      const double scale = std::sqrt(dot(n1, n1) * dot(n2, n2));
+      over = scale > 0 && dot(n1, n2) < cos_limit * scale;
+    }
+    marked[e] = over;
   });
   return marked;
 }
@@ -76,10 +88,10 @@ Mesh assemble(const std::vector<Vec3>& points,
 }  // namespace
 
 std::size_t count_edges_over_tolerance(const Level& level, const Split4Stencil& stencil,
-                                       double tolerance) {
+                                       double tolerance, double angle_deg) {
   StepStats ignored;
   const auto marked =
-      over_tolerance(level.mesh, candidate_points(level, stencil, ignored), tolerance);
+      over_tolerance(level, candidate_points(level, stencil, ignored), tolerance, angle_deg);
   return static_cast<std::size_t>(std::count(marked.begin(), marked.end(), 1));
 }
 
@@ -148,11 +160,11 @@ void AdaptiveSplit4::build_level() {
 }
 
 bool AdaptiveSplit4::step(const Split4Stencil& stencil, double tolerance, std::uint64_t max_faces,
-                          StepStats& stats, AdaptiveStepStats& step) {
+                          StepStats& stats, AdaptiveStepStats& step, double angle_deg) {
   const Mesh& m = level_.mesh;
   const std::size_t nv = m.num_vertices();
   const BigVector<Vec3> pos = candidate_points(level_, stencil, stats);
-  const std::vector<std::uint8_t> marked = over_tolerance(m, pos, tolerance);
+  const std::vector<std::uint8_t> marked = over_tolerance(level_, pos, tolerance, angle_deg);
   step.marked_by_tolerance = static_cast<std::size_t>(std::count(marked.begin(), marked.end(), 1));
   if (step.marked_by_tolerance == 0) return false;
 

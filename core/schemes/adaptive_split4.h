@@ -15,7 +15,7 @@ namespace stlrefine {
 
 //! What one adaptive step did.
 struct AdaptiveStepStats {
-  std::size_t marked_by_tolerance = 0;  //!< edges whose edge point left the chord by > tol
+  std::size_t marked_by_tolerance = 0;  //!< edges over tol (or the dihedral angle)
   std::size_t red_by_tolerance = 0;     //!< faces split 1-to-4 because an edge was over tol
   std::size_t red_by_closure = 0;       //!< faces split 1-to-4 to keep the mesh 1-irregular
   std::size_t red_faces = 0;            //!< red_by_tolerance + red_by_closure
@@ -23,9 +23,11 @@ struct AdaptiveStepStats {
 };
 
 //! Edges of `level` whose edge point (the stencil's, after the fold guard) lies more than
-//! `tolerance` from the edge's chord midpoint (spec 5 gap 4).
+//! `tolerance` from the edge's chord midpoint (spec 5 gap 4), or, when angle_deg > 0,
+//! non-sharp edges whose two faces' normals differ by more than angle_deg. A criterion is
+//! off when it is 0.
 std::size_t count_edges_over_tolerance(const Level& level, const Split4Stencil& stencil,
-                                       double tolerance);
+                                       double tolerance, double angle_deg = 0);
 
 //! Curvature-adaptive 1-to-4 refinement with red-green closure (spec 5 gap 4).
 //!
@@ -42,10 +44,11 @@ class AdaptiveSplit4 {
  public:
   explicit AdaptiveSplit4(const Level& coarse);
 
-  //! One step. Returns false, changing nothing, when no edge is over tolerance.
+  //! One step. Returns false, changing nothing, when no edge is over a criterion (see
+  //! count_edges_over_tolerance).
   //! \throw Error(BudgetExceeded, field "max_faces") before building a mesh above max_faces.
   bool step(const Split4Stencil& stencil, double tolerance, std::uint64_t max_faces,
-            StepStats& stats, AdaptiveStepStats& step);
+            StepStats& stats, AdaptiveStepStats& step, double angle_deg = 0);
 
   //! The current conforming mesh and its features.
   const Level& level() const { return level_; }

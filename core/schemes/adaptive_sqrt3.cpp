@@ -1,0 +1,849 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#include "core/schemes/adaptive_sqrt3.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <deque>
+#include <limits>
+#include <numbers>
+#include <string>
+#include <utility>
+
+#include "core/error.h"
+
+namespace stlrefine {
+
+namespace {
+
+constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
+constexpr std::uint32_t kUnknown = kNone - 1;  // a neighbour not looked up yet
+
+// A half-edge of the hierarchy: edge k (v[k] -> v[k+1]) of triangle t.
+struct He {
+  std::uint32_t t = kNone;
+  std::uint8_t k = 0;
+  bool valid() const { return t != kNone; }
+  friend bool operator==(He a, He b) { return a.t == b.t && a.k == b.k; }
+};
+
+He next(He h) {
+  return {h.t, static_cast<std::uint8_t>(h.k == 2 ? 0 : h.k + 1)};
+}
+He prev(He h) {
+  return {h.t, static_cast<std::uint8_t>(h.k == 0 ? 2 : h.k - 1)};
+}
+
+enum TriFlag : std::uint8_t {
+  kRefined = 1,  // split (1-to-3, or cut at a sharp edge's trisection points)
+  kFlip = 2,     // made by a flip: exists once the triangles on both sides are refined
+  kQueued = 4,   // in the driver's queue
+};
+
+// A triangle of the uniform hierarchy at its level. Corner order, neighbours and children
+// follow sqrt3_refine's layout: child k is the fine face of half-edge k.
+struct Tri {
+  std::array<std::uint32_t, 3> v{};
+  std::array<std::uint32_t, 3> nbr{kUnknown, kUnknown, kUnknown};  // kNone: boundary
+  std::array<std::uint32_t, 3> child{kNone, kNone, kNone};
+  std::uint32_t owner = kNone;   // the coarser triangle whose half-edge made it
+  std::uint32_t point = kNone;   // face point, or the trisection point nearest from(s)
+  std::uint32_t point2 = kNone;  // the trisection point nearest to(s)
+  std::array<std::uint8_t, 3> nbr_edge{};
+  std::uint8_t owner_edge = 0;
+  std::uint8_t level = 0;
+  std::uint8_t sharp = 0;  // bit k: edge k is sharp
+  std::uint8_t canon = 0;  // bit k: sharp edge k is its edge's canonical half in sqrt3_refine
+  std::uint8_t flags = 0;
+};
+
+enum class Origin : std::uint8_t { Input, FacePoint, NearFrom, NearTo };
+
+struct Vert {
+  std::uint32_t tri = kNone;  // the triangle whose face point / trisection point it is
+  std::uint32_t slot = 0;     // first of its positions in the pool
+  He home;                    // a half-edge from it at its own level (invalid: not known yet)
+  Origin origin = Origin::Input;
+  std::uint8_t level = 0;
+};
+
+// Closest distance from p to triangle (a, b, c) (Ericson, Real-Time Collision Detection 5.1.5).
+double point_triangle_distance(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = dot(ab, ap), d2 = dot(ac, ap);
+  if (d1 <= 0 && d2 <= 0) return distance(p, a);
+  const Vec3 bp = p - b;
+  const double d3 = dot(ab, bp), d4 = dot(ac, bp);
+  if (d3 >= 0 && d4 <= d3) return distance(p, b);
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return distance(p, a + (d1 / (d1 - d3)) * ab);
+  const Vec3 cp = p - c;
+  const double d5 = dot(ab, cp), d6 = dot(ac, cp);
+  if (d6 >= 0 && d5 <= d6) return distance(p, c);
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return distance(p, a + (d2 / (d2 - d6)) * ac);
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0)
+    return distance(p, b + ((d4 - d3) / ((d4 - d3) + (d5 - d6))) * (c - b));
+  const double denom = va + vb + vc;
+  if (!(std::abs(denom) > 0)) return std::min({distance(p, a), distance(p, b), distance(p, c)});
+  return distance(p, a + (vb / denom) * ab + (vc / denom) * ac);
+}
+
+Error internal(const std::string& what) {
+  return Error(ErrorCode::Internal, "adaptive_sqrt3", "adaptive sqrt3: " + what);
+}
+
+}  // namespace
+
+class AdaptiveSqrt3::Hierarchy {
+ public:
+  Hierarchy(const Level& coarse, const Sqrt3Stencil& stencil, const Sqrt3AdaptiveCriteria& c)
+      : stencil_(stencil),
+        criteria_(c),
+        interpolating_(stencil.interpolating()),
+        top_level_(c.max_level + 2),
+        input_vertices_(static_cast<std::uint32_t>(coarse.mesh.num_vertices())),
+        input_faces_(coarse.mesh.num_faces()) {
+    const Mesh& m = coarse.mesh;
+    const BigVector<double> alpha = stencil.initial_alpha(coarse);
+    has_alpha_ = !alpha.empty();
+    for (std::uint32_t v = 0; v < input_vertices_; ++v) {
+      const std::uint32_t id = new_vertex(Origin::Input, kNone, 0);
+      const HalfedgeId h = m.halfedge(VertexId(v));
+      if (h.valid()) verts_[id].home = {h.idx / 3, static_cast<std::uint8_t>(h.idx % 3)};
+      set_position(id, 0, m.position(VertexId(v)));
+      if (has_alpha_) alpha_[id] = alpha[v];
+    }
+    tris_.reserve(4 * m.num_faces());
+    for (std::uint32_t f = 0; f < m.num_faces(); ++f) {
+      Tri t;
+      for (std::uint8_t k = 0; k < 3; ++k) {
+        const HalfedgeId h(3 * f + k);
+        t.v[k] = m.from(h).idx;
+        const HalfedgeId tw = m.twin(h);
+        t.nbr[k] = tw.valid() ? tw.idx / 3 : kNone;
+        t.nbr_edge[k] = tw.valid() ? static_cast<std::uint8_t>(tw.idx % 3) : 0;
+        if (coarse.features.is_sharp(m.edge(h))) t.sharp |= 1 << k;
+        if (m.halfedge(m.edge(h)) == h) t.canon |= 1 << k;
+      }
+      tris_.push_back(t);
+    }
+  }
+
+  void run(std::uint64_t max_faces, const std::atomic<bool>* cancel,
+           const std::function<void(int)>& level_started);
+  Level result(std::vector<std::uint8_t>* face_level);
+  const Sqrt3AdaptiveStats& stats() const { return stats_; }
+
+ private:
+  // --- the hierarchy's connectivity (mirrors sqrt3_refine's Sqrt3Layout)
+
+  static bool trisects(int level) { return level % 2 == 1; }
+  int level(std::uint32_t t) const { return tris_[t].level; }
+  bool flag(std::uint32_t t, TriFlag f) const { return (tris_[t].flags & f) != 0; }
+  bool refined(std::uint32_t t) const { return flag(t, kRefined); }
+  std::uint32_t from(He h) const { return tris_[h.t].v[h.k]; }
+  std::uint32_t to(He h) const { return tris_[h.t].v[next(h).k]; }
+  std::uint32_t opposite(He h) const { return tris_[h.t].v[prev(h).k]; }
+  bool sharp(He h) const { return (tris_[h.t].sharp >> h.k) & 1; }
+  bool canonical(He h) const { return (tris_[h.t].canon >> h.k) & 1; }
+
+  // In a trisecting level, the face's one sharp half-edge (invalid: none).
+  He sharp_of(std::uint32_t t) const {
+    He s;
+    for (std::uint8_t k = 0; k < 3; ++k) {
+      if (!((tris_[t].sharp >> k) & 1)) continue;
+      if (s.valid()) throw internal("a trisecting level has a face with two sharp edges");
+      s = {t, k};
+    }
+    return s;
+  }
+  // Both sides refined: an old edge is flipped; a sharp one is kept.
+  bool makes_flip_child(He h) {
+    if (trisects(level(h.t))) return !(h == sharp_of(h.t));
+    return !sharp(h) && twin(h).valid();
+  }
+
+  He twin(He h);
+  He derive_twin(He h);
+  He fine(He h, std::uint8_t k) { return {child(h), k}; }
+  std::uint32_t child(He h);
+  std::uint32_t face_point(std::uint32_t t);
+  std::pair<std::uint32_t, std::uint32_t> trisection(He s);
+  std::uint32_t apex(He h);
+
+  bool exists(std::uint32_t t) {
+    if (level(t) == 0) return true;
+    const std::uint32_t p = tris_[t].owner;
+    if (!refined(p)) return false;
+    return !flag(t, kFlip) || refined(twin({p, tris_[t].owner_edge}).t);
+  }
+
+  // --- vertices and positions
+
+  std::uint32_t new_vertex(Origin origin, std::uint32_t tri, int level) {
+    const auto id = static_cast<std::uint32_t>(verts_.size());
+    Vert v;
+    v.tri = tri;
+    v.origin = origin;
+    v.level = static_cast<std::uint8_t>(level);
+    v.slot = static_cast<std::uint32_t>(pool_.size());
+    // Interpolating stencils never move a vertex: one position. Others: one per level.
+    const int slots = interpolating_ ? 1 : std::max(1, top_level_ - level + 1);
+    pool_.resize(pool_.size() + slots);
+    known_.resize(known_.size() + slots, 0);
+    verts_.push_back(v);
+    if (has_alpha_) alpha_.push_back(1.0);
+    return id;
+  }
+  std::uint32_t slot_of(std::uint32_t v, int level) const {
+    const Vert& info = verts_[v];
+    return info.slot + (interpolating_ ? 0 : static_cast<std::uint32_t>(level - info.level));
+  }
+  void set_position(std::uint32_t v, int level, const Vec3& p) {
+    const std::uint32_t s = slot_of(v, level);
+    pool_[s] = p;
+    known_[s] = 1;
+  }
+  Vec3 position(std::uint32_t v, int level);
+  Vec3 creation_position(std::uint32_t v);
+  He home(std::uint32_t v);
+  He halfedge_at(std::uint32_t v, int level);
+
+  // --- stencil evaluation on a patch of one level
+
+  struct Patch {
+    Mesh mesh;
+    Features features;
+    BigVector<double> alpha;
+    std::vector<std::uint32_t> vertices;  // local -> global, sorted
+  };
+  void gather_fan(He h, std::vector<std::uint32_t>& out);
+  Patch build_patch(std::vector<std::uint32_t> tris, int level);
+  Sqrt3Step step_of(const Patch& p, int level) const {
+    return Sqrt3Step{p.mesh, p.features, trisects(level), p.alpha, {}};
+  }
+
+  // --- the driver
+
+  bool wants_refinement(std::uint32_t t);
+  void new_points(std::uint32_t t, std::vector<std::uint32_t>& out);
+  double deviation(std::uint32_t t);
+  void refine(std::uint32_t t);
+  void ensure_exists(std::uint32_t t) {
+    if (level(t) == 0) return;
+    const He owner{tris_[t].owner, tris_[t].owner_edge};
+    refine(owner.t);
+    if (flag(t, kFlip)) refine(twin(owner).t);
+  }
+  void enqueue(std::uint32_t t) {
+    if (flag(t, kQueued) || level(t) >= criteria_.max_level) return;
+    tris_[t].flags |= kQueued;
+    queue_[level(t)].push_back(t);
+  }
+
+  const Sqrt3Stencil& stencil_;
+  Sqrt3AdaptiveCriteria criteria_;
+  bool interpolating_;
+  bool has_alpha_ = false;
+  int top_level_;  // the finest level any position is asked for (two past the cap)
+  std::uint32_t input_vertices_;
+  std::size_t input_faces_;
+
+  std::vector<Tri> tris_;
+  std::vector<Vert> verts_;
+  std::vector<Vec3> pool_;
+  std::vector<std::uint8_t> known_;
+  std::vector<double> alpha_;
+
+  std::array<std::deque<std::uint32_t>, 9> queue_;
+  std::size_t refined_count_ = 0;
+  std::uint64_t max_faces_ = 0;
+  const std::atomic<bool>* cancel_ = nullptr;
+  Sqrt3AdaptiveStats stats_;
+};
+
+// ---------------------------------------------------------------------------------------
+// Connectivity. A triangle of level l + 1 is child(h) of a level-l half-edge h; its corners
+// and neighbours are sqrt3_refine's fine_face_plain / fine_face_trisecting, read here one
+// triangle at a time instead of for the whole level.
+
+He AdaptiveSqrt3::Hierarchy::twin(He h) {
+  const std::uint32_t n = tris_[h.t].nbr[h.k];
+  if (n == kNone) return {};
+  if (n != kUnknown) return {n, tris_[h.t].nbr_edge[h.k]};
+  const He r = derive_twin(h);
+  if (r.valid() && (from(h) != to(r) || to(h) != from(r)))
+    throw internal("neighbours at a level do not share their edge");
+  tris_[h.t].nbr[h.k] = r.valid() ? r.t : kNone;
+  tris_[h.t].nbr_edge[h.k] = r.k;
+  if (r.valid()) {
+    tris_[r.t].nbr[r.k] = h.t;
+    tris_[r.t].nbr_edge[r.k] = h.k;
+  }
+  return r;
+}
+
+He AdaptiveSqrt3::Hierarchy::derive_twin(He h) {
+  const He c{tris_[h.t].owner, tris_[h.t].owner_edge};  // the coarse half-edge that made h.t
+  if (!trisects(level(c.t))) {
+    const He t = twin(c);
+    const bool flipped = t.valid() && !sharp(c);
+    switch (h.k) {
+      case 0:  // a -> apex across (flipped), or the kept edge a -> b
+        if (flipped) return fine(next(t), 2);
+        return t.valid() ? fine(t, 0) : He{};
+      case 1:
+        return flipped ? fine(t, 1) : fine(next(c), 2);
+      default: {  // the spoke apex -> a, shared with the child of prev(c) or its twin's
+        const He p = prev(c);
+        const He tp = twin(p);
+        return tp.valid() && !sharp(p) ? fine(tp, 0) : fine(p, 1);
+      }
+    }
+  }
+  const He s = sharp_of(c.t);
+  if (c == s) {  // the middle child (m1, m2, apex) of a face cut at its sharp edge
+    switch (h.k) {
+      case 0: {
+        const He t = twin(s);
+        return t.valid() ? fine(t, 0) : He{};
+      }
+      case 1:
+        return fine(twin(next(s)), 0);
+      default:
+        return fine(prev(s), 2);
+    }
+  }
+  const He t = twin(c);
+  switch (h.k) {
+    case 0: {  // a -> apex(t): when t's face is cut, possibly the first third of its edge
+      const He sg = sharp_of(t.t);
+      if (!sg.valid()) return fine(next(t), 2);
+      if (t == next(sg)) return fine(sg, 1);
+      const He across = twin(sg);
+      return across.valid() ? fine(next(across), 2) : He{};
+    }
+    case 1:
+      return fine(t, 1);
+    default: {  // apex(c) -> a: when c's face is cut, possibly the last third of its edge
+      if (!s.valid()) return fine(twin(prev(c)), 0);
+      if (c == next(s)) {
+        const He across = twin(s);
+        return across.valid() ? fine(twin(prev(across)), 0) : He{};
+      }
+      return fine(s, 2);
+    }
+  }
+}
+
+std::uint32_t AdaptiveSqrt3::Hierarchy::child(He h) {
+  if (tris_[h.t].child[h.k] != kNone) return tris_[h.t].child[h.k];
+  const int l = level(h.t);
+  Tri c;
+  c.level = static_cast<std::uint8_t>(l + 1);
+  c.owner = h.t;
+  c.owner_edge = h.k;
+  if (!trisects(l)) {
+    const He t = twin(h);
+    if (t.valid() && !sharp(h)) {
+      c.v = {from(h), face_point(t.t), face_point(h.t)};
+      c.flags = kFlip;
+    } else {  // a sharp edge is kept whole with its face point's triangle
+      c.v = {from(h), to(h), face_point(h.t)};
+      c.sharp = 1;
+      c.canon = canonical(h) ? 1 : 0;
+    }
+  } else {
+    const He s = sharp_of(h.t);
+    if (h == s) {
+      const auto [m1, m2] = trisection(s);
+      c.v = {m1, m2, opposite(s)};
+      c.sharp = 1;
+      c.canon = canonical(s) ? 1 : 0;
+    } else {
+      const He t = twin(h);
+      c.v = {from(h), apex(t), apex(h)};
+      c.flags = kFlip;
+      // a -> m1 is the first third of the sharp edge of t's face; its canonical half is on
+      // the other side of a crease (the last third there), on this side at a boundary.
+      const He sg = sharp_of(t.t);
+      if (sg.valid() && t == prev(sg)) {
+        c.sharp |= 1;
+        if (!twin(sg).valid()) c.canon |= 1;
+      }
+      // m2 -> a is the last third of this face's sharp edge; this side is canonical.
+      if (s.valid() && h == next(s)) {
+        c.sharp |= 4;
+        c.canon |= 4;
+      }
+    }
+  }
+  if (tris_[h.t].child[h.k] != kNone) throw internal("a child was made twice");
+  tris_.push_back(c);
+  const auto id = static_cast<std::uint32_t>(tris_.size() - 1);
+  tris_[h.t].child[h.k] = id;
+  return id;
+}
+
+std::uint32_t AdaptiveSqrt3::Hierarchy::face_point(std::uint32_t t) {
+  if (tris_[t].point != kNone) return tris_[t].point;
+  const std::uint32_t q = new_vertex(Origin::FacePoint, t, level(t) + 1);
+  if (has_alpha_) {  // LL eq. 7
+    const auto& v = tris_[t].v;
+    alpha_[q] = (alpha_[v[0]] + alpha_[v[1]] + alpha_[v[2]]) / 3.0;
+  }
+  tris_[t].point = q;
+  return q;
+}
+
+std::pair<std::uint32_t, std::uint32_t> AdaptiveSqrt3::Hierarchy::trisection(He s) {
+  if (tris_[s.t].point == kNone) {
+    const int l = level(s.t) + 1;
+    const std::uint32_t m1 = new_vertex(Origin::NearFrom, s.t, l);
+    const std::uint32_t m2 = new_vertex(Origin::NearTo, s.t, l);
+    if (has_alpha_) {
+      alpha_[m1] = (2.0 * alpha_[from(s)] + alpha_[to(s)]) / 3.0;
+      alpha_[m2] = (alpha_[from(s)] + 2.0 * alpha_[to(s)]) / 3.0;
+    }
+    tris_[s.t].point = m1;
+    tris_[s.t].point2 = m2;
+    // The face across a crease shares them, seen from its own sharp half-edge.
+    const He t = twin(s);
+    if (t.valid()) {
+      tris_[t.t].point = m2;
+      tris_[t.t].point2 = m1;
+    }
+  }
+  return {tris_[s.t].point, tris_[s.t].point2};
+}
+
+std::uint32_t AdaptiveSqrt3::Hierarchy::apex(He h) {
+  const He s = trisects(level(h.t)) ? sharp_of(h.t) : He{};
+  if (!s.valid()) return face_point(h.t);
+  const auto [m1, m2] = trisection(s);
+  return h == next(s) ? m2 : m1;
+}
+
+// ---------------------------------------------------------------------------------------
+// Positions
+
+He AdaptiveSqrt3::Hierarchy::home(std::uint32_t v) {
+  if (verts_[v].home.valid() || verts_[v].origin == Origin::Input) return verts_[v].home;
+  // The fine triangle whose corner 2 (its apex) is the new vertex.
+  const std::uint32_t t = verts_[v].tri;
+  He h{t, 0};
+  if (verts_[v].origin != Origin::FacePoint) {
+    const He s = sharp_of(t);
+    h = verts_[v].origin == Origin::NearFrom ? prev(s) : next(s);
+  }
+  const He r{child(h), 2};
+  if (from(r) != v) throw internal("a new vertex is not where its parent put it");
+  verts_[v].home = r;
+  return r;
+}
+
+He AdaptiveSqrt3::Hierarchy::halfedge_at(std::uint32_t v, int l) {
+  He h = home(v);
+  if (!h.valid()) return h;
+  while (level(h.t) < l) {
+    // A cut face's middle child does not touch from(s): go through the next face round.
+    if (trisects(level(h.t)) && sharp(h)) h = twin(prev(h));
+    h = {child(h), 0};
+  }
+  return h;
+}
+
+Vec3 AdaptiveSqrt3::Hierarchy::position(std::uint32_t v, int l) {
+  const int own = verts_[v].level;
+  l = interpolating_ ? own : std::clamp(l, own, top_level_);
+  const std::uint32_t s = slot_of(v, l);
+  if (known_[s]) return pool_[s];
+  Vec3 p;
+  if (l == own) {
+    p = creation_position(v);
+  } else {
+    // The stencil's rule for an old vertex, on its fan one level coarser.
+    const He h = halfedge_at(v, l - 1);
+    std::vector<std::uint32_t> tris;
+    gather_fan(h, tris);
+    const Patch patch = build_patch(std::move(tris), l - 1);
+    const auto local = static_cast<std::uint32_t>(
+        std::lower_bound(patch.vertices.begin(), patch.vertices.end(), v) - patch.vertices.begin());
+    p = stencil_.vertex_point(step_of(patch, l - 1), VertexId(local));
+  }
+  set_position(v, l, p);
+  return p;
+}
+
+Vec3 AdaptiveSqrt3::Hierarchy::creation_position(std::uint32_t v) {
+  const std::uint32_t t = verts_[v].tri;
+  const int l = level(t);
+  if (verts_[v].origin == Origin::FacePoint) {
+    std::vector<std::uint32_t> tris{t};
+    for (std::uint8_t k = 0; k < 3; ++k) gather_fan({t, k}, tris);
+    const Patch patch = build_patch(std::move(tris), l);
+    return stencil_.face_point(step_of(patch, l), FaceId(0));
+  }
+  // A trisection point: both points of the edge at once, from the edge's canonical half
+  // (the one sqrt3_refine evaluates), so the results are the uniform level's bit for bit.
+  He s = sharp_of(t);
+  const auto [m1, m2] = trisection(s);
+  const bool flipped = !canonical(s);
+  if (flipped) {
+    s = twin(s);
+    if (!s.valid() || !canonical(s)) throw internal("a sharp edge has no canonical half");
+  }
+  std::vector<std::uint32_t> tris{s.t};
+  gather_fan(s, tris);
+  gather_fan(next(s), tris);
+  const Patch patch = build_patch(std::move(tris), l);
+  const std::array<Vec3, 2> pts = stencil_.curve_points(step_of(patch, l), HalfedgeId(s.k));
+  set_position(flipped ? m2 : m1, l + 1, pts[0]);
+  set_position(flipped ? m1 : m2, l + 1, pts[1]);
+  return pts[v == m1 ? (flipped ? 1 : 0) : (flipped ? 0 : 1)];
+}
+
+void AdaptiveSqrt3::Hierarchy::gather_fan(He h, std::vector<std::uint32_t>& out) {
+  // Counter-clockwise round from(h); at a boundary, clockwise from h as well.
+  constexpr int kMaxValence = 1 << 16;
+  He c = h;
+  int steps = 0;
+  bool open = false;
+  do {
+    out.push_back(c.t);
+    const He t = twin(prev(c));
+    if (!t.valid()) {
+      open = true;
+      break;
+    }
+    c = t;
+    if (++steps > kMaxValence) throw internal("a vertex fan does not close");
+  } while (!(c == h));
+  if (!open) return;
+  for (c = h;;) {
+    const He t = twin(c);
+    if (!t.valid()) break;
+    c = next(t);
+    out.push_back(c.t);
+    if (++steps > kMaxValence) throw internal("a vertex fan does not close");
+  }
+}
+
+AdaptiveSqrt3::Hierarchy::Patch AdaptiveSqrt3::Hierarchy::build_patch(
+    std::vector<std::uint32_t> tris, int l) {
+  // Local face i is the i-th distinct triangle (the target first).
+  {
+    std::vector<std::uint32_t> unique;
+    unique.reserve(tris.size());
+    for (std::uint32_t t : tris)
+      if (std::find(unique.begin(), unique.end(), t) == unique.end()) unique.push_back(t);
+    tris = std::move(unique);
+  }
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> local_tri;  // (global, local) sorted
+  local_tri.reserve(tris.size());
+  for (std::uint32_t i = 0; i < tris.size(); ++i) local_tri.emplace_back(tris[i], i);
+  std::sort(local_tri.begin(), local_tri.end());
+
+  Patch p;
+  for (std::uint32_t t : tris)
+    for (std::uint32_t v : tris_[t].v) p.vertices.push_back(v);
+  std::sort(p.vertices.begin(), p.vertices.end());
+  p.vertices.erase(std::unique(p.vertices.begin(), p.vertices.end()), p.vertices.end());
+  auto local_vertex = [&](std::uint32_t v) {
+    return static_cast<std::uint32_t>(std::lower_bound(p.vertices.begin(), p.vertices.end(), v) -
+                                      p.vertices.begin());
+  };
+
+  // Positions first: they may grow the hierarchy (coarser patches), which moves tris_.
+  BigVector<Vec3> positions(p.vertices.size());
+  for (std::size_t i = 0; i < p.vertices.size(); ++i) positions[i] = position(p.vertices[i], l);
+
+  BigVector<VertexId> corner(3 * tris.size());
+  BigVector<HalfedgeId> twin_of(3 * tris.size());
+  for (std::uint32_t i = 0; i < tris.size(); ++i) {
+    const Tri& t = tris_[tris[i]];
+    for (std::uint32_t k = 0; k < 3; ++k) {
+      corner[3 * i + k] = VertexId(local_vertex(t.v[k]));
+      const std::uint32_t n = t.nbr[k];
+      if (n >= kUnknown) continue;  // a boundary, or an edge outside every fan walked
+      const auto it = std::lower_bound(local_tri.begin(), local_tri.end(),
+                                       std::pair<std::uint32_t, std::uint32_t>(n, 0));
+      if (it != local_tri.end() && it->first == n)
+        twin_of[3 * i + k] = HalfedgeId(3 * it->second + t.nbr_edge[k]);
+    }
+  }
+  p.mesh = Mesh::from_parts(std::move(positions), std::move(corner), std::move(twin_of));
+  BigVector<std::uint8_t> sharp(p.mesh.num_edges());
+  for (std::uint32_t e = 0; e < sharp.size(); ++e) {
+    const HalfedgeId h = p.mesh.halfedge(EdgeId(e));
+    sharp[e] = (tris_[tris[h.idx / 3]].sharp >> (h.idx % 3)) & 1;
+  }
+  p.features = Features(p.mesh, std::move(sharp));
+  if (has_alpha_) {
+    p.alpha.resize(p.vertices.size());
+    for (std::size_t i = 0; i < p.vertices.size(); ++i) p.alpha[i] = alpha_[p.vertices[i]];
+  }
+  return p;
+}
+
+// ---------------------------------------------------------------------------------------
+// Driver
+
+bool AdaptiveSqrt3::Hierarchy::wants_refinement(std::uint32_t t) {
+  const int l = level(t);
+  const std::array<std::uint32_t, 3> v = tris_[t].v;
+  const Vec3 a = position(v[0], l), b = position(v[1], l), c = position(v[2], l);
+  if (criteria_.angle_deg > 0) {
+    const Vec3 n = triangle_normal(a, b, c);
+    const double cos_limit = std::cos(criteria_.angle_deg * std::numbers::pi / 180.0);
+    for (std::uint8_t k = 0; k < 3; ++k) {
+      if (sharp({t, k})) continue;  // a crease is meant to be sharp
+      const He tw = twin({t, k});
+      if (!tw.valid()) continue;
+      const std::array<std::uint32_t, 3> w = tris_[tw.t].v;
+      const Vec3 m = triangle_normal(position(w[0], l), position(w[1], l), position(w[2], l));
+      const double scale = std::sqrt(dot(n, n) * dot(m, m));
+      if (scale > 0 && dot(n, m) < cos_limit * scale) return true;
+    }
+  }
+  return criteria_.tol > 0 && deviation(t) > criteria_.tol;
+}
+
+void AdaptiveSqrt3::Hierarchy::new_points(std::uint32_t t, std::vector<std::uint32_t>& out) {
+  const He s = trisects(level(t)) ? sharp_of(t) : He{};
+  if (!s.valid()) {
+    out.push_back(face_point(t));
+    return;
+  }
+  const auto [m1, m2] = trisection(s);
+  out.push_back(m1);
+  out.push_back(m2);
+}
+
+double AdaptiveSqrt3::Hierarchy::deviation(std::uint32_t t) {
+  // The points the next two steps add over t: its own (face point or trisection points)
+  // and those of the six level l+1 triangles that straddle its edges. One step is not
+  // enough: a face point sees no curvature along the triangle's edges (on a saddle it lies
+  // in the triangle's plane); after two steps every edge is trisected.
+  const int l = level(t);
+  std::vector<std::uint32_t> first, second;
+  new_points(t, first);
+  std::vector<std::uint32_t> flats{t};
+  for (std::uint8_t k = 0; k < 3; ++k) {
+    const He h{t, k};
+    new_points(child(h), second);
+    const He tw = twin(h);
+    if (!tw.valid() || sharp(h)) continue;  // across a crease is another patch
+    flats.push_back(tw.t);
+    new_points(child(tw), second);
+  }
+  // Distance to the flat level-l surface around t: t and its neighbours in the same patch.
+  std::vector<std::array<Vec3, 3>> flat;
+  for (std::uint32_t f : flats) {
+    const std::array<std::uint32_t, 3> v = tris_[f].v;
+    flat.push_back({position(v[0], l), position(v[1], l), position(v[2], l)});
+  }
+  double worst = 0;
+  auto measure = [&](std::uint32_t v, int at) {
+    const Vec3 p = position(v, at);
+    double d = std::numeric_limits<double>::max();
+    for (const auto& f : flat) d = std::min(d, point_triangle_distance(p, f[0], f[1], f[2]));
+    worst = std::max(worst, d);
+  };
+  for (std::uint32_t v : first) measure(v, l + 1);
+  for (std::uint32_t v : second) measure(v, l + 2);
+  return worst;
+}
+
+void AdaptiveSqrt3::Hierarchy::refine(std::uint32_t t) {
+  if (refined(t)) return;
+  ensure_exists(t);
+  // Spec 3.6 step 1: every level-l triangle around t's corners exists (its stencil is in
+  // the mesh). Either way every edge neighbour exists, so the result conforms.
+  std::vector<std::uint32_t> around;
+  for (std::uint8_t k = 0; k < 3; ++k) {
+    if (criteria_.closure == Sqrt3Closure::Stencil) {
+      gather_fan({t, k}, around);
+    } else if (const He tw = twin({t, k}); tw.valid()) {
+      around.push_back(tw.t);
+    }
+  }
+  for (std::uint32_t u : around) ensure_exists(u);
+  if (refined(t)) throw internal("a triangle was refined while its neighbourhood was made");
+
+  // One split adds two faces; flips change no count.
+  const std::uint64_t faces = input_faces_ + 2 * (refined_count_ + 1);
+  if (faces > max_faces_)
+    throw Error(
+        ErrorCode::BudgetExceeded, "face_budget",
+        "adaptive refinement would make more than max_faces = " + std::to_string(max_faces_) +
+            " faces (stopped at " + std::to_string(faces - 2) + ")")
+        .with_field("max_faces");
+  if (cancel_ && (refined_count_ & 1023) == 0 && cancel_->load(std::memory_order_relaxed))
+    throw Error(ErrorCode::Cancelled, "cancelled", "refinement cancelled");
+  tris_[t].flags |= kRefined;
+  ++refined_count_;
+
+  // The triangles that exist now: children kept whole, and both flip children of every old
+  // edge whose other side was refined before.
+  for (std::uint8_t k = 0; k < 3; ++k) {
+    const He h{t, k};
+    if (!makes_flip_child(h)) {
+      enqueue(child(h));
+      continue;
+    }
+    const He tw = twin(h);
+    if (!refined(tw.t)) continue;
+    enqueue(child(h));
+    enqueue(child(tw));
+  }
+  // A sharp edge is trisected on both of its sides at once (no T-junction).
+  if (trisects(level(t))) {
+    const He s = sharp_of(t);
+    const He across = s.valid() ? twin(s) : He{};
+    if (across.valid()) refine(across.t);
+  }
+}
+
+void AdaptiveSqrt3::Hierarchy::run(std::uint64_t max_faces, const std::atomic<bool>* cancel,
+                                   const std::function<void(int)>& level_started) {
+  max_faces_ = max_faces;
+  cancel_ = cancel;
+  if (input_faces_ > max_faces)
+    throw Error(ErrorCode::BudgetExceeded, "face_budget",
+                "the input has more than max_faces = " + std::to_string(max_faces) + " faces")
+        .with_field("max_faces");
+  for (std::uint32_t t = 0; t < input_faces_; ++t) enqueue(t);
+  int announced = -1;
+  for (;;) {
+    int l = 0;
+    while (l < static_cast<int>(queue_.size()) && queue_[l].empty()) ++l;
+    if (l == static_cast<int>(queue_.size())) break;
+    if (l > announced) {
+      announced = l;
+      if (level_started) level_started(l);
+    }
+    const std::uint32_t t = queue_[l].front();
+    queue_[l].pop_front();
+    if (refined(t) || !wants_refinement(t)) continue;
+    const std::size_t before = refined_count_;
+    refine(t);
+    ++stats_.refined_by_criterion;
+    stats_.refined_by_closure += refined_count_ - before - 1;
+  }
+  // At the cap some faces may still ask for more: say how many.
+  for (std::uint32_t t = 0; t < tris_.size(); ++t)
+    if (level(t) == criteria_.max_level && !refined(t) && exists(t) && wants_refinement(t))
+      ++stats_.over_criterion_at_cap;
+}
+
+Level AdaptiveSqrt3::Hierarchy::result(std::vector<std::uint8_t>* face_level) {
+  std::vector<std::array<std::uint32_t, 3>> faces;
+  std::vector<std::uint8_t> sharp_bits, levels;
+  faces.reserve(input_faces_ + 2 * refined_count_);
+  for (std::uint32_t t = 0; t < tris_.size(); ++t) {
+    if (!exists(t)) continue;
+    const int l = level(t);
+    if (!refined(t)) {
+      faces.push_back(tris_[t].v);
+      sharp_bits.push_back(tris_[t].sharp);
+      levels.push_back(static_cast<std::uint8_t>(l));
+      continue;
+    }
+    // Where the old edge is not flipped yet: the split's piece (from, to, apex).
+    const He s = trisects(l) ? sharp_of(t) : He{};
+    for (std::uint8_t k = 0; k < 3; ++k) {
+      const He h{t, k};
+      if (!makes_flip_child(h) || refined(twin(h).t)) continue;
+      faces.push_back({from(h), to(h), apex(h)});
+      std::uint8_t bits = sharp(h) ? 1 : 0;
+      if (s.valid() && h == prev(s)) bits |= 2;  // to(h) -> m1: the first third of s
+      if (s.valid() && h == next(s)) bits |= 4;  // m2 -> from(h): the last third of s
+      sharp_bits.push_back(bits);
+      levels.push_back(static_cast<std::uint8_t>(l + 1));
+    }
+  }
+
+  // Input vertices keep their ids; the new vertices in use follow in creation order.
+  std::vector<std::uint32_t> out_id(verts_.size(), kNone);
+  std::vector<std::uint8_t> vertex_level(verts_.size(), 0);
+  for (std::uint32_t v = 0; v < input_vertices_; ++v) out_id[v] = v;
+  for (std::size_t f = 0; f < faces.size(); ++f)
+    for (std::uint32_t v : faces[f]) vertex_level[v] = std::max(vertex_level[v], levels[f]);
+  std::vector<std::uint32_t> used(input_vertices_);
+  for (std::uint32_t v = 0; v < input_vertices_; ++v) used[v] = v;
+  for (const auto& f : faces)
+    for (std::uint32_t v : f)
+      if (out_id[v] == kNone) out_id[v] = 0, used.push_back(v);
+  std::sort(used.begin() + input_vertices_, used.end());
+  BigVector<Vec3> positions(used.size());
+  BigVector<double> alpha(has_alpha_ ? used.size() : 0);
+  for (std::uint32_t i = 0; i < used.size(); ++i) {
+    out_id[used[i]] = i;
+    positions[i] = position(used[i], vertex_level[used[i]]);
+    if (has_alpha_) alpha[i] = alpha_[used[i]];
+  }
+
+  BigVector<VertexId> corner(3 * faces.size());
+  for (std::size_t f = 0; f < faces.size(); ++f)
+    for (std::size_t k = 0; k < 3; ++k) corner[3 * f + k] = VertexId(out_id[faces[f][k]]);
+  // Twins: the reversed directed edge, found by sorting.
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> directed(corner.size());
+  auto key = [&](std::uint32_t h, bool reversed) {
+    const std::uint64_t a = corner[h].idx, b = corner[Mesh::next(HalfedgeId(h)).idx].idx;
+    return reversed ? (b << 32) | a : (a << 32) | b;
+  };
+  for (std::uint32_t h = 0; h < corner.size(); ++h) directed[h] = {key(h, false), h};
+  std::sort(directed.begin(), directed.end());
+  BigVector<HalfedgeId> twin_of(corner.size());
+  for (std::uint32_t h = 0; h < corner.size(); ++h) {
+    if (h > 0 && directed[h].first == directed[h - 1].first)
+      throw internal("the refined mesh repeats a directed edge");
+    const std::uint64_t want = key(h, true);
+    const auto it =
+        std::lower_bound(directed.begin(), directed.end(), std::make_pair(want, std::uint32_t{0}));
+    if (it != directed.end() && it->first == want) twin_of[h] = HalfedgeId(it->second);
+  }
+
+  Level out;
+  out.mesh = Mesh::from_parts(std::move(positions), std::move(corner), std::move(twin_of));
+  BigVector<std::uint8_t> sharp(out.mesh.num_edges());
+  for (std::uint32_t e = 0; e < sharp.size(); ++e) {
+    const HalfedgeId h = out.mesh.halfedge(EdgeId(e));
+    sharp[e] = (sharp_bits[h.idx / 3] >> (h.idx % 3)) & 1;
+  }
+  out.features = Features(out.mesh, std::move(sharp));
+  out.alpha = std::move(alpha);
+  stats_.levels = levels.empty() ? 0 : *std::max_element(levels.begin(), levels.end());
+  if (face_level) *face_level = std::move(levels);
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------
+
+AdaptiveSqrt3::AdaptiveSqrt3(const Level& coarse, const Sqrt3Stencil& stencil,
+                             const Sqrt3AdaptiveCriteria& criteria)
+    : h_(std::make_unique<Hierarchy>(coarse, stencil, criteria)) {
+  if (coarse.step != 0) throw internal("the adaptive mode starts from an input level");
+  if (criteria.max_level < 1 || criteria.max_level > 8) throw internal("max_level outside [1, 8]");
+}
+
+AdaptiveSqrt3::~AdaptiveSqrt3() = default;
+
+void AdaptiveSqrt3::run(std::uint64_t max_faces, const std::atomic<bool>* cancel,
+                        const std::function<void(int)>& level_started) {
+  h_->run(max_faces, cancel, level_started);
+}
+
+Level AdaptiveSqrt3::result(std::vector<std::uint8_t>* face_level) {
+  return h_->result(face_level);
+}
+
+const Sqrt3AdaptiveStats& AdaptiveSqrt3::stats() const {
+  return h_->stats();
+}
+
+}  // namespace stlrefine
