@@ -128,7 +128,7 @@ const std::vector<std::string_view>& info_param_names() {
 std::vector<std::string_view> refine_param_names(const RequestLimits& limits) {
   std::vector<std::string_view> names{
       "scheme",    "levels", "crease_angle", "max_faces", "weld_tolerance", "adaptive_tol",
-      "max_level", "slice",  "slice_format", "alpha",     "alpha_features"};
+      "max_level", "slice",  "slice_format", "alpha",     "alpha_features", "adaptive_angle"};
   if (limits.accept_threads) names.push_back("threads");
   return names;
 }
@@ -209,6 +209,8 @@ RefineRequest parse_refine_params(const RawParams& params, const RequestLimits& 
       request.weld_tolerance = parse_weld_tolerance(value);
     } else if (name == "adaptive_tol") {
       p.adaptive_tol = parse_number(name, value);
+    } else if (name == "adaptive_angle") {
+      p.adaptive_angle = parse_number(name, value);
     } else if (name == "max_level") {
       p.max_level = parse_int(name, value);
     } else if (name == "alpha") {

@@ -147,7 +147,9 @@ Json refine_report(const Ingested& in, const RefineReport& r, const RefineReques
                    {"darts", r.darts}};
   j["fold_fallbacks"] = r.fold_fallbacks;
   j["adaptive_tol"] = r.adaptive_tol;
+  j["adaptive_angle"] = r.adaptive_angle;
   j["edges_over_tolerance"] = r.edges_over_tolerance;
+  j["faces_over_criterion"] = r.faces_over_criterion;
   j["max_input_displacement"] = r.max_input_displacement;
   j["seconds"] = {{"ingest", times.ingest},
                   {"refine", times.refine},

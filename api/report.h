@@ -50,8 +50,9 @@ struct RefineTimes {
 //! The `refine` report: scheme, levels, crease_angle_deg, `input` (as in info plus the
 //! mesh's vertices and faces), `output` {format, vertices, faces, bytes}, `features`
 //! {sharp_edges_in, sharp_edges_out (sharp edges kept), corners, creases, darts},
-//! fold_fallbacks, adaptive_tol, edges_over_tolerance, max_input_displacement, `seconds` {ingest,
-//! refine, write, total}, and `ingest`. Compact enough for a response header.
+//! fold_fallbacks, adaptive_tol, adaptive_angle, edges_over_tolerance (1-to-4 adaptive) and
+//! faces_over_criterion (sqrt3 adaptive) left at the level cap, max_input_displacement,
+//! `seconds` {ingest, refine, write, total}, and `ingest`. Compact enough for a response header.
 nlohmann::ordered_json refine_report(const Ingested& in, const RefineReport& report,
                                      const RefineRequest& request, std::size_t output_bytes,
                                      const RefineTimes& times);

@@ -7,7 +7,8 @@
 //   stlrefine info IN.stl [--crease-angle 35] [--weld-tolerance T] [--curvature OUT.csv]
 //   stlrefine refine IN.stl -o OUT.stl [--scheme butterfly] [--levels 1] [--crease-angle 35]
 //                    [--max-faces N] [--threads N] [--weld-tolerance T] [--ascii]
-//                    [--adaptive-tol MM] [--max-level L] [--alpha A] [--alpha-features A]
+//                    [--adaptive-tol MM] [--adaptive-angle DEG] [--max-level L]
+//                    [--alpha A] [--alpha-features A]
 //                    [--report R.json]
 //                    [--slice H --slice-out CONTOURS [--slice-format json|svg|cli|cli-binary]]
 //   stlrefine slice IN.stl -o OUT [--layer-height 0.1] [--format json|svg|cli|cli-binary]
@@ -185,7 +186,7 @@ struct InfoOptions {
 struct RefineOptions {
   std::string input, output, report;
   std::string scheme, levels, crease_angle, max_faces, threads, weld_tolerance;
-  std::string adaptive_tol, max_level, slice, slice_format, slice_out;
+  std::string adaptive_tol, adaptive_angle, max_level, slice, slice_format, slice_out;
   std::string alpha, alpha_features;
   bool ascii = false;
 };
@@ -235,6 +236,7 @@ int run_refine(const CLI::App& cmd, const RefineOptions& o) {
   add_if_given(raw, cmd, "--threads", "threads", o.threads);
   add_if_given(raw, cmd, "--weld-tolerance", "weld_tolerance", o.weld_tolerance);
   add_if_given(raw, cmd, "--adaptive-tol", "adaptive_tol", o.adaptive_tol);
+  add_if_given(raw, cmd, "--adaptive-angle", "adaptive_angle", o.adaptive_angle);
   add_if_given(raw, cmd, "--max-level", "max_level", o.max_level);
   add_if_given(raw, cmd, "--alpha", "alpha", o.alpha);
   add_if_given(raw, cmd, "--alpha-features", "alpha_features", o.alpha_features);
@@ -261,8 +263,9 @@ int run_refine(const CLI::App& cmd, const RefineOptions& o) {
     if (!o.report.empty()) write_file(o.report, out.report.dump(2) + "\n");
     std::cerr << "stlrefine: " << out.report["input"]["faces"] << " -> "
               << out.report["output"]["faces"] << " faces (" << request.refine.scheme << ", "
-              << request.refine.levels << " levels) in " << out.report["seconds"]["total"]
-              << " s -> " << o.output << std::endl;
+              << out.report["levels"] << (request.refine.adaptive() ? " adaptive" : "")
+              << " levels) in " << out.report["seconds"]["total"] << " s -> " << o.output
+              << std::endl;
     return kExitOk;
   } catch (const Error& e) {
     throw failure_from_error(e, o.input);
@@ -345,8 +348,13 @@ int main(int argc, char** argv) {
   refine_cmd->add_flag("--ascii", refine.ascii, "Write ASCII STL instead of binary");
   refine_cmd->add_option("--report", refine.report, "Also write the JSON report to this file");
   refine_cmd->add_option("--adaptive-tol", refine.adaptive_tol,
-                         "Curvature-adaptive: split edges whose surface leaves the chord by more "
-                         "than this (mm; lsf and butterfly; 0 = uniform, default)");
+                         "Curvature-adaptive: refine where the new point leaves its flat edge or "
+                         "triangle by more than this (mm; lsf, butterfly, sqrt3 schemes; 0 = off, "
+                         "default)");
+  refine_cmd->add_option("--adaptive-angle", refine.adaptive_angle,
+                         "Curvature-adaptive: refine where neighbouring faces' normals differ by "
+                         "more than this across a non-sharp edge (degrees [0, 180]; 0 = off, "
+                         "default; with --adaptive-tol either refines)");
   refine_cmd->add_option("--max-level", refine.max_level,
                          "Level cap of the adaptive mode [1, 8] (4)");
   refine_cmd->add_option("--alpha", refine.alpha,

@@ -38,8 +38,8 @@ const std::map<std::string, ParamDoc>& param_docs() {
       {"weld_tolerance", {"number", "Distance in mm below which STL corners are welded."}},
       {"adaptive_tol",
        {"number",
-        "Chordal tolerance in mm: curvature-adaptive refinement until every edge "
-        "point is within it (lsf, butterfly)."}},
+        "Chordal tolerance in mm, 0..1e6: curvature-adaptive refinement until every new point "
+        "is within it of its flat edge or triangle (lsf, butterfly, sqrt3 schemes)."}},
       {"max_level", {"integer", "Level cap of the adaptive mode, 1..8."}},
       {"slice", {"number", "Also slice the refined mesh at this layer height (mm)."}},
       {"slice_format", {"string", "Contour format of the slice: json, svg, cli, cli-binary."}},
@@ -54,8 +54,8 @@ const std::map<std::string, ParamDoc>& param_docs() {
       {"alpha_features", {"number", "sqrt3-unified: alpha of crease and corner vertices."}},
       {"adaptive_angle",
        {"number",
-        "sqrt3 adaptive mode: refine where neighbouring faces differ by more than "
-        "this dihedral angle (degrees)."}},
+        "Degrees, 0..180: curvature-adaptive refinement where the normals of neighbouring "
+        "faces across a non-sharp edge differ by more (lsf, butterfly, sqrt3 schemes)."}},
   };
   return docs;
 }

@@ -1,9 +1,10 @@
 // SPDX-License-Identifier: MIT
 // Copyright (c) 2026 stlrefine authors
 //
-// The sqrt3 schemes' parameters end to end: `alpha` and `alpha_features` parsed by api/
-// (ranges from core), `--alpha` / `--alpha-features` on the stlrefine CLI, and the same
-// query parameters on POST /v1/refine of stlrefined.
+// The sqrt3 schemes' parameters end to end: `alpha`, `alpha_features` and the adaptive
+// mode's `adaptive_angle` / `adaptive_tol` / `max_level` parsed by api/ (ranges from core),
+// `--alpha` / `--alpha-features` / `--adaptive-angle` on the stlrefine CLI, and the same
+// query parameters on POST /v1/refine and POST /v1/jobs of stlrefined.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -14,6 +15,7 @@
 #include <regex>
 #include <sstream>
 #include <string>
+#include <thread>
 
 #include "api/params.h"
 #include "core/error.h"
@@ -60,6 +62,35 @@ TEST(Sqrt3Params, AlphaErrorsNameTheField) {
       {{{"alpha_features", "2"}}, "alpha_features", "out_of_range"},
       {{{"alpha_features", "0.5x"}}, "alpha_features", "not_a_number"},
       {{{"alpha", "0.5"}, {"alpha", "0.5"}}, "alpha", "duplicate_parameter"},
+  };
+  for (const auto& [raw, field, reason] : cases) {
+    const Error e = refine_error(raw);
+    EXPECT_EQ(e.code(), ErrorCode::InvalidParameter) << field << " " << e.what();
+    EXPECT_EQ(e.field(), field) << e.what();
+    EXPECT_EQ(e.reason(), reason) << e.what();
+  }
+}
+
+TEST(Sqrt3Params, AdaptiveAngleParsedAndChecked) {
+  const api::RefineRequest r = api::parse_refine_params(
+      {{"scheme", "sqrt3-interp"}, {"adaptive_angle", "20"}, {"max_level", "5"}}, {});
+  EXPECT_DOUBLE_EQ(r.refine.adaptive_angle, 20);
+  EXPECT_EQ(r.refine.max_level, 5);
+  EXPECT_TRUE(r.refine.adaptive());
+  EXPECT_EQ(api::parse_refine_params({}, {}).refine.adaptive_angle, 0.0);
+  EXPECT_NO_THROW(
+      api::parse_refine_params({{"scheme", "butterfly"}, {"adaptive_angle", "10"}}, {}));
+  EXPECT_NO_THROW(api::parse_refine_params(
+      {{"scheme", "sqrt3"}, {"adaptive_angle", "10"}, {"adaptive_tol", "0.01"}}, {}));
+  const std::vector<std::tuple<api::RawParams, std::string, std::string>> cases{
+      {{{"adaptive_angle", "abc"}}, "adaptive_angle", "not_a_number"},
+      {{{"adaptive_angle", "inf"}}, "adaptive_angle", "not_a_number"},
+      {{{"adaptive_angle", "181"}}, "adaptive_angle", "out_of_range"},
+      {{{"adaptive_angle", "-1"}}, "adaptive_angle", "out_of_range"},
+      {{{"scheme", "loop"}, {"adaptive_angle", "10"}}, "adaptive_angle", "adaptive_unsupported"},
+      {{{"scheme", "sqrt3-interp"}, {"adaptive_angle", "10"}, {"max_level", "9"}},
+       "max_level",
+       "out_of_range"},
   };
   for (const auto& [raw, field, reason] : cases) {
     const Error e = refine_error(raw);
@@ -129,9 +160,46 @@ TEST_F(Sqrt3BinaryTest, CliAlphaOptions) {
   EXPECT_NE(r.err.find("--alpha-features"), std::string::npos) << r.err;
 }
 
-TEST_F(Sqrt3BinaryTest, DaemonAlphaQueryParameters) {
+TEST_F(Sqrt3BinaryTest, CliAdaptiveOptions) {
+  // Crease angle 180: the octahedron is one smooth patch, so the dihedral angle decides.
+  const std::vector<std::string> base{"refine",         input_, "--scheme",    "sqrt3-interp",
+                                      "--crease-angle", "180",  "--max-level", "3"};
+  auto with = [&](std::vector<std::string> extra, const std::string& out) {
+    std::vector<std::string> args = base;
+    args.insert(args.end(), {"-o", path(out), "--report", path(out + ".json")});
+    args.insert(args.end(), extra.begin(), extra.end());
+    return cli(args);
+  };
+  const auto input = octahedron_triangles();
+  ProcessResult r = with({"--adaptive-angle", "20"}, "angle.stl");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto refined = read_binary_stl(read(path("angle.stl")));
+  EXPECT_GT(refined.size(), 8u);
+  EXPECT_LE(refined.size(), 8u * 27u);
+  EXPECT_TRUE(corners_preserved(input, refined));
+  const auto report = nlohmann::json::parse(read(path("angle.stl.json")));
+  EXPECT_EQ(report.at("adaptive_angle"), 20.0);
+  EXPECT_EQ(report.at("output").at("faces"), refined.size());
+  EXPECT_GE(report.at("levels"), 1);
+  EXPECT_EQ(report.at("max_input_displacement"), 0.0);
+
+  r = with({"--adaptive-angle", "20", "--adaptive-tol", "0.001"}, "both.stl");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_GE(read_binary_stl(read(path("both.stl"))).size(), refined.size());
+
+  r = with({"--adaptive-angle", "200"}, "bad.stl");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--adaptive-angle"), std::string::npos) << r.err;
+  // The adaptive budget: an upper bound from max_level up front, then a hard stop.
+  r = with({"--adaptive-angle", "1", "--max-faces", "20"}, "big.stl");
+  EXPECT_EQ(r.exit_code, 4) << r.err;
+  EXPECT_NE(r.err.find("max_faces"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(path("big.stl")));
+}
+
+TEST_F(Sqrt3BinaryTest, DaemonAlphaAndAdaptiveQueryParameters) {
   if (!fs::exists("/usr/bin/curl")) GTEST_SKIP() << "curl is not installed";
-  Child daemon({STLREFINED, "--port", "0"});
+  Child daemon({STLREFINED, "--port", "0", "--data-dir", path("jobs")});
   const std::string line = daemon.read_line(10s);
   std::smatch m;
   ASSERT_TRUE(std::regex_match(line, m, std::regex(R"(^listening on (http://[0-9.]+:[0-9]+)$)")))
@@ -158,6 +226,35 @@ TEST_F(Sqrt3BinaryTest, DaemonAlphaQueryParameters) {
   EXPECT_EQ(nlohmann::json::parse(read(path("body"))).at("field"), "alpha");
   EXPECT_EQ(post("/v1/refine?scheme=sqrt3-unified&alpha_features=nan"), 400);
   EXPECT_EQ(nlohmann::json::parse(read(path("body"))).at("field"), "alpha_features");
+
+  // The adaptive mode, synchronous and as a job.
+  const std::string adaptive = "scheme=sqrt3-interp&crease_angle=180&adaptive_angle=20&max_level=3";
+  ASSERT_EQ(post("/v1/refine?" + adaptive), 200);
+  const std::size_t faces = read_binary_stl(read(path("body"))).size();
+  EXPECT_GT(faces, 8u);
+  EXPECT_LE(faces, 8u * 27u);
+  EXPECT_EQ(post("/v1/refine?scheme=sqrt3-interp&adaptive_angle=x"), 400);
+  EXPECT_EQ(nlohmann::json::parse(read(path("body"))).at("field"), "adaptive_angle");
+  EXPECT_EQ(post("/v1/refine?scheme=loop&adaptive_angle=10"), 400);
+  EXPECT_EQ(nlohmann::json::parse(read(path("body"))).at("field"), "adaptive_angle");
+  EXPECT_EQ(post("/v1/refine?scheme=sqrt3-interp&crease_angle=180&adaptive_angle=1&max_faces=20"),
+            422);
+  EXPECT_EQ(nlohmann::json::parse(read(path("body"))).at("field"), "max_faces");
+
+  ASSERT_EQ(post("/v1/jobs?" + adaptive), 202);
+  const std::string job = nlohmann::json::parse(read(path("body"))).at("id");
+  std::string state;
+  for (int i = 0; i < 200 && state != "done" && state != "failed"; ++i) {
+    const ProcessResult g =
+        run_process({"/usr/bin/curl", "-sS", url + "/v1/jobs/" + job}, std::chrono::seconds(10));
+    state = nlohmann::json::parse(g.out).at("state");
+    if (state != "done") std::this_thread::sleep_for(50ms);
+  }
+  ASSERT_EQ(state, "done");
+  const ProcessResult g = run_process(
+      {"/usr/bin/curl", "-sS", "-o", path("job.stl"), url + "/v1/jobs/" + job + "/result.stl"});
+  ASSERT_EQ(g.exit_code, 0) << g.err;
+  EXPECT_EQ(read_binary_stl(read(path("job.stl"))).size(), faces);
 }
 
 }  // namespace
