@@ -8,7 +8,9 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 #include <string>
 #include <vector>
@@ -37,8 +39,16 @@ std::vector<double> real_spectrum(const std::vector<Eigenvalue>& values) {
   return out;
 }
 
+// The leading eigenvalues on stdout, for bench/RESULTS.md ("[spectrum] what: 1 0.333...").
+void print_spectrum(const std::string& what, const std::vector<double>& values, std::size_t n) {
+  std::printf("[spectrum] %s:", what.c_str());
+  for (std::size_t i = 0; i < std::min(n, values.size()); ++i) std::printf(" %.6f", values[i]);
+  std::printf("\n");
+}
+
 void expect_spectrum(const std::vector<double>& got, const std::vector<double>& want,
                      const std::string& what) {
+  print_spectrum(what, got, std::max<std::size_t>(want.size(), 7));
   ASSERT_GE(got.size(), want.size()) << what;
   for (std::size_t i = 0; i < want.size(); ++i)
     EXPECT_NEAR(got[i], want[i], want[i] == 0 ? 1e-6 : 1e-9) << what << ": eigenvalue " << i;
@@ -139,7 +149,7 @@ TEST(Sqrt3Spectra, UnifiedCurveRuleWithConstantAlpha) {
   // Spec 4: constant-alpha blends have 1, 1/3, then everything below 1/3.
   for (double alpha : {0.25, 0.5, 0.75}) {
     const std::vector<double> got = curve_spectrum("sqrt3-unified", SchemeOptions{alpha, alpha});
-    expect_spectrum(got, {1, 1.0 / 3}, "unified curve");
+    expect_spectrum(got, {1, 1.0 / 3}, "unified curve, alpha " + std::to_string(alpha));
     EXPECT_LT(std::abs(got[2]), 1.0 / 3 - 1e-3) << alpha;
   }
 }
