@@ -127,8 +127,9 @@ const std::vector<std::string_view>& info_param_names() {
 
 std::vector<std::string_view> refine_param_names(const RequestLimits& limits) {
   std::vector<std::string_view> names{
-      "scheme",    "levels", "crease_angle", "max_faces", "weld_tolerance", "adaptive_tol",
-      "max_level", "slice",  "slice_format", "alpha",     "alpha_features", "adaptive_angle"};
+      "scheme",         "levels",    "crease_angle", "max_faces",     "weld_tolerance",
+      "adaptive_tol",   "max_level", "slice",        "slice_format",  "alpha",
+      "alpha_features", "kappa",     "ramp_steps",   "adaptive_angle"};
   if (limits.accept_threads) names.push_back("threads");
   return names;
 }
@@ -217,6 +218,10 @@ RefineRequest parse_refine_params(const RawParams& params, const RequestLimits& 
       p.alpha = parse_number(name, value);
     } else if (name == "alpha_features") {
       p.alpha_features = parse_number(name, value);
+    } else if (name == "kappa") {
+      p.kappa = parse_number(name, value);
+    } else if (name == "ramp_steps") {
+      p.ramp_steps = parse_int(name, value);
     } else if (name == "slice") {
       if (!request.slice) request.slice.emplace();
       request.slice->params.layer_height = parse_number(name, value);

@@ -59,7 +59,8 @@ struct SliceRequest {
 //! What `refine` needs besides the STL bytes.
 struct RefineRequest {
   //! `scheme`, `levels`, `crease_angle`, `max_faces`, `threads`, `adaptive_tol`,
-  //! `adaptive_angle`, `max_level`, `alpha`, `alpha_features` (sqrt3-unified)
+  //! `adaptive_angle`, `max_level`, `alpha`, `alpha_features` (sqrt3-unified), `kappa`,
+  //! `ramp_steps` (loop-g2)
   RefineParams refine;
   double weld_tolerance = 0;                    //!< as in InfoRequest
   StlFormat output_format = StlFormat::Binary;  //!< not a parameter: the CLI's --ascii

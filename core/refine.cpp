@@ -28,6 +28,11 @@ void RefineParams::validate() const {
   require_in_range("max_level", max_level, 1, 8);
   require_in_range("alpha", alpha, 0.0, 1.0);
   require_in_range("alpha_features", alpha_features, 0.0, 1.0);
+  if (!(kappa > 0 && kappa <= 1))
+    throw Error(ErrorCode::InvalidParameter, "out_of_range",
+                "kappa = " + std::to_string(kappa) + " is outside (0, 1]")
+        .with_field("kappa");
+  require_in_range("ramp_steps", ramp_steps, 0, 8);
   if (adaptive()) {
     const auto s = make_scheme(scheme);
     if (!adaptive_scheme(*s) && !adaptive_sqrt3_scheme(*s))
@@ -40,7 +45,7 @@ void RefineParams::validate() const {
 }
 
 SchemeOptions scheme_options(const RefineParams& params) {
-  return {params.alpha, params.alpha_features};
+  return {params.alpha, params.alpha_features, params.kappa, params.ramp_steps};
 }
 
 const Split4Stencil* adaptive_scheme(const Scheme& scheme) {

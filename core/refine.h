@@ -39,6 +39,12 @@ struct RefineParams {
   //! ... and of crease and corner input vertices (boundaries included) [0, 1], so a part can
   //! stay exact on its feature lines and be smoothed elsewhere.
   double alpha_features = 1.0;
+  //! loop-g2 only: the eigenvalues Prautzsch and Umlauf move go to kappa lambda^2, (0, 1]
+  //! (smaller: further below lambda^2, larger negative weights; spec 6).
+  double kappa = 0.5;
+  //! loop-g2 only: Remark 5.3's gradual modification, the move growing as
+  //! sqrt(step / ramp_steps) until step ramp_steps, [0, 8]; 0 = the full move from the start.
+  int ramp_steps = 0;
 
   //! True when a curvature-adaptive criterion is on.
   bool adaptive() const { return adaptive_tol > 0 || adaptive_angle > 0; }
@@ -47,7 +53,7 @@ struct RefineParams {
   void validate() const;
 };
 
-//! The scheme options params carry (alpha, alpha_features).
+//! The scheme options params carry (alpha, alpha_features, kappa, ramp_steps).
 SchemeOptions scheme_options(const RefineParams& params);
 
 class Split4Stencil;

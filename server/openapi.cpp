@@ -52,6 +52,13 @@ const std::map<std::string, ParamDoc>& param_docs() {
       {"alpha",
        {"number", "sqrt3-unified: 1 interpolates, 0 approximates (Kobbelt), in between blends."}},
       {"alpha_features", {"number", "sqrt3-unified: alpha of crease and corner vertices."}},
+      {"kappa",
+       {"number",
+        "loop-g2: the eigenvalues Prautzsch and Umlauf move go to kappa lambda^2, in (0, 1] "
+        "(default 0.5)."}},
+      {"ramp_steps",
+       {"integer",
+        "loop-g2: gradual modification (PU Remark 5.3) over this many steps, 0..8; 0 = off."}},
       {"adaptive_angle",
        {"number",
         "Degrees, 0..180: curvature-adaptive refinement where the normals of neighbouring "

@@ -280,6 +280,10 @@ SpectralSummary summarize(const Refiner& refine, const LocalMatrix& a, int map_l
     s.characteristic_map =
         check_characteristic_map(refine, a, block_eigenvector(a, 1, f1->value), 1, map_levels);
   s.c1 = dominant_simple && lambda_pair && s.characteristic_map.injective;
+  s.c1_jordan = dominant_simple && f1 && !lambda_pair &&
+                s.lambda_frequencies == std::vector<int>{1} && f1->geometric == 2 &&
+                std::abs(f1->value.imag()) < kTol && f1->value.real() > 0 &&
+                s.characteristic_map.injective;
   const double l2 = s.lambda * s.lambda;
   bool below = true;
   for (std::size_t i = first; i < v.size(); ++i) {

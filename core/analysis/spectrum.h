@@ -80,6 +80,11 @@ struct SpectralSummary {
   //! every other modulus is below lambda, and the characteristic map is regular and
   //! injective: Reif's sufficient condition for a C1 (G1) limit (PU Theorem 4.1, k = 1).
   bool c1 = false;
+  //! The same with lambda defective: its frequency-1 copies carry Jordan chains of equal
+  //! length (two eigenvectors, algebraic multiplicity above 2), as PU's G1 butterfly keeps
+  //! at valence 3. The leading terms of the expansion are then k lambda^k times the
+  //! eigenvector pair, which still spans the characteristic map.
+  bool c1_jordan = false;
   //! ... and every other modulus is below lambda^2, apart from a semisimple lambda^2 at
   //! frequency 0 or 2 (the quadratics |z|^2 and z^2 of the characteristic map, which Loop's
   //! own frequency-0 lambda^2 is; spec 6): the eigenvalue part of PU Theorem 4.1, k = 2.

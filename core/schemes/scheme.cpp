@@ -7,7 +7,9 @@
 
 #include "core/error.h"
 #include "core/schemes/butterfly.h"
+#include "core/schemes/butterfly_g1.h"
 #include "core/schemes/loop.h"
+#include "core/schemes/loop_g2.h"
 #include "core/schemes/lsf.h"
 #include "core/schemes/split4_host.h"
 #include "core/schemes/sqrt3_host.h"
@@ -25,7 +27,7 @@ struct SchemeEntry {
 };
 
 // The one table of schemes: name -> factory. No static self-registration.
-constexpr std::array<SchemeEntry, 6> kSchemes = {{
+constexpr std::array<SchemeEntry, 8> kSchemes = {{
     {"butterfly",
      [](const SchemeOptions&) -> std::unique_ptr<Scheme> {
        return std::make_unique<Split4Scheme>("butterfly", std::make_unique<ButterflyStencil>());
@@ -51,6 +53,15 @@ constexpr std::array<SchemeEntry, 6> kSchemes = {{
      [](const SchemeOptions& o) -> std::unique_ptr<Scheme> {
        return std::make_unique<Sqrt3Scheme>(
            "sqrt3-unified", std::make_unique<LinLuoStencil>(o.alpha, o.alpha_features));
+     }},
+    {"loop-g2",
+     [](const SchemeOptions& o) -> std::unique_ptr<Scheme> {
+       return std::make_unique<Split4Scheme>("loop-g2",
+                                             make_loop_g2_stencil(o.kappa, o.ramp_steps));
+     }},
+    {"butterfly-g1",
+     [](const SchemeOptions&) -> std::unique_ptr<Scheme> {
+       return std::make_unique<Split4Scheme>("butterfly-g1", make_butterfly_g1_stencil());
      }},
 }};
 

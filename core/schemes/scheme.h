@@ -54,6 +54,10 @@ struct SchemeOptions {
   double alpha = 1.0;
   //! sqrt3-unified: alpha of crease and corner input vertices (boundaries included), [0, 1].
   double alpha_features = 1.0;
+  //! loop-g2: the moved eigenvalues go to kappa lambda^2, (0, 1] (spec 6, recommended 0.5).
+  double kappa = 0.5;
+  //! loop-g2: Remark 5.3's gradual modification over this many steps, [0, 8]; 0 = off.
+  int ramp_steps = 0;
 };
 
 //! \throw Error(InvalidParameter, field "scheme") for an unknown name.
