@@ -9,8 +9,12 @@
 //                    [--max-faces N] [--threads N] [--weld-tolerance T] [--ascii]
 //                    [--adaptive-tol MM] [--adaptive-angle DEG] [--max-level L]
 //                    [--alpha A] [--alpha-features A]
+//                    [--kappa K] [--ramp-steps N]
 //                    [--report R.json]
 //                    [--slice H --slice-out CONTOURS [--slice-format json|svg|cli|cli-binary]]
+//   stlrefine spectrum --scheme S --valence N|A..B [--format lines|table] [--count K]
+//                      [--kappa K] [--alpha A] [--alpha-features A] [--unmodified] [--curve]
+//                      [--markdown] [-o OUT]
 //   stlrefine slice IN.stl -o OUT [--layer-height 0.1] [--format json|svg|cli|cli-binary]
 //                   [--z-min Z] [--z-max Z] [--heights a,b,c] [--max-layers N] [--threads N]
 //                   [--weld-tolerance T] [--report R.json]
@@ -40,7 +44,10 @@
 
 #include "api/params.h"
 #include "api/pipeline.h"
+#include "core/analysis/spectrum_report.h"
 #include "core/error.h"
+#include "core/schemes/butterfly.h"
+#include "core/schemes/loop.h"
 #include "core/schemes/scheme.h"
 
 namespace {
@@ -187,7 +194,7 @@ struct RefineOptions {
   std::string input, output, report;
   std::string scheme, levels, crease_angle, max_faces, threads, weld_tolerance;
   std::string adaptive_tol, adaptive_angle, max_level, slice, slice_format, slice_out;
-  std::string alpha, alpha_features;
+  std::string alpha, alpha_features, kappa, ramp_steps;
   bool ascii = false;
 };
 
@@ -240,6 +247,8 @@ int run_refine(const CLI::App& cmd, const RefineOptions& o) {
   add_if_given(raw, cmd, "--max-level", "max_level", o.max_level);
   add_if_given(raw, cmd, "--alpha", "alpha", o.alpha);
   add_if_given(raw, cmd, "--alpha-features", "alpha_features", o.alpha_features);
+  add_if_given(raw, cmd, "--kappa", "kappa", o.kappa);
+  add_if_given(raw, cmd, "--ramp-steps", "ramp_steps", o.ramp_steps);
   add_if_given(raw, cmd, "--slice", "slice", o.slice);
   add_if_given(raw, cmd, "--slice-format", "slice_format", o.slice_format);
   const bool slicing = cmd.get_option("--slice")->count() > 0;
@@ -300,6 +309,86 @@ int run_slice(const CLI::App& cmd, const SliceCliOptions& o) {
   } catch (const Error& e) {
     throw failure_from_error(e, o.input);
   }
+}
+
+struct SpectrumOptions {
+  std::string scheme = "butterfly", valence = "3..16", format, output;
+  std::string kappa, alpha, alpha_features;
+  int count = 7;
+  bool unmodified = false, curve = false, markdown = false;
+};
+
+// "7" or "3..16", each valence in [3, 64].
+std::pair<int, int> parse_valences(const std::string& text) {
+  const std::size_t dots = text.find("..");
+  const std::string first = dots == std::string::npos ? text : text.substr(0, dots);
+  const std::string last = dots == std::string::npos ? text : text.substr(dots + 2);
+  try {
+    const int a = static_cast<int>(api::parse_integer("valence", first, 3, 64));
+    const int b = static_cast<int>(api::parse_integer("valence", last, 3, 64));
+    if (a > b) throw Failure{kExitUsage, "--valence: " + text + " is an empty range"};
+    return {a, b};
+  } catch (const Error& e) {
+    throw Failure{kExitUsage,
+                  "--valence: " + std::string(e.what()) + " (a valence N or a range A..B)"};
+  }
+}
+
+int run_spectrum(const CLI::App& cmd, const SpectrumOptions& o) {
+  namespace an = stlrefine::analysis;
+  std::string text;
+  if (o.markdown) {
+    text = an::spectra_markdown();
+  } else {
+    // The scheme and its options are validated as a refinement would validate them.
+    stlrefine::RefineParams p;
+    p.scheme = o.scheme;
+    try {
+      if (cmd.get_option("--kappa")->count()) p.kappa = api::parse_number("kappa", o.kappa);
+      if (cmd.get_option("--alpha")->count()) p.alpha = api::parse_number("alpha", o.alpha);
+      if (cmd.get_option("--alpha-features")->count())
+        p.alpha_features = api::parse_number("alpha_features", o.alpha_features);
+      p.validate();
+    } catch (const Error& e) {
+      throw failure_from_error(e, "");
+    }
+    const auto scheme = stlrefine::make_scheme(p.scheme, stlrefine::scheme_options(p));
+    // --unmodified: the base the spectral schemes change, analysed on its own.
+    std::unique_ptr<stlrefine::Split4Stencil> base;
+    if (o.unmodified) {
+      if (p.scheme == "loop-g2")
+        base = std::make_unique<stlrefine::LoopStencil>();
+      else if (p.scheme == "butterfly-g1")
+        base = std::make_unique<stlrefine::ButterflyStencil>(
+            stlrefine::ButterflyStencil::Extraordinary::EightPoint);
+      else
+        throw Failure{kExitUsage, "--unmodified: only loop-g2 and butterfly-g1 have a base"};
+    }
+    const an::Refiner refiner = base ? an::Refiner::of(*base) : an::Refiner::of(*scheme);
+    const std::string title = p.scheme + (o.unmodified ? " (unmodified base)" : "");
+    if (o.curve) {
+      text = an::format_curve(title + " curve rule",
+                              an::spectrum(an::curve_subdivision_matrix(refiner))) +
+             "\n";
+    } else {
+      const auto [first, last] = parse_valences(o.valence);
+      std::string format = o.format.empty() ? (first == last ? "lines" : "table") : o.format;
+      if (format != "lines" && format != "table")
+        throw Failure{kExitUsage, "--format: '" + o.format + "' is not lines or table"};
+      std::vector<an::ValenceReport> reports;
+      for (int n = first; n <= last; ++n) reports.push_back(an::analyse_valence(refiner, n));
+      if (format == "table") {
+        text = "# " + title + "\n\n" + an::format_table(reports, o.count);
+      } else {
+        for (const an::ValenceReport& r : reports) text += an::format_lines(title, r);
+      }
+    }
+  }
+  if (o.output.empty())
+    std::cout << text << std::flush;
+  else
+    write_file(o.output, text);
+  return kExitOk;
 }
 
 std::string scheme_list() {
@@ -363,11 +452,42 @@ int main(int argc, char** argv) {
   refine_cmd->add_option("--alpha-features", refine.alpha_features,
                          "sqrt3-unified: alpha of crease and corner vertices, so feature lines "
                          "can stay exact while the rest is smoothed [0, 1] (1)");
+  refine_cmd->add_option("--kappa", refine.kappa,
+                         "loop-g2: the moved eigenvalues go to kappa lambda^2 (0, 1] (0.5)");
+  refine_cmd->add_option("--ramp-steps", refine.ramp_steps,
+                         "loop-g2: modify gradually over this many steps (PU Remark 5.3) "
+                         "[0, 8] (0 = off)");
   refine_cmd->add_option("--slice", refine.slice,
                          "Also slice the refined mesh with this layer height (mm)");
   refine_cmd->add_option("--slice-format", refine.slice_format,
                          "Contour format: json, svg, cli, cli-binary (json)");
   refine_cmd->add_option("--slice-out", refine.slice_out, "Contour file (with --slice)");
+
+  SpectrumOptions spectrum;
+  CLI::App* spectrum_cmd = app.add_subcommand(
+      "spectrum",
+      "Print the eigenvalues of a scheme's local subdivision matrix around a vertex of valence "
+      "N, by Fourier frequency, with the smoothness checks (docs/spectra.md)");
+  spectrum_cmd->add_option("--scheme", spectrum.scheme,
+                           "Scheme: " + scheme_list() + " (butterfly)");
+  spectrum_cmd->add_option("--valence", spectrum.valence,
+                           "A valence N or a range A..B, 3..64 (3..16)");
+  spectrum_cmd->add_option("--format", spectrum.format,
+                           "lines (one eigenvalue per line; default for one valence) or table "
+                           "(Markdown, one row per valence; default for a range)");
+  spectrum_cmd->add_option("--count", spectrum.count, "Eigenvalues per table row (7)")
+      ->check(CLI::Range(1, 1000));
+  spectrum_cmd->add_option("--kappa", spectrum.kappa, "loop-g2: kappa (0, 1] (0.5)");
+  spectrum_cmd->add_option("--alpha", spectrum.alpha, "sqrt3-unified: alpha [0, 1] (1)");
+  spectrum_cmd->add_option("--alpha-features", spectrum.alpha_features,
+                           "sqrt3-unified: alpha of crease and corner vertices [0, 1] (1)");
+  spectrum_cmd->add_flag("--unmodified", spectrum.unmodified,
+                         "loop-g2, butterfly-g1: the base scheme before the spectral change");
+  spectrum_cmd->add_flag("--curve", spectrum.curve,
+                         "The curve (crease and boundary) rule's 1-D spectrum instead");
+  spectrum_cmd->add_flag("--markdown", spectrum.markdown,
+                         "Print docs/spectra.md (every scheme; slow: about a minute)");
+  spectrum_cmd->add_option("-o,--output", spectrum.output, "Write to this file instead of stdout");
 
   SliceCliOptions slice;
   CLI::App* slice_cmd =
@@ -397,6 +517,7 @@ int main(int argc, char** argv) {
   try {
     if (info_cmd->parsed()) return run_info(*info_cmd, info);
     if (slice_cmd->parsed()) return run_slice(*slice_cmd, slice);
+    if (spectrum_cmd->parsed()) return run_spectrum(*spectrum_cmd, spectrum);
     return run_refine(*refine_cmd, refine);
   } catch (const Failure& f) {
     std::cerr << "stlrefine: " << f.message << std::endl;
