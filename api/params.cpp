@@ -87,6 +87,32 @@ Error renamed(const Error& e, std::string_view from, std::string_view to) {
   return out;
 }
 
+int hex_digit(char c) {
+  if (c >= '0' && c <= '9') return c - '0';
+  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+  return -1;
+}
+
+// "%XX" -> the byte, '+' -> ' '; anything else (a lone '%' included) stays as it is, and
+// the parameter parsers refuse what is then not a name or a number.
+std::string url_decode(std::string_view text) {
+  std::string out;
+  out.reserve(text.size());
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    if (text[i] == '+') {
+      out += ' ';
+    } else if (text[i] == '%' && i + 2 < text.size() && hex_digit(text[i + 1]) >= 0 &&
+               hex_digit(text[i + 2]) >= 0) {
+      out += static_cast<char>(hex_digit(text[i + 1]) * 16 + hex_digit(text[i + 2]));
+      i += 2;
+    } else {
+      out += text[i];
+    }
+  }
+  return out;
+}
+
 double parse_weld_tolerance(std::string_view text) {
   const double t = parse_number("weld_tolerance", text);
   if (t < 0)
@@ -96,6 +122,26 @@ double parse_weld_tolerance(std::string_view text) {
 }
 
 }  // namespace
+
+RawParams parse_query(std::string_view query) {
+  RawParams params;
+  std::size_t start = 0;
+  while (start < query.size()) {
+    const std::size_t amp = std::min(query.find('&', start), query.size());
+    const std::string_view pair = query.substr(start, amp - start);
+    start = amp + 1;
+    if (pair.empty()) continue;
+    const std::size_t eq = pair.find('=');
+    std::string name = url_decode(pair.substr(0, eq));
+    if (name.empty())
+      throw invalid("query", "malformed_query",
+                    "the query string has a parameter without a name: " + shown(pair));
+    params.emplace_back(std::move(name), eq == std::string_view::npos
+                                             ? std::string()
+                                             : url_decode(pair.substr(eq + 1)));
+  }
+  return params;
+}
 
 long long parse_integer(std::string_view field, std::string_view text, long long lo, long long hi) {
   const long long value = parse_whole<long long>(field, text, "an integer");

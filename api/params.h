@@ -68,6 +68,14 @@ struct RefineRequest {
   std::optional<SliceOptions> slice;
 };
 
+//! The parameters of a URL query string ("scheme=loop&levels=%32"), in arrival order with
+//! duplicates kept: '&' separates pairs (empty ones are skipped), the first '=' separates
+//! the name from the value, and "%XX" and '+' (a space) are decoded in both; a pair without
+//! '=' has an empty value. Nothing is dropped or merged, so "levels=1=2" is the value "1=2"
+//! (not a number) and "levels=1&levels=1" is a duplicate, both refused by the parsers below.
+//! \throw Error(InvalidParameter, "malformed_query", field "query") for a pair without a name.
+RawParams parse_query(std::string_view query);
+
 //! Names `parse_info_params` accepts.
 const std::vector<std::string_view>& info_param_names();
 //! Names `parse_refine_params` accepts (`threads` only with RequestLimits::accept_threads).

@@ -316,14 +316,12 @@ std::string media_type(const std::string& content_type) {
 
 // Parameters come from the query string only. httplib also decodes an
 // application/x-www-form-urlencoded *body* into req.params, which for us is STL bytes.
+// Its query parser is not used either: it keeps only the last '='-part of a value
+// ("levels=x=2" is levels 2), drops pairs without a name and merges identical duplicates.
 api::RawParams raw_params(const Request& req) {
-  const std::string& target = req.target;
-  const std::size_t q = target.find('?');
-  api::RawParams params;
-  if (q == std::string::npos) return params;
-  httplib::Params parsed;
-  httplib::detail::parse_query_text(target.substr(q + 1), parsed);
-  return api::RawParams(parsed.begin(), parsed.end());
+  const std::size_t q = req.target.find('?');
+  if (q == std::string::npos) return {};
+  return api::parse_query(std::string_view(req.target).substr(q + 1));
 }
 
 // One write per line: worker threads log concurrently, and a line built with several <<
