@@ -28,13 +28,16 @@ namespace {
 
 // Per vertex: its valence when it gets the extraordinary rule (ring whole, i.e. smooth or
 // dart, and valence not 6), else 0. A sharp endpoint's ring is cut: it counts as regular.
+// So does a whole ring of valence 2 (two faces folded onto each other, e.g. a facet and its
+// reverse with zero dihedral angle): Zorin's weights exist only for k >= 3 (they sum to
+// 1/4 only there), and reading them at k = 2 read an empty table (a crash, found by fuzzing).
 std::vector<int> extraordinary_valences(const Mesh& m, const Features& f) {
   std::vector<int> k(m.num_vertices(), 0);
   parallel_for_each_index(m.num_vertices(), [&](std::size_t i) {
     const VertexId v(static_cast<std::uint32_t>(i));
     if (f.cuts_ring(v) || m.is_isolated(v)) return;
     const int n = m.valence(v);
-    k[i] = n == 6 ? 0 : n;
+    k[i] = n == 6 || n < 3 ? 0 : n;
   });
   return k;
 }

@@ -28,11 +28,13 @@ LabsikGreinerStencil::LabsikGreinerStencil() : weights_(kCachedValences) {
 namespace {
 
 // A vertex's valence when it is an extraordinary centre (an interior vertex whose ring no
-// sharp edge cuts, valence != 6), else 0. Sharp vertices are never centres.
+// sharp edge cuts, valence != 6), else 0. Sharp vertices are never centres, and neither are
+// valence-2 ones (two faces folded onto each other): the rule's weights exist for n >= 3
+// only, and reading them at n = 2 read an empty table (a crash, found by fuzzing).
 int extraordinary_valence(const Mesh& m, const Features& f, VertexId v) {
   if (f.cuts_ring(v) || m.is_isolated(v) || m.is_boundary(v)) return 0;
   const int valence = m.valence(v);
-  return valence == 6 ? 0 : valence;
+  return valence == 6 || valence < 3 ? 0 : valence;
 }
 
 std::vector<int> extraordinary_valences(const Mesh& m, const Features& f) {

@@ -382,6 +382,26 @@ TEST_F(ButterflyCurve, InteriorCreaseUsesOnlyCurveVertices) {
   EXPECT_NEAR(ez(fine, 5, 4, 6, 4), -1.0 / 16.0, kExact);
 }
 
+// fuzz_pipeline's finding (crash-41e5db01...): a facet and its reverse give their corners
+// valence 2 with a whole ring; with no sharp edge there (crease detection off, or
+// zero-area facets) the extraordinary rule read weights for k = 2 from an empty table, and
+// the CLI and the daemon died of SIGSEGV. Such a vertex now takes the regular rule.
+TEST(ButterflyScheme, FacetsFoldedOntoEachOtherRefineWithoutTheExtraordinaryRule) {
+  IndexedSoup soup;
+  soup.positions = {{0, 0, 0}, {4, 0, 0}, {0, 3, 0}};
+  soup.triangles = {{{0, 1, 2}}, {{0, 2, 1}}};
+  const Level level = make_level(to_mesh(soup), 180);
+  ASSERT_EQ(level.mesh.valence(VertexId(0)), 2);
+  ASSERT_FALSE(level.features.cuts_ring(VertexId(0)));
+  const Level fine = refine_level("butterfly", level);
+  ASSERT_EQ(fine.mesh.num_faces(), 8u);
+  for (std::uint32_t v = 0; v < fine.mesh.num_vertices(); ++v) {
+    const Vec3 p = fine.mesh.position(VertexId(v));
+    EXPECT_TRUE(std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z)) << v;
+    EXPECT_EQ(p.z, 0.0) << "vertex " << v << " left the plane of the part";
+  }
+}
+
 TEST(ButterflyScheme, CubeEdgesStayOnTheirLines) {
   const Level coarse = make_level(to_mesh(cube_soup(1.0)));
   const Level fine = refine_levels("butterfly", coarse, 3);

@@ -390,6 +390,29 @@ TEST(LabsikGreiner, LoneTriangleFacePointIsTheCentroid) {
   EXPECT_VEC_NEAR(fine.mesh.position(VertexId(3)), (Vec3{3.5, 2, 0} * (1.0 / 3.0)), kExact);
 }
 
+// The butterfly's fuzz finding (crash-41e5db01...) in the sqrt3 family: a facet and its
+// reverse make valence-2 vertices with a whole ring, whose extraordinary weights the
+// Labsik-Greiner rule read from an empty table (SIGSEGV at the second level of that
+// input). They take the regular rule now; every scheme refines such a part to finite points
+// in its plane.
+TEST(Sqrt3Family, FacetsFoldedOntoEachOtherRefineToFinitePointsInTheirPlane) {
+  IndexedSoup soup;
+  soup.positions = {{0, 0, 0}, {4, 0, 0}, {0, 3, 0}};
+  soup.triangles = {{{0, 1, 2}}, {{0, 2, 1}}};
+  for (const char* scheme : {"sqrt3", "sqrt3-interp", "sqrt3-unified"}) {
+    SCOPED_TRACE(scheme);
+    Level level = make_level(to_mesh(soup), 180);
+    for (int l = 1; l <= 3; ++l) {
+      level = refine_level(scheme, level);
+      for (std::uint32_t v = 0; v < level.mesh.num_vertices(); ++v) {
+        const Vec3 p = level.mesh.position(VertexId(v));
+        ASSERT_TRUE(std::isfinite(p.x) && std::isfinite(p.y)) << "level " << l << " vertex " << v;
+        ASSERT_EQ(p.z, 0.0) << "level " << l << " vertex " << v;
+      }
+    }
+  }
+}
+
 TEST(LabsikGreiner, ExtraordinaryRuleOnFans) {
   // Fan of valence n: the centre is the only extraordinary corner of each triangle
   // (c, r_i, r_i+1), so its point is 2/3 c + sum_j alpha_j r_(i+j). Lifting one vertex
