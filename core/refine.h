@@ -99,7 +99,8 @@ std::uint64_t check_face_budget(std::size_t faces, const RefineParams& params);
 
 //! Applies params.scheme params.levels times. Checks the face budget before any work,
 //! the cancel flag between levels. Takes the mesh by value: move it in to save a copy.
-//! \throw Error(InvalidParameter | BudgetExceeded | Cancelled)
+//! \throw Error(InvalidParameter | BudgetExceeded | Cancelled); Error(NotTriangleMesh) in the
+//! adaptive mode on a mesh that is not simple (see AdaptiveSplit4).
 RefineResult refine(Mesh mesh, const RefineParams& params, const ProgressFn& progress = {},
                     const std::atomic<bool>* cancel = nullptr);
 

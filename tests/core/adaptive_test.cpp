@@ -197,6 +197,35 @@ TEST(Adaptive, RejectsApproximatingSchemesAndBadRanges) {
   EXPECT_EQ(field_of(adaptive("butterfly", 0.1, 8)), "none");
 }
 
+// fuzz_pipeline's findings: the adaptive mode keys midpoints and green bisectors by vertex
+// pair, so on a mesh that is not simple faces overlapped and it failed with an Internal
+// error (a 500). Both shapes are refused before any work; uniform levels refine them.
+//  - crash-fb7b3439...: a tetrahedron's corner with one facet repeated in reverse; ingest
+//    cuts the non-manifold edge apart and leaves two edges between vertices 0 and 2.
+//  - crash-02345917...: a facet and its reverse (a closed two-face pillow) among other
+//    parts: the inner edges of the two faces' 1-to-4 children join the same vertices.
+TEST(Adaptive, RefusesMeshesThatAreNotSimpleBeforeAnyWork) {
+  IndexedSoup doubled_edge;
+  doubled_edge.positions = {{0, 0, 0}, {0, 2, 0}, {2, 0, 0}, {0, 0, 2}};
+  doubled_edge.triangles = {{{0, 1, 2}}, {{0, 2, 3}}, {{0, 3, 1}}, {{2, 0, 3}}};
+  IndexedSoup pillow;
+  pillow.positions = {{0, 0, 0}, {4, 0, 0}, {0, 3, 1}, {9, 9, 9}, {13, 9, 9}, {9, 12, 9}};
+  pillow.triangles = {{{0, 1, 2}}, {{0, 2, 1}}, {{3, 4, 5}}};
+  for (const IndexedSoup& soup : {doubled_edge, pillow}) {
+    const Mesh mesh = to_mesh(soup);
+    try {
+      refine(mesh, adaptive("butterfly", 1e-6, 2));
+      ADD_FAILURE() << "the adaptive mode accepted a mesh that is not simple";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::NotTriangleMesh) << e.what();
+      EXPECT_EQ(e.reason(), "adaptive_non_simple");
+    }
+    RefineParams uniform;
+    uniform.levels = 1;
+    EXPECT_EQ(refine(mesh, uniform).mesh.num_faces(), 4 * mesh.num_faces());
+  }
+}
+
 TEST(Adaptive, FaceBudgetIsCheckedBeforeEachStepIsBuilt) {
   RefineParams p = adaptive("lsf", 1e-6, 6);
   p.max_faces = 2000;
