@@ -9,6 +9,7 @@
 #include <cmath>
 #include <optional>
 #include <string>
+#include <unordered_set>
 
 #include "core/error.h"
 #include "core/parallel.h"
@@ -73,6 +74,35 @@ std::uint64_t check_face_budget(std::size_t faces, const RefineParams& params) {
   return predicted;
 }
 
+void require_simple_mesh(const Mesh& m) {
+  const auto refuse = [](const std::string& what) {
+    return Error(ErrorCode::NotTriangleMesh, "adaptive_non_simple",
+                 "adaptive refinement needs a simple mesh, but " + what +
+                     "; refine with uniform levels instead");
+  };
+  std::unordered_set<std::uint64_t> pairs;
+  pairs.reserve(m.num_edges());
+  for (std::uint32_t e = 0; e < m.num_edges(); ++e) {
+    const HalfedgeId h = m.halfedge(EdgeId(e));
+    const std::uint32_t a = std::min(m.from(h).idx, m.to(h).idx);
+    const std::uint32_t b = std::max(m.from(h).idx, m.to(h).idx);
+    if (!pairs.insert((std::uint64_t{a} << 32) | b).second)
+      throw refuse("vertices " + std::to_string(a) + " and " + std::to_string(b) +
+                   " are joined by two edges");
+  }
+  // With edges unique, faces on the same three vertices are twins across all three edges.
+  for (std::uint32_t f = 0; f < m.num_faces(); ++f) {
+    std::uint32_t across[3];
+    for (int k = 0; k < 3; ++k) {
+      const HalfedgeId t = m.twin(Mesh::halfedge(FaceId(f), k));
+      across[k] = t.valid() ? Mesh::face(t).idx : f;
+    }
+    if (across[0] != f && across[0] == across[1] && across[1] == across[2])
+      throw refuse("faces " + std::to_string(f) + " and " + std::to_string(across[0]) +
+                   " have the same three vertices");
+  }
+}
+
 namespace {
 
 void throw_if_cancelled(const std::atomic<bool>* cancel) {
@@ -94,6 +124,7 @@ RefineResult run_levels(Mesh mesh, const RefineParams& params, const Scheme& sch
   // Old vertices keep their ids at every level, so input vertex v is output vertex v.
   const BigVector<Vec3> input_positions(mesh.positions().begin(), mesh.positions().end());
 
+  if (params.adaptive()) require_simple_mesh(mesh);  // before any work
   Features features = detect_features(mesh, params.features);
   Level level{std::move(mesh), std::move(features)};
   r.sharp_edges_in = level.features.num_sharp_edges();

@@ -101,36 +101,10 @@ AdaptiveSplit4::AdaptiveSplit4(const Level& coarse) {
   red_.resize(m.num_faces());
   for (std::uint32_t f = 0; f < m.num_faces(); ++f)
     for (std::uint32_t k = 0; k < 3; ++k) red_[f][k] = m.from(HalfedgeId(3 * f + k)).idx;
-  // Edges are known by their two vertices here. Two edges joining the same pair (ingest
-  // leaves them where it cuts a non-manifold edge apart) would share one midpoint, and two
-  // faces on the same three vertices (a facet and its reverse) have 1-to-4 children whose
-  // inner edges join the same pairs; either way faces overlap. Such a mesh is refused
-  // before any work (422, not 500). A simple mesh stays simple under red and green splits.
-  const auto refuse = [](const std::string& what) {
-    return Error(ErrorCode::NotTriangleMesh, "adaptive_non_simple",
-                 "adaptive refinement needs a simple mesh, but " + what +
-                     "; refine with uniform levels instead");
-  };
-  std::unordered_set<std::uint64_t> pairs;
-  pairs.reserve(m.num_edges());
   for (std::uint32_t e = 0; e < m.num_edges(); ++e) {
+    if (!coarse.features.is_sharp(EdgeId(e))) continue;
     const HalfedgeId h = m.halfedge(EdgeId(e));
-    const std::uint32_t a = m.from(h).idx, b = m.to(h).idx;
-    if (!pairs.insert(vertex_pair(a, b)).second)
-      throw refuse("vertices " + std::to_string(std::min(a, b)) + " and " +
-                   std::to_string(std::max(a, b)) + " are joined by two edges");
-    if (coarse.features.is_sharp(EdgeId(e))) sharp_.insert(vertex_pair(a, b));
-  }
-  // With edges unique, faces on the same three vertices are twins across all three edges.
-  for (std::uint32_t f = 0; f < m.num_faces(); ++f) {
-    std::uint32_t across[3];
-    for (int k = 0; k < 3; ++k) {
-      const HalfedgeId t = m.twin(Mesh::halfedge(FaceId(f), k));
-      across[k] = t.valid() ? Mesh::face(t).idx : f;
-    }
-    if (across[0] != f && across[0] == across[1] && across[1] == across[2])
-      throw refuse("faces " + std::to_string(f) + " and " + std::to_string(across[0]) +
-                   " have the same three vertices");
+    sharp_.insert(vertex_pair(m.from(h).idx, m.to(h).idx));
   }
   build_level();
 }

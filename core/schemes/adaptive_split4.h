@@ -42,9 +42,8 @@ std::size_t count_edges_over_tolerance(const Level& level, const Split4Stencil& 
 //! interpolating), so input vertex v is output vertex v; watertight in, watertight out.
 class AdaptiveSplit4 {
  public:
-  //! \throw Error(NotTriangleMesh, "adaptive_non_simple") when two
-  //! edges of `coarse` join the same two vertices or two faces have the same three
-  //! (midpoints and green bisectors are keyed by vertex pair).
+  //! \pre `coarse` is simple (require_simple_mesh): midpoints and green bisectors are keyed
+  //! by vertex pair.
   explicit AdaptiveSplit4(const Level& coarse);
 
   //! One step. Returns false, changing nothing, when no edge is over a criterion (see

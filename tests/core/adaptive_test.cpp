@@ -197,9 +197,9 @@ TEST(Adaptive, RejectsApproximatingSchemesAndBadRanges) {
   EXPECT_EQ(field_of(adaptive("butterfly", 0.1, 8)), "none");
 }
 
-// fuzz_pipeline's findings: the adaptive mode keys midpoints and green bisectors by vertex
-// pair, so on a mesh that is not simple faces overlapped and it failed with an Internal
-// error (a 500). Both shapes are refused before any work; uniform levels refine them.
+// fuzz_pipeline's findings: both adaptive hosts know their output's edges by vertex pair,
+// so on a mesh that is not simple faces overlapped and they failed with an Internal error
+// (a 500). Both shapes are refused before any work; uniform levels refine them.
 //  - crash-fb7b3439...: a tetrahedron's corner with one facet repeated in reverse; ingest
 //    cuts the non-manifold edge apart and leaves two edges between vertices 0 and 2.
 //  - crash-02345917...: a facet and its reverse (a closed two-face pillow) among other
@@ -213,12 +213,15 @@ TEST(Adaptive, RefusesMeshesThatAreNotSimpleBeforeAnyWork) {
   pillow.triangles = {{{0, 1, 2}}, {{0, 2, 1}}, {{3, 4, 5}}};
   for (const IndexedSoup& soup : {doubled_edge, pillow}) {
     const Mesh mesh = to_mesh(soup);
-    try {
-      refine(mesh, adaptive("butterfly", 1e-6, 2));
-      ADD_FAILURE() << "the adaptive mode accepted a mesh that is not simple";
-    } catch (const Error& e) {
-      EXPECT_EQ(e.code(), ErrorCode::NotTriangleMesh) << e.what();
-      EXPECT_EQ(e.reason(), "adaptive_non_simple");
+    for (const char* scheme : {"butterfly", "lsf", "sqrt3-interp", "sqrt3"}) {
+      SCOPED_TRACE(scheme);
+      try {
+        refine(mesh, adaptive(scheme, 1e-6, 2));
+        ADD_FAILURE() << "the adaptive mode accepted a mesh that is not simple";
+      } catch (const Error& e) {
+        EXPECT_EQ(e.code(), ErrorCode::NotTriangleMesh) << e.what();
+        EXPECT_EQ(e.reason(), "adaptive_non_simple");
+      }
     }
     RefineParams uniform;
     uniform.levels = 1;
