@@ -4,9 +4,9 @@
 // libFuzzer harness: the whole request path on one STL input, as the daemon runs it:
 // read -> weld -> ingest/repair (api::ingest_stl), `info` (stats, features, curvature and
 // its CSV), `slice` of the input, then for every scheme in the registry one level of
-// `refine` (api::run_refine: face budget, refine, write_stl, report), the adaptive mode
-// once, and each refined STL read back by our own reader and sliced (every writer in
-// turn) at heights through its vertices and in between.
+// `refine` (api::run_refine: face budget, refine, write_stl, report), the adaptive modes
+// (1-to-4 and sqrt3) once each, and each refined STL read back by our own reader and
+// sliced (every writer in turn) at heights through its vertices and in between.
 //
 // Inputs above kMaxInputFaces faces are skipped, and refinements run under a face budget
 // of kMaxOutputFaces, so one input stays fast (milliseconds, not seconds).
@@ -77,14 +77,14 @@ void refine_checked(std::span<const std::uint8_t> bytes, api::RefineRequest requ
     // adaptive mode met a mesh that is not simple (AdaptiveSplit4 refuses those).
     fuzz::check(e.code() == ErrorCode::BudgetExceeded ||
                     (e.code() == ErrorCode::NotTriangleMesh && request.weld_tolerance > 0) ||
-                    (e.reason() == "adaptive_non_simple" && request.refine.adaptive_tol > 0),
+                    (e.reason() == "adaptive_non_simple" && request.refine.adaptive()),
                 "refine refused an ingested mesh:", e.what());
     return;
   }
   (void)out.report.dump(-1, ' ', true);  // as the daemon's report header
   const std::uint64_t faces = out.report["output"].value("faces", std::uint64_t{0});
   fuzz::check(faces <= request.refine.max_faces, "output over the face budget");
-  if (request.refine.adaptive_tol == 0) {
+  if (!request.refine.adaptive()) {
     const std::uint64_t in_faces = out.report["input"].value("faces", std::uint64_t{0});
     fuzz::check(faces == scheme->predict_faces(in_faces, request.refine.levels),
                 "output face count differs from the prediction");
@@ -154,15 +154,19 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     refine_checked(bytes, request, kFormats[i % kFormats.size()]);
   }
 
-  // The adaptive mode, two steps, at a tolerance relative to the part's size.
+  // The adaptive modes, two steps each: the 1-to-4 host at a tolerance relative to the
+  // part's size, and the sqrt3 host with the dihedral criterion as well.
   const slicer::Bounds b = slicer::mesh_bounds(mesh);
   const double diagonal = std::hypot(b.max.x - b.min.x, b.max.y - b.min.y, b.max.z - b.min.z);
-  api::RefineRequest adaptive;
-  adaptive.refine.scheme = "butterfly";
-  adaptive.refine.adaptive_tol = std::clamp(diagonal * 1e-3, 1e-9, 1e6);
-  adaptive.refine.max_level = 2;
-  adaptive.refine.max_faces = 2 * kMaxOutputFaces;
-  adaptive.refine.threads = 1;
-  refine_checked(bytes, adaptive, slicer::SliceFormat::Json);
+  for (const char* scheme : {"butterfly", "sqrt3-interp"}) {
+    api::RefineRequest adaptive;
+    adaptive.refine.scheme = scheme;
+    adaptive.refine.adaptive_tol = std::clamp(diagonal * 1e-3, 1e-9, 1e6);
+    if (adaptive.refine.scheme != "butterfly") adaptive.refine.adaptive_angle = 20;
+    adaptive.refine.max_level = 2;
+    adaptive.refine.max_faces = 2 * kMaxOutputFaces;
+    adaptive.refine.threads = 1;
+    refine_checked(bytes, adaptive, slicer::SliceFormat::Json);
+  }
   return 0;
 }

@@ -120,6 +120,8 @@ endsolid quad
         "refine_unified": "scheme=sqrt3-unified&levels=3&alpha=0.5&alpha_features=1"
                           "&crease_angle=30&max_faces=100000",
         "refine_adaptive": "scheme=lsf&adaptive_tol=0.01&max_level=4&weld_tolerance=0.001",
+        "refine_adaptive_sqrt3": "scheme=sqrt3-interp&adaptive_angle=20&adaptive_tol=0.05"
+                                 "&max_level=3",
         "refine_slice": "scheme=loop&levels=2&slice=0.1&slice_format=cli-binary",
         "refine_threads": "scheme=sqrt3-interp&levels=1&threads=2",
         "slice_uniform": "layer_height=0.2&format=svg&z_min=0&z_max=10&max_layers=100",
