@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "core/error.h"
+#include "core/parallel.h"
 
 namespace stlrefine {
 
@@ -238,6 +239,14 @@ class AdaptiveSqrt3::Hierarchy {
     refine(owner.t);
     if (flag(t, kFlip)) refine(twin(owner).t);
   }
+  // A DELETE'd job, a deadline or a client that hung up raises the flag passed to run()
+  // or the caller's CancelScope. Checked before every triangle is examined and before every
+  // split: one check is a relaxed load, far cheaper than either.
+  void throw_if_cancelled() const {
+    for (const std::atomic<bool>* flag : {cancel_, scope_cancel_})
+      if (flag && flag->load(std::memory_order_relaxed))
+        throw Error(ErrorCode::Cancelled, "cancelled", "refinement cancelled");
+  }
   void enqueue(std::uint32_t t) {
     if (flag(t, kQueued) || level(t) >= criteria_.max_level) return;
     tris_[t].flags |= kQueued;
@@ -262,6 +271,7 @@ class AdaptiveSqrt3::Hierarchy {
   std::size_t refined_count_ = 0;
   std::uint64_t max_faces_ = 0;
   const std::atomic<bool>* cancel_ = nullptr;
+  const std::atomic<bool>* scope_cancel_ = nullptr;  // the CancelScope run() was called in
   Sqrt3AdaptiveStats stats_;
 };
 
@@ -682,8 +692,7 @@ void AdaptiveSqrt3::Hierarchy::refine(std::uint32_t t) {
         "adaptive refinement would make more than max_faces = " + std::to_string(max_faces_) +
             " faces (stopped at " + std::to_string(faces - 2) + ")")
         .with_field("max_faces");
-  if (cancel_ && (refined_count_ & 1023) == 0 && cancel_->load(std::memory_order_relaxed))
-    throw Error(ErrorCode::Cancelled, "cancelled", "refinement cancelled");
+  throw_if_cancelled();
   tris_[t].flags |= kRefined;
   ++refined_count_;
 
@@ -712,6 +721,7 @@ void AdaptiveSqrt3::Hierarchy::run(std::uint64_t max_faces, const std::atomic<bo
                                    const std::function<void(int)>& level_started) {
   max_faces_ = max_faces;
   cancel_ = cancel;
+  scope_cancel_ = detail::current_cancel_flag;
   if (input_faces_ > max_faces)
     throw Error(ErrorCode::BudgetExceeded, "face_budget",
                 "the input has more than max_faces = " + std::to_string(max_faces) + " faces")
@@ -728,6 +738,7 @@ void AdaptiveSqrt3::Hierarchy::run(std::uint64_t max_faces, const std::atomic<bo
     }
     const std::uint32_t t = queue_[l].front();
     queue_[l].pop_front();
+    throw_if_cancelled();
     if (refined(t) || !wants_refinement(t)) continue;
     const std::size_t before = refined_count_;
     refine(t);
@@ -735,9 +746,11 @@ void AdaptiveSqrt3::Hierarchy::run(std::uint64_t max_faces, const std::atomic<bo
     stats_.refined_by_closure += refined_count_ - before - 1;
   }
   // At the cap some faces may still ask for more: say how many.
-  for (std::uint32_t t = 0; t < tris_.size(); ++t)
-    if (level(t) == criteria_.max_level && !refined(t) && exists(t) && wants_refinement(t))
-      ++stats_.over_criterion_at_cap;
+  for (std::uint32_t t = 0; t < tris_.size(); ++t) {
+    if (level(t) != criteria_.max_level || refined(t) || !exists(t)) continue;
+    throw_if_cancelled();
+    if (wants_refinement(t)) ++stats_.over_criterion_at_cap;
+  }
 }
 
 Level AdaptiveSqrt3::Hierarchy::result(std::vector<std::uint8_t>* face_level) {

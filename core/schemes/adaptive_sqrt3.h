@@ -82,7 +82,8 @@ class AdaptiveSqrt3 {
   //! Refines until no triangle below max_level asks for it. Calls level_started(l) when the
   //! first triangle of level l is examined.
   //! \throw Error(BudgetExceeded, field "max_faces") before the output would pass max_faces;
-  //! Error(Cancelled) when cancel is raised.
+  //! Error(Cancelled) when cancel, or the flag of the CancelScope this is called in, is
+  //! raised: checked before every triangle is examined and before every split.
   void run(std::uint64_t max_faces, const std::atomic<bool>* cancel = nullptr,
            const std::function<void(int)>& level_started = {});
 

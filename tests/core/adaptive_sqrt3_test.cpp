@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "core/error.h"
+#include "core/parallel.h"
 #include "core/refine.h"
 #include "core/schemes/adaptive_split4.h"
 #include "core/schemes/scheme.h"
@@ -477,6 +478,47 @@ TEST(AdaptiveSqrt3, CancelStopsIt) {
   p.max_level = 6;
   try {
     refine(to_mesh(icosphere_soup(2, 10.0)), p, {}, &cancel);
+    FAIL() << "expected Cancelled";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::Cancelled);
+  }
+}
+
+TEST(AdaptiveSqrt3, CancelStopsItBeforeTheNextTriangle) {
+  // Raised when level 1 starts: no level-1 triangle is examined, so the run stops with
+  // exactly the splits of a run capped at level 1 (not at the next 1024th split).
+  const Level sphere = make_level(to_mesh(icosphere_soup(2, 10.0)), 35);
+  const auto s = make_scheme("sqrt3-interp");
+  AdaptiveSqrt3 capped(sphere, *adaptive_sqrt3_scheme(*s), {1, 0, 1});
+  capped.run(1u << 26);
+  const std::size_t level0_splits =
+      capped.stats().refined_by_criterion + capped.stats().refined_by_closure;
+  ASSERT_GT(level0_splits, 0u);
+
+  std::atomic<bool> cancel{false};
+  AdaptiveSqrt3 adaptive(sphere, *adaptive_sqrt3_scheme(*s), {1, 0, 6});
+  try {
+    adaptive.run(1u << 26, &cancel, [&](int l) {
+      if (l == 1) cancel = true;
+    });
+    FAIL() << "expected Cancelled";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::Cancelled);
+  }
+  EXPECT_EQ(adaptive.stats().refined_by_criterion + adaptive.stats().refined_by_closure,
+            level0_splits);
+}
+
+TEST(AdaptiveSqrt3, CancelScopeStopsItWhileOnlyExamining) {
+  // A flat input: every triangle is examined, none is split. The job's flag reaches the
+  // run through the CancelScope alone (no flag passed).
+  const Level cube = make_level(to_mesh(cube_soup(2.0)), 35);
+  const auto s = make_scheme("sqrt3-interp");
+  AdaptiveSqrt3 adaptive(cube, *adaptive_sqrt3_scheme(*s), {0, 1e-9, 6});
+  std::atomic<bool> cancel{true};
+  const CancelScope scope(&cancel);
+  try {
+    adaptive.run(1u << 26);
     FAIL() << "expected Cancelled";
   } catch (const Error& e) {
     EXPECT_EQ(e.code(), ErrorCode::Cancelled);
