@@ -59,6 +59,7 @@ def ascii_stl(tris, name="seed", fmt="{:e}", eol="\n", kw=str.lower, indent="  "
 
 
 def write(sub, name, data):
+    os.makedirs(os.path.join(HERE, "corpus", sub), exist_ok=True)
     with open(os.path.join(HERE, "corpus", sub, name), "wb") as f:
         f.write(data)
 
@@ -113,6 +114,30 @@ endsolid quad
         with open(gear, "rb") as f:
             lines = f.read().splitlines(keepends=True)
         write("stl_ascii", "gearwheel_head.stl", b"".join(lines[:1 + 7 * 24]) + lines[-1])
+
+    # The binary meshes of ../shared/meshes (not large/), each cut to its first facets so
+    # that it fits -max_len (16 KiB: 326 facets) with the header count made to match: real
+    # exporters' headers, attribute bytes, float patterns and connectivity. Files already in
+    # tests/data (read whole by run.sh) are left out; two heads are also written as ASCII.
+    if os.path.isdir(SHARED):
+        copied = set()
+        for sub in ("core", "malformed"):
+            for name in os.listdir(os.path.join(HERE, "..", "tests", "data", sub)):
+                copied.add(name)
+        for sub in ("cad", "generated", "organic", "malformed"):
+            for name in sorted(os.listdir(os.path.join(SHARED, sub))):
+                if not name.endswith(".stl") or name in copied or name == "gearwheel_ascii.stl":
+                    continue
+                with open(os.path.join(SHARED, sub, name), "rb") as f:
+                    data = f.read()
+                n = min(struct.unpack_from("<I", data, 80)[0], (len(data) - 84) // 50, 326)
+                head = data[:80] + struct.pack("<I", n) + data[84:84 + 50 * n]
+                write("shared_meshes", f"{sub}_{name[:-4]}_{n}.stl", head)
+                if name in ("bunny_low.stl", "bracket.stl"):
+                    tris = [[struct.unpack_from("<3f", head, 84 + 50 * i + 12 * (1 + k))
+                             for k in range(3)] for i in range(48)]
+                    write("stl_ascii", f"{name[:-4]}_head48.stl",
+                          ascii_stl(tris, name=name[:-4], fmt="{:.6e}"))
 
     # Query strings of every route: valid ones, and the spellings a parser must refuse.
     queries = {

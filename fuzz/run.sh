@@ -6,8 +6,9 @@
 #
 # NAME: fuzz_stl_binary fuzz_stl_ascii fuzz_query fuzz_pipeline (default: all).
 # New inputs go to WORK/corpus/NAME (default WORK: BUILD_DIR/fuzz-work), crashes, leaks and
-# timeouts to WORK/artifacts/NAME/; the seeds in the repository are only read. Exits
-# non-zero on the first harness that finds something, naming the input to reproduce it with.
+# timeouts to WORK/artifacts/NAME/; the seeds in the repository are only read. A harness
+# that finds something stops there and names the input that reproduces it; the others still
+# run, and the script then exits non-zero.
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 root=$(dirname "$here")
@@ -46,10 +47,10 @@ options() {
 }
 seeds() {
   case "$1" in
-    fuzz_stl_binary) echo "$here/corpus/stl_binary $here/corpus/regressions $root/tests/data/core $root/tests/data/malformed" ;;
+    fuzz_stl_binary) echo "$here/corpus/stl_binary $here/corpus/shared_meshes $here/corpus/regressions $root/tests/data/core $root/tests/data/malformed" ;;
     fuzz_stl_ascii) echo "$here/corpus/stl_ascii" ;;
     fuzz_query) echo "$here/corpus/query" ;;
-    fuzz_pipeline) echo "$here/corpus/stl_binary $here/corpus/stl_ascii $here/corpus/regressions $root/tests/data/core $root/tests/data/malformed" ;;
+    fuzz_pipeline) echo "$here/corpus/stl_binary $here/corpus/stl_ascii $here/corpus/shared_meshes $here/corpus/regressions $root/tests/data/core $root/tests/data/malformed" ;;
   esac
 }
 
@@ -57,8 +58,11 @@ seeds() {
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1}
 
 for name in "${names[@]}"; do
+  [ -x "$build_dir/bin/$name" ] || { echo "fuzz/run.sh: $build_dir/bin/$name is missing (cmake --build --preset fuzz)" >&2; exit 2; }
+done
+failed=()
+for name in "${names[@]}"; do
   bin=$build_dir/bin/$name
-  [ -x "$bin" ] || { echo "fuzz/run.sh: $bin is missing (cmake --build --preset fuzz)" >&2; exit 2; }
   opts=$(options "$name")
   corpus=$work/corpus/$name
   artifacts=$work/artifacts/$name
@@ -70,7 +74,12 @@ for name in "${names[@]}"; do
     tail -n 60 "$work/$name.log" >&2
     echo "fuzz/run.sh: $name found a problem; reproduce with: $bin $artifacts/<file> (log $work/$name.log)" >&2
     ls -l "$artifacts" >&2
-    exit 1
+    failed+=("$name")
+    continue
   fi
   grep -E '^(#[0-9]+ +DONE|stat::)' "$work/$name.log" || tail -n 5 "$work/$name.log"
 done
+if [ ${#failed[@]} -gt 0 ]; then
+  echo "fuzz/run.sh: FAILED: ${failed[*]}" >&2
+  exit 1
+fi
