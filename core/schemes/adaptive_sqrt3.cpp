@@ -219,12 +219,16 @@ class AdaptiveSqrt3::Hierarchy {
     Mesh mesh;
     Features features;
     BigVector<double> alpha;
+    //! Trisecting levels: per local face, its sharp edge (Sqrt3Step::sharp_corner) from
+    //! the hierarchy's flags: the patch's own features also call the edges where the
+    //! patch ends sharp (they are its boundary).
+    BigVector<std::uint8_t> sharp_corner;
     std::vector<std::uint32_t> vertices;  // local -> global, sorted
   };
   void gather_fan(He h, std::vector<std::uint32_t>& out);
   Patch build_patch(std::vector<std::uint32_t> tris, int level);
   Sqrt3Step step_of(const Patch& p, int level) const {
-    return Sqrt3Step{p.mesh, p.features, trisects(level), p.alpha, {}};
+    return Sqrt3Step{p.mesh, p.features, trisects(level), p.alpha, p.sharp_corner};
   }
 
   // --- the driver
@@ -592,6 +596,13 @@ AdaptiveSqrt3::Hierarchy::Patch AdaptiveSqrt3::Hierarchy::build_patch(
     sharp[e] = (tris_[tris[h.idx / 3]].sharp >> (h.idx % 3)) & 1;
   }
   p.features = Features(p.mesh, std::move(sharp));
+  if (trisects(l)) {
+    p.sharp_corner.resize(tris.size());
+    for (std::uint32_t i = 0; i < tris.size(); ++i) {
+      const He s = sharp_of(tris[i]);
+      p.sharp_corner[i] = s.valid() ? s.k : 3;
+    }
+  }
   if (has_alpha_) {
     p.alpha.resize(p.vertices.size());
     for (std::size_t i = 0; i < p.vertices.size(); ++i) p.alpha[i] = alpha_[p.vertices[i]];

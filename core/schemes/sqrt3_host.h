@@ -24,7 +24,8 @@ struct Sqrt3Step {
   //! Per coarse vertex; empty unless the stencil asked for it (Sqrt3Stencil::initial_alpha).
   std::span<const double> alpha;
   //! In trisecting steps, per coarse face: the corner k whose half-edge 3f+k is the face's
-  //! one sharp edge, or 3 for none. Empty in the other steps.
+  //! one sharp edge, or 3 for none. Empty in the other steps. Stencils read it too: such a
+  //! face is a piece the previous step kept whole, two triangles of this level's lattice.
   std::span<const std::uint8_t> sharp_corner;
 
   //! False for the faces along a sharp edge in a trisecting step (they are split by

@@ -34,10 +34,11 @@ class LabsikGreinerStencil final : public Sqrt3Stencil {
   static double extraordinary_weight(int n, int i);
 
  private:
-  //! The face point from the 1-ring of the extraordinary vertex from(h) (valence n).
-  Vec3 extraordinary_point(const Mesh& mesh, HalfedgeId h, int n) const;
+  //! The face point from the 1-ring of the extraordinary vertex from(h) (valence n in the
+  //! step's lattice, virtual ring points included).
+  Vec3 extraordinary_point(const Sqrt3Step& step, HalfedgeId h, int n) const;
   //! The face point of `face` given the extraordinary valence of each corner (0: regular).
-  Vec3 face_point_from(const Mesh& mesh, const Features& features, FaceId face,
+  Vec3 face_point_from(const Sqrt3Step& step, FaceId face,
                        const std::array<int, 3>& extraordinary) const;
   static constexpr int kCachedValences = 64;  // larger valences are computed on the fly
   std::vector<std::vector<double>> weights_;
