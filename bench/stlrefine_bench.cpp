@@ -348,9 +348,10 @@ std::vector<RefineCase> make_refine_cases(const Options& opt, int level) {
   add_peer("openmesh-sqrt3", Family::Sqrt3);
   if (wanted("sqrt3-interp")) add_ours("sqrt3-interp", Family::Sqrt3);
   add_peer("openmesh-sqrt3-lg", Family::Sqrt3);
+  if (wanted("sqrt3-unified")) add_ours("sqrt3-unified", Family::Sqrt3);
   // Other schemes of ours (not compared with a peer).
   for (const std::string& scheme : opt.schemes) {
-    if (scheme != "loop" && scheme != "butterfly" && scheme != "sqrt3" && scheme != "sqrt3-interp")
+    if (scheme != "loop" && scheme != "butterfly" && scheme.rfind("sqrt3", 0) != 0)
       add_ours(scheme, Family::Butterfly);
   }
   if (!opt.no_pipeline) {
@@ -523,7 +524,7 @@ std::vector<std::pair<std::string, std::string>> peers_of(const std::string& key
   if (key == "ours-loop") return {{"cgal-loop", "CGAL"}, {"openmesh-loop", "OM"}};
   if (key == "ours-butterfly") return {{"openmesh-butterfly", "OM"}};
   if (key == "ours-sqrt3") return {{"cgal-sqrt3", "CGAL"}, {"openmesh-sqrt3", "OM"}};
-  if (key == "ours-sqrt3-interp")
+  if (key == "ours-sqrt3-interp" || key == "ours-sqrt3-unified")
     return {{"openmesh-sqrt3-lg", "OM LG"}, {"openmesh-sqrt3", "OM Sqrt3T"}};
   return {};
 }
@@ -701,9 +702,9 @@ void print_summary(std::ostream& out, const std::vector<InputResult>& inputs, co
            "sqrt3-interp ≥ 4× OpenMesh InterpolatingSqrt3LGT. Peak RSS of the refinement "
            "process in MiB.\n\n";
     out << "| input | L | ours sqrt3 | CGAL Sqrt3 | ratio | OM Sqrt3T | ratio | ours "
-           "sqrt3-interp | OM LG | ratio | vs OM Sqrt3T | peak MiB ours sqrt3 / CGAL / ours "
-           "interp / OM LG |\n";
-    out << "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|\n";
+           "sqrt3-interp | OM LG | ratio | vs OM Sqrt3T | ours sqrt3-unified | vs OM LG | "
+           "peak MiB ours sqrt3 / CGAL / ours interp / OM LG / ours unified |\n";
+    out << "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|\n";
     for (const InputResult& input : inputs) {
       for (const int level : levels) {
         const auto get = [&](const std::string& key) { return find_case(input, key, level, 1); };
@@ -712,12 +713,14 @@ void print_summary(std::ostream& out, const std::vector<InputResult>& inputs, co
         const RefineCase* om = get("openmesh-sqrt3");
         const RefineCase* lg = get("ours-sqrt3-interp");
         const RefineCase* om_lg = get("openmesh-sqrt3-lg");
-        if (!kob && !lg) continue;
+        const RefineCase* ll = get("ours-sqrt3-unified");
+        if (!kob && !lg && !ll) continue;
         out << "| " << input.name << " | " << level << " | " << rate_text(kob) << " | "
             << rate_text(cgal) << " | " << ratio_cell(kob, cgal) << " | " << rate_text(om) << " | "
             << ratio_cell(kob, om) << " | " << rate_text(lg) << " | " << rate_text(om_lg) << " | "
-            << ratio_cell(lg, om_lg) << " | " << ratio_cell(lg, om) << " | " << peak_text(kob)
-            << " / " << peak_text(cgal) << " / " << peak_text(lg) << " / " << peak_text(om_lg)
+            << ratio_cell(lg, om_lg) << " | " << ratio_cell(lg, om) << " | " << rate_text(ll)
+            << " | " << ratio_cell(ll, om_lg) << " | " << peak_text(kob) << " / " << peak_text(cgal)
+            << " / " << peak_text(lg) << " / " << peak_text(om_lg) << " / " << peak_text(ll)
             << " |\n";
       }
     }

@@ -6,15 +6,21 @@
 // 34228 triangles by interpolatory sqrt3 against 13364 and 49908 by the modified butterfly,
 // "a reduction by about 30%") on our meshes: triangles made by adaptive sqrt3-interp and
 // by adaptive butterfly (red-green 1-to-4) at the same dihedral criterion, next to the
-// uniform counts at the levels they reached. Markdown on stdout. Hand-run, never a test.
+// uniform counts at the levels they reached. Then the same at equal chordal tolerance
+// (adaptive_tol, mm): faces of adaptive sqrt3-interp, adaptive butterfly and of the uniform
+// level each scheme needs for the same deviation, with the largest deviation of each output
+// from its scheme's uniform level at the cap (and, for the spheres, from the true sphere).
+// Markdown on stdout. Hand-run, never a test.
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -43,6 +49,12 @@ struct Options {
   int sqrt3_cap = 8;
   int split4_cap = 6;
   double crease_angle = 35;
+  //! Chordal tolerances (mm) of the equal-tolerance table, and its level caps (the
+  //! reference of each scheme is its uniform level at the cap: 3^4 = 81 and 4^3 = 64
+  //! times the input's faces).
+  std::vector<double> tols{0.05, 0.01};
+  int tol_sqrt3_cap = 4;
+  int tol_split4_cap = 3;
 };
 
 struct Run {
@@ -123,6 +135,192 @@ Run run_butterfly(const Level& input, double angle, int cap) {
   return r;
 }
 
+// --- distance from points to a triangle mesh (a uniform grid of triangle bounding boxes)
+
+// Closest distance from p to triangle (a, b, c) (Ericson, Real-Time Collision Detection 5.1.5).
+double point_triangle_distance(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = dot(ab, ap), d2 = dot(ac, ap);
+  if (d1 <= 0 && d2 <= 0) return distance(p, a);
+  const Vec3 bp = p - b;
+  const double d3 = dot(ab, bp), d4 = dot(ac, bp);
+  if (d3 >= 0 && d4 <= d3) return distance(p, b);
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return distance(p, a + (d1 / (d1 - d3)) * ab);
+  const Vec3 cp = p - c;
+  const double d5 = dot(ab, cp), d6 = dot(ac, cp);
+  if (d6 >= 0 && d5 <= d6) return distance(p, c);
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return distance(p, a + (d2 / (d2 - d6)) * ac);
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0)
+    return distance(p, b + ((d4 - d3) / ((d4 - d3) + (d5 - d6))) * (c - b));
+  const double denom = va + vb + vc;
+  if (!(std::abs(denom) > 0)) return std::min({distance(p, a), distance(p, b), distance(p, c)});
+  return distance(p, a + (vb / denom) * ab + (vc / denom) * ac);
+}
+
+class MeshDistance {
+ public:
+  explicit MeshDistance(const Mesh& m) : m_(m) {
+    lo_ = hi_ = m.position(VertexId(0));
+    for (const Vec3& p : m.positions()) {
+      lo_ = {std::min(lo_.x, p.x), std::min(lo_.y, p.y), std::min(lo_.z, p.z)};
+      hi_ = {std::max(hi_.x, p.x), std::max(hi_.y, p.y), std::max(hi_.z, p.z)};
+    }
+    // About two triangles per cell.
+    const Vec3 size = hi_ - lo_;
+    const double volume = std::max(size.x, 1e-9) * std::max(size.y, 1e-9) * std::max(size.z, 1e-9);
+    cell_ = std::cbrt(volume / std::max<double>(1, m.num_faces() / 2.0));
+    cell_ = std::max({cell_, size.x / 512, size.y / 512, size.z / 512, 1e-9});
+    for (int k = 0; k < 3; ++k) n_[k] = std::max(1, int(std::ceil(coord(size, k) / cell_)) + 1);
+    start_.assign(std::size_t(n_[0]) * n_[1] * n_[2] + 1, 0);
+    std::vector<std::pair<std::size_t, std::uint32_t>> entries;
+    for (std::uint32_t f = 0; f < m.num_faces(); ++f) {
+      const auto [a, b, c] = m.face_vertices(FaceId(f));
+      std::array<int, 3> l{}, h{};
+      for (int k = 0; k < 3; ++k) {
+        const double lo =
+            std::min({coord(m.position(a), k), coord(m.position(b), k), coord(m.position(c), k)});
+        const double hi =
+            std::max({coord(m.position(a), k), coord(m.position(b), k), coord(m.position(c), k)});
+        l[k] = index(lo, k);
+        h[k] = index(hi, k);
+      }
+      for (int x = l[0]; x <= h[0]; ++x)
+        for (int y = l[1]; y <= h[1]; ++y)
+          for (int z = l[2]; z <= h[2]; ++z) entries.emplace_back(cell(x, y, z), f);
+    }
+    std::sort(entries.begin(), entries.end());
+    faces_.reserve(entries.size());
+    for (const auto& [c, f] : entries) {
+      ++start_[c + 1];
+      faces_.push_back(f);
+    }
+    for (std::size_t i = 1; i < start_.size(); ++i) start_[i] += start_[i - 1];
+  }
+
+  //! Distance from p to the mesh: cells in growing shells around p's cell until the best
+  //! distance found is below the shell's distance.
+  double operator()(const Vec3& p) const {
+    std::array<int, 3> c{};
+    for (int k = 0; k < 3; ++k) c[k] = index(coord(p, k), k);
+    double best = std::numeric_limits<double>::max();
+    const int max_r = std::max({n_[0], n_[1], n_[2]});
+    for (int r = 0; r <= max_r; ++r) {
+      for (int x = c[0] - r; x <= c[0] + r; ++x)
+        for (int y = c[1] - r; y <= c[1] + r; ++y)
+          for (int z = c[2] - r; z <= c[2] + r; ++z) {
+            if (std::max({std::abs(x - c[0]), std::abs(y - c[1]), std::abs(z - c[2])}) != r)
+              continue;
+            if (x < 0 || y < 0 || z < 0 || x >= n_[0] || y >= n_[1] || z >= n_[2]) continue;
+            const std::size_t id = cell(x, y, z);
+            for (std::size_t i = start_[id]; i < start_[id + 1]; ++i) {
+              const auto [a, b, cc] = m_.face_vertices(FaceId(faces_[i]));
+              best = std::min(best, point_triangle_distance(p, m_.position(a), m_.position(b),
+                                                            m_.position(cc)));
+            }
+          }
+      if (best <= r * cell_) break;  // every unvisited cell is at least r cells away
+    }
+    return best;
+  }
+
+ private:
+  static double coord(const Vec3& p, int k) { return k == 0 ? p.x : k == 1 ? p.y : p.z; }
+  int index(double v, int k) const {
+    return std::clamp(int((v - coord(lo_, k)) / cell_), 0, n_[k] - 1);
+  }
+  std::size_t cell(int x, int y, int z) const { return (std::size_t(z) * n_[1] + y) * n_[0] + x; }
+  const Mesh& m_;
+  Vec3 lo_, hi_;
+  double cell_ = 1;
+  std::array<int, 3> n_{};
+  std::vector<std::size_t> start_;
+  std::vector<std::uint32_t> faces_;
+};
+
+//! Points on every face of m (its centroid, the midpoints of its edges and the points
+//! (2/3, 1/6, 1/6)), passed to fn: an interpolating output's vertices are the reference's
+//! own, so its deviation is inside the faces.
+template <class Fn>
+void for_each_sample(const Mesh& m, Fn&& fn) {
+  for (std::uint32_t f = 0; f < m.num_faces(); ++f) {
+    const auto [ia, ib, ic] = m.face_vertices(FaceId(f));
+    const Vec3 a = m.position(ia), b = m.position(ib), c = m.position(ic);
+    fn((a + b + c) * (1.0 / 3.0));
+    fn(0.5 * (a + b));
+    fn(0.5 * (b + c));
+    fn(0.5 * (c + a));
+    fn((4.0 * a + b + c) * (1.0 / 6.0));
+    fn((a + 4.0 * b + c) * (1.0 / 6.0));
+    fn((a + b + 4.0 * c) * (1.0 / 6.0));
+  }
+}
+
+double max_deviation(const Mesh& m, const MeshDistance& reference) {
+  double worst = 0;
+  for_each_sample(m, [&](const Vec3& p) { worst = std::max(worst, reference(p)); });
+  return worst;
+}
+
+//! For the sphere inputs (radius 10 about the origin): the largest | |p| - 10 | sampled.
+double sphere_deviation(const Mesh& m) {
+  double worst = 0;
+  for_each_sample(m, [&](const Vec3& p) { worst = std::max(worst, std::abs(norm(p) - 10.0)); });
+  return worst;
+}
+
+Level uniform(const Level& input, const char* scheme, int levels) {
+  const auto s = make_scheme(scheme);
+  Level level = input;
+  StepStats stats;
+  for (int i = 0; i < levels; ++i) level = s->refine_once(level, stats);
+  return level;
+}
+
+struct TolRun {
+  std::size_t faces = 0;
+  int levels = 0;
+  double dev = 0, true_dev = -1, seconds = 0;
+};
+
+TolRun tol_sqrt3(const Level& input, double tol, int cap, const MeshDistance& reference,
+                 bool sphere) {
+  const auto scheme = make_scheme("sqrt3-interp");
+  const auto t0 = Clock::now();
+  AdaptiveSqrt3 adaptive(input, *adaptive_sqrt3_scheme(*scheme), {0, tol, cap});
+  adaptive.run(std::uint64_t{1} << 31);
+  const Level out = adaptive.result();
+  TolRun r;
+  r.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  r.faces = out.mesh.num_faces();
+  r.levels = adaptive.stats().levels;
+  r.dev = max_deviation(out.mesh, reference);
+  if (sphere) r.true_dev = sphere_deviation(out.mesh);
+  return r;
+}
+
+TolRun tol_butterfly(const Level& input, double tol, int cap, const MeshDistance& reference,
+                     bool sphere) {
+  const auto scheme = make_scheme("butterfly");
+  const Split4Stencil& stencil = *adaptive_scheme(*scheme);
+  const auto t0 = Clock::now();
+  AdaptiveSplit4 adaptive(input);
+  StepStats stats;
+  TolRun r;
+  for (int i = 1; i <= cap; ++i) {
+    AdaptiveStepStats step;
+    if (!adaptive.step(stencil, tol, std::uint64_t{1} << 31, stats, step)) break;
+    r.levels = i;
+  }
+  r.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  r.faces = adaptive.level().mesh.num_faces();
+  r.dev = max_deviation(adaptive.level().mesh, reference);
+  if (sphere) r.true_dev = sphere_deviation(adaptive.level().mesh);
+  return r;
+}
+
 std::string thousands(std::size_t n) {
   const std::string digits = std::to_string(n);
   std::string out;
@@ -146,6 +344,12 @@ int main(int argc, char** argv) {
   app.add_option("--sqrt3-cap", o.sqrt3_cap, "max_level of sqrt3-interp")->capture_default_str();
   app.add_option("--split4-cap", o.split4_cap, "max_level of butterfly")->capture_default_str();
   app.add_option("--crease-angle", o.crease_angle, "Crease angle (degrees)")->capture_default_str();
+  app.add_option("--tols", o.tols, "Chordal tolerances (mm) of the equal-tolerance table")
+      ->capture_default_str();
+  app.add_option("--tol-sqrt3-cap", o.tol_sqrt3_cap, "max_level of sqrt3-interp there")
+      ->capture_default_str();
+  app.add_option("--tol-split4-cap", o.tol_split4_cap, "max_level of butterfly there")
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
   std::cout << "sqrt3-interp max_level " << o.sqrt3_cap << ", butterfly max_level " << o.split4_cap
@@ -153,15 +357,22 @@ int main(int argc, char** argv) {
             << "°. Refined = triangles (sqrt3) or red triangles (butterfly) split because the "
                "criterion asked + to close the mesh; over at cap = faces (sqrt3) or edges "
                "(butterfly) still over the angle at the level cap.\n\n"
-            << "| input | faces | angle | sqrt3-interp | levels | over at cap | refined | s | "
-               "edge closure | butterfly | levels | over at cap | refined | s | sqrt3 / "
-               "butterfly | edge closure / butterfly |\n"
-               "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|\n";
-  for (const std::string& name : o.inputs) {
+            << "Uniform = faces of uniform refinement to the level the adaptive run reached.\n\n"
+            << "| input | faces | angle | sqrt3-interp | levels | uniform | over at cap | refined "
+               "| s | edge closure | butterfly | levels | uniform | over at cap | refined | s | "
+               "sqrt3 / butterfly | edge closure / butterfly |\n"
+               "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|\n";
+  auto load = [&](const std::string& name) {
     std::cerr << "reading " << name << '\n';
-    const Mesh mesh = name == "icosphere"
-                          ? build_mesh(icosphere()).mesh
-                          : build_mesh(weld(read_stl_file(fs::path(o.mesh_dir) / name))).mesh;
+    return name == "icosphere" ? build_mesh(icosphere()).mesh
+                               : build_mesh(weld(read_stl_file(fs::path(o.mesh_dir) / name))).mesh;
+  };
+  auto pow_faces = [](std::size_t faces, int base, int levels) {
+    for (int i = 0; i < levels; ++i) faces *= std::size_t(base);
+    return faces;
+  };
+  for (const std::string& name : o.inputs) {
+    const Mesh mesh = load(name);
     const Level input{mesh, detect_features(mesh, {o.crease_angle})};
     for (double angle : o.angles) {
       std::cerr << "  " << name << " at " << angle << " degrees\n";
@@ -169,14 +380,68 @@ int main(int argc, char** argv) {
       const Run e = run_sqrt3(input, angle, o.sqrt3_cap, Sqrt3Closure::EdgeNeighbours);
       const Run b = run_butterfly(input, angle, o.split4_cap);
       char line[512];
+      std::snprintf(
+          line, sizeof line,
+          "| %s | %s | %g° | %s | %d | %s | %zu | %zu + %zu | %.3f | %s | %s | %d | %s | %zu | "
+          "%zu + %zu | %.3f | %.2f | %.2f |",
+          name.c_str(), thousands(mesh.num_faces()).c_str(), angle, thousands(s.faces).c_str(),
+          s.levels, thousands(pow_faces(mesh.num_faces(), 3, s.levels)).c_str(), s.over_at_cap,
+          s.by_criterion, s.by_closure, s.seconds, thousands(e.faces).c_str(),
+          thousands(b.faces).c_str(), b.levels,
+          thousands(pow_faces(mesh.num_faces(), 4, b.levels)).c_str(), b.over_at_cap,
+          b.by_criterion, b.by_closure, b.seconds, double(s.faces) / double(b.faces),
+          double(e.faces) / double(b.faces));
+      std::cout << line << std::endl;
+    }
+  }
+
+  if (o.tols.empty()) return 0;
+  std::cout << "\nEqual chordal tolerance (adaptive_tol): sqrt3-interp max_level "
+            << o.tol_sqrt3_cap << ", butterfly max_level " << o.tol_split4_cap
+            << ". Dev = the largest distance (mm) of points sampled on every face (centroid, "
+               "edge midpoints, three inner points) from the same scheme's uniform level at "
+               "its cap; true = from the sphere of radius 10 (sphere inputs only). Uniform = "
+               "faces of the first uniform level of that scheme whose own dev is within the "
+               "tolerance (its level in brackets; \"(cap)\": no level below the cap is).\n\n"
+            << "| input | faces | tol mm | sqrt3-interp | levels | dev | true | uniform sqrt3 "
+               "| s | butterfly | levels | dev | true | uniform butterfly | s | sqrt3 / "
+               "butterfly |\n"
+               "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|\n";
+  for (const std::string& name : o.inputs) {
+    const Mesh mesh = load(name);
+    const bool sphere = name.find("sphere") != std::string::npos;
+    const Level input{mesh, detect_features(mesh, {o.crease_angle})};
+    std::cerr << "  " << name << ": references\n";
+    const Level ref_s = uniform(input, "sqrt3-interp", o.tol_sqrt3_cap);
+    const Level ref_b = uniform(input, "butterfly", o.tol_split4_cap);
+    const MeshDistance dist_s(ref_s.mesh), dist_b(ref_b.mesh);
+    // Deviation of each uniform level below the cap from the cap.
+    std::vector<double> dev_s, dev_b;
+    for (int l = 0; l < o.tol_sqrt3_cap; ++l)
+      dev_s.push_back(max_deviation(uniform(input, "sqrt3-interp", l).mesh, dist_s));
+    for (int l = 0; l < o.tol_split4_cap; ++l)
+      dev_b.push_back(max_deviation(uniform(input, "butterfly", l).mesh, dist_b));
+    auto needed = [&](const std::vector<double>& dev, double tol, int base) {
+      for (std::size_t l = 0; l < dev.size(); ++l)
+        if (dev[l] <= tol)
+          return thousands(pow_faces(mesh.num_faces(), base, int(l))) + " (" + std::to_string(l) +
+                 ")";
+      return "≥ " + thousands(pow_faces(mesh.num_faces(), base, int(dev.size()))) + " (cap)";
+    };
+    for (double tol : o.tols) {
+      std::cerr << "  " << name << " at tol " << tol << '\n';
+      const TolRun s = tol_sqrt3(input, tol, o.tol_sqrt3_cap, dist_s, sphere);
+      const TolRun b = tol_butterfly(input, tol, o.tol_split4_cap, dist_b, sphere);
+      auto true_text = [](double d) { return d < 0 ? std::string("–") : std::to_string(d); };
+      char line[512];
       std::snprintf(line, sizeof line,
-                    "| %s | %s | %g° | %s | %d | %zu | %zu + %zu | %.3f | %s | %s | %d | %zu | "
-                    "%zu + %zu | %.3f | %.2f | %.2f |",
-                    name.c_str(), thousands(mesh.num_faces()).c_str(), angle,
-                    thousands(s.faces).c_str(), s.levels, s.over_at_cap, s.by_criterion,
-                    s.by_closure, s.seconds, thousands(e.faces).c_str(), thousands(b.faces).c_str(),
-                    b.levels, b.over_at_cap, b.by_criterion, b.by_closure, b.seconds,
-                    double(s.faces) / double(b.faces), double(e.faces) / double(b.faces));
+                    "| %s | %s | %g | %s | %d | %.4f | %s | %s | %.3f | %s | %d | %.4f | %s | %s "
+                    "| %.3f | %.2f |",
+                    name.c_str(), thousands(mesh.num_faces()).c_str(), tol,
+                    thousands(s.faces).c_str(), s.levels, s.dev, true_text(s.true_dev).c_str(),
+                    needed(dev_s, tol, 3).c_str(), s.seconds, thousands(b.faces).c_str(), b.levels,
+                    b.dev, true_text(b.true_dev).c_str(), needed(dev_b, tol, 4).c_str(), b.seconds,
+                    double(s.faces) / double(b.faces));
       std::cout << line << std::endl;
     }
   }
