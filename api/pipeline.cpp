@@ -26,8 +26,10 @@ double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
+}  // namespace
+
 // The core's budget check, rethrown with its numbers for the 422 body.
-void check_budget(std::size_t faces, const RefineParams& params) {
+void refuse_over_face_budget(std::uint64_t faces, const RefineParams& params) {
   try {
     check_face_budget(faces, params);
   } catch (const Error& e) {
@@ -36,8 +38,6 @@ void check_budget(std::size_t faces, const RefineParams& params) {
     throw FaceBudgetError(e, predicted, params.max_faces);
   }
 }
-
-}  // namespace
 
 nlohmann::ordered_json run_info(std::span<const std::uint8_t> bytes, const InfoRequest& request) {
   return run_info(bytes, request, false).report;
@@ -66,7 +66,7 @@ RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineReques
   if (request.slice) request.slice->params.validate();
   Ingested in = ingest_stl(bytes, request.weld_tolerance);
   times.ingest = in.seconds;
-  check_budget(in.result.mesh.num_faces(), request.refine);
+  refuse_over_face_budget(in.result.mesh.num_faces(), request.refine);
   // The layer budget on the input's bounds, before any refinement work. (Refinement moves
   // the bounds a little; the refined mesh is planned again by the slicer itself.)
   if (request.slice) slicer::plan_layers(in.result.mesh, request.slice->params);

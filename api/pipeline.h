@@ -30,6 +30,11 @@ struct InfoOutcome {
 InfoOutcome run_info(std::span<const std::uint8_t> bytes, const InfoRequest& request,
                      bool curvature_csv);
 
+//! The face budget of run_refine (RefineParams::max_faces against the predicted output),
+//! for callers that know the face count before ingest (the daemon, from the STL's size).
+//! \throw FaceBudgetError (BudgetExceeded, field max_faces) with the predicted face count.
+void refuse_over_face_budget(std::uint64_t faces, const RefineParams& params);
+
 struct RefineOutcome {
   std::string stl;                //!< the refined mesh as STL bytes (request.output_format)
   nlohmann::ordered_json report;  //!< see refine_report; with a slice, also `slice`

@@ -34,6 +34,7 @@
 #include <utility>
 #include <vector>
 
+#include "api/memory_model.h"
 #include "api/params.h"
 #include "api/pipeline.h"
 #include "api/problem.h"
@@ -69,7 +70,14 @@
 //  - set_payload_max_length stays as the library's own backstop; the error handler gives
 //    every library answer >= 400 with an empty body (400, 404, 413, ...) a problem+json body.
 //  - Compute requests take a ComputeSlots lease and get 503 + Retry-After at once when
-//    none is free. A RequestWatch cancels them when the client hangs up.
+//    none is free. A RequestWatch cancels them when the client hangs up or their deadline
+//    (--request-deadline) passes.
+//  - Memory: decide() reserves a compute request's body in the MemoryBudget before it is
+//    read (503 when it does not fit now, 413 when it never can); the handler grows that to
+//    the request's predicted peak (api/memory_model.h) before any work (422 naming the
+//    parameter when one request may never have that much, 503 when it does not fit next to
+//    the running ones) and shrinks it to the answer once computed; the rest is given back
+//    when the connection closes.
 //  - httplib's default socket options set SO_REUSEPORT: a second daemon on the same port
 //    would bind successfully and share the traffic. Ours set SO_REUSEADDR only. The
 //    library listens with a backlog of 5; HttpServer widens it.
@@ -431,9 +439,13 @@ struct Daemon::Impl : FrontEndDelegate {
   //! A problem answer written by the front end, recorded like any other.
   std::string front_answer(const Request* req, const api::Problem& problem);
 
+  //! 503 busy for want of memory (a request fits alone, not next to the running ones).
+  api::Problem memory_busy_problem(std::uint64_t predicted) const;
+
   DaemonConfig config;
   api::RequestLimits limits;
   ComputeSlots slots;
+  MemoryBudget memory;
   HttpServer http;
   std::unique_ptr<FrontEnd> front;
   RequestWatch watch;
@@ -447,6 +459,12 @@ namespace {
 
 DaemonConfig checked(DaemonConfig c) {
   if (c.compute_slots == 0) c.compute_slots = std::max(1u, std::thread::hardware_concurrency());
+  if (c.memory_budget == 0) c.memory_budget = default_memory_budget();
+  if (c.memory_budget < 2 * kDaemonReserve)
+    throw std::invalid_argument("the memory budget must be at least " +
+                                std::to_string(2 * kDaemonReserve >> 20) + " MiB");
+  if (c.request_deadline.count() < 0)
+    throw std::invalid_argument("the request deadline must be >= 0");
   if (c.http_threads == 0) c.http_threads = c.compute_slots + 4;
   if (c.compute_slots > 4096) throw std::invalid_argument("compute_slots must be <= 4096");
   if (c.http_threads > 4096) throw std::invalid_argument("http_threads must be <= 4096");
@@ -477,10 +495,13 @@ Daemon::Impl::Impl(DaemonConfig c)
              .default_max_faces = 0,
              .max_slice_points = config.max_slice_points,
              .accept_threads = false},
-      slots(config.compute_slots) {
+      slots(config.compute_slots),
+      memory(config.memory_budget, kDaemonReserve) {
   if (!config.jobs.data_dir.empty()) {
     JobsConfig jc = config.jobs;
     if (jc.runners == 0) jc.runners = config.compute_slots;
+    jc.memory = &memory;
+    jc.deadline = config.request_deadline;
     jobs = std::make_unique<JobStore>(jc, slots, [this](const JobView& job, double seconds) {
       const auto& r = job.report;
       const std::uint64_t in = r.contains("input") ? r["input"].value("faces", 0ull) : 0;
@@ -618,6 +639,16 @@ api::Problem Daemon::Impl::busy_problem(bool is_stopping) const {
   return p;
 }
 
+api::Problem Daemon::Impl::memory_busy_problem(std::uint64_t predicted) const {
+  api::Problem p = api::make_problem(
+      503, "busy",
+      "the memory budget is taken by the requests running now (this one needs about " +
+          std::to_string((predicted + (1 << 20) - 1) >> 20) + " MiB); retry later");
+  p.extensions["reason"] = "memory";
+  p.extensions["memory_budget_bytes"] = memory.capacity();
+  return p;
+}
+
 httplib::Headers Daemon::Impl::problem_headers(const api::Problem& problem) const {
   httplib::Headers h;
   if (problem.status == 503) h.emplace("Retry-After", std::to_string(config.retry_after_seconds));
@@ -706,6 +737,27 @@ Verdict Daemon::Impl::decide(const RequestHead& head) {
     // precheck validated it: one decimal number, under the cap
     const std::string length = req.get_header_value("Content-Length");
     std::from_chars(length.data(), length.data() + length.size(), verdict.body_bytes);
+    if (route->kind == RouteKind::Compute) {
+      // The body is memory from now on: reserved before it is read.
+      if (verdict.body_bytes > memory.capacity()) {
+        api::Problem p =
+            api::make_problem(413, "payload-too-large",
+                              "the body is " + std::to_string(verdict.body_bytes) +
+                                  " bytes; this server's memory budget gives one request at most " +
+                                  std::to_string(memory.capacity()));
+        p.extensions["memory_budget_bytes"] = memory.capacity();
+        verdict.kind = Verdict::Kind::Answer;
+        verdict.response = front_answer(&req, p);
+        return verdict;
+      }
+      std::optional<MemoryBudget::Reservation> held = memory.try_reserve(verdict.body_bytes);
+      if (!held) {
+        verdict.kind = Verdict::Kind::Answer;
+        verdict.response = front_answer(&req, memory_busy_problem(verdict.body_bytes));
+        return verdict;
+      }
+      verdict.hold = std::make_shared<MemoryBudget::Reservation>(std::move(*held));
+    }
   }
   return verdict;
 }
@@ -731,6 +783,7 @@ void Daemon::Impl::compute(const Request& req, std::string_view raw_body, Respon
       fault_sink = ::operator new(huge);  // throws std::bad_alloc
     }
   }
+  std::shared_ptr<RequestWatch::Ticket> ticket;
   try {
     // Parsed again (cheap): the pre-routing check only validated.
     const auto body =
@@ -748,10 +801,40 @@ void Daemon::Impl::compute(const Request& req, std::string_view raw_body, Respon
 
     std::optional<ComputeSlots::Lease> lease = slots.try_acquire();
     if (!lease || stopping) return respond(res, busy_problem(stopping));
-    // Cancelled when the client hangs up (or on a second SIGTERM).
+
+    // Memory, before any work: the prediction must fit what one request may have (422) and
+    // next to the running requests (503). decide() reserved the body; grow that.
     const ReadRequest* connection = FrontEnd::current();
-    const std::shared_ptr<RequestWatch::Ticket> ticket =
-        watch.watch(connection ? connection->fd : -1, std::chrono::milliseconds(0));
+    std::shared_ptr<MemoryBudget::Reservation> reservation =
+        connection ? std::static_pointer_cast<MemoryBudget::Reservation>(connection->hold)
+                   : nullptr;
+    if (!reservation) {
+      std::optional<MemoryBudget::Reservation> r = memory.try_reserve(0);
+      reservation = std::make_shared<MemoryBudget::Reservation>(std::move(*r));
+    }
+    const api::StlShape shape = api::stl_shape(body);
+    api::MemoryEstimate predicted;
+    if (refine_request) {
+      // The face budget first: it is the request's own limit, with its own 422.
+      api::refuse_over_face_budget(shape.faces, refine_request->refine);
+      predicted = api::estimate_refine_memory(body, shape, *refine_request);
+    } else if (slice_request) {
+      predicted = api::estimate_slice_memory(body, shape, *slice_request);
+    } else {
+      predicted = api::estimate_info_memory(shape);
+    }
+    if (predicted.peak_bytes > memory.capacity())
+      return respond(res, api::memory_budget_problem(predicted, memory.capacity()));
+    if (!reservation->grow_to(predicted.peak_bytes))
+      return respond(res, memory_busy_problem(predicted.peak_bytes));
+    // Once computed, the reservation shrinks to the body and the answer, which stay in
+    // memory until the answer is sent and the connection closed.
+    auto keep_answer = [&](std::uint64_t answer_bytes) {
+      reservation->shrink_to(raw_body.size() + answer_bytes);
+    };
+
+    // Cancelled when the client hangs up, when the deadline passes (or on a second SIGTERM).
+    ticket = watch.watch(connection ? connection->fd : -1, config.request_deadline);
     const std::atomic<bool>* cancel = &ticket->cancel;
 
     // Large answers are handed over by a provider, not copied into res.body: a refined STL
@@ -781,28 +864,35 @@ void Daemon::Impl::compute(const Request& req, std::string_view raw_body, Respon
                                           *out.contours, format != slicer::SliceFormat::CliBinary},
                                          {"report.json", report, true}});
         lease.reset();
+        keep_answer(zip.size());
         res.set_header(kReportHeader, report);
         res.set_header("Content-Disposition", "attachment; filename=\"refined.zip\"");
         provide(std::move(zip), kZipContentType);
       } else {
         lease.reset();
+        keep_answer(out.stl.size());
         res.set_header(kReportHeader, report);
         provide(std::move(out.stl), kStlContentType);
       }
     } else if (slice_request) {
       api::SliceOutcome out = api::run_slice(body, *slice_request, {}, cancel);
       lease.reset();
+      keep_answer(out.contours.size());
       res.set_header(kReportHeader, out.report.dump(-1, ' ', true));
       provide(std::move(out.contours), slicer::media_type(slice_request->slice.format));
     } else {
       const nlohmann::ordered_json report = api::run_info(body, *info_request);
       lease.reset();
+      keep_answer(0);
       res.set_content(report.dump(2, ' ', true) + "\n", kJsonContentType);
     }
     res.status = 200;
   } catch (const Error& e) {
     res.headers.erase(kReportHeader);
     res.headers.erase("Content-Disposition");
+    if (e.code() == ErrorCode::Cancelled && ticket &&
+        ticket->reason() == RequestWatch::Reason::Deadline)
+      return respond(res, deadline_problem(config.request_deadline));
     respond(res, api::problem_from_error(e));
   }
 }
@@ -846,6 +936,12 @@ void Daemon::Impl::submit_job(const Request& req, std::string_view body, Respons
   if (config.test_hook) config.test_hook("/v1/jobs");
   try {
     api::RefineRequest request = api::parse_refine_params(raw_params(req), limits);
+    // A job that could never get its memory is refused now, not when its turn comes.
+    const auto bytes = std::span(reinterpret_cast<const std::uint8_t*>(body.data()), body.size());
+    const api::MemoryEstimate predicted = api::estimate_refine_memory(
+        bytes, api::stl_shape(bytes), request, api::ResultSink::JobFiles);
+    if (predicted.peak_bytes > memory.capacity())
+      return respond(res, api::memory_budget_problem(predicted, memory.capacity()));
     const std::size_t q = req.target.find('?');
     std::string query = q == std::string::npos ? "" : req.target.substr(q + 1);
     std::optional<JobView> job =
@@ -1023,6 +1119,8 @@ void Daemon::Impl::install() {
     Metrics::Gauges g;
     g.compute_slots = slots.capacity();
     g.compute_slots_free = slots.available();
+    g.memory_budget_bytes = memory.budget();
+    g.memory_reserved_bytes = memory.reserved();
     if (jobs) {
       g.jobs_queued = jobs->queued();
       g.jobs_running = jobs->running();
@@ -1152,6 +1250,10 @@ std::vector<RouteInfo> served_routes() {
 
 ComputeSlots& Daemon::compute_slots() {
   return impl_->slots;
+}
+
+MemoryBudget& Daemon::memory_budget() {
+  return impl_->memory;
 }
 
 const DaemonConfig& Daemon::config() const {

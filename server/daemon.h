@@ -13,8 +13,13 @@
 
 #include "server/compute_slots.h"
 #include "server/jobs.h"
+#include "server/memory_budget.h"
 
 namespace stlrefine::server {
+
+//! What the memory budget keeps for the idle daemon itself (about 10 MiB of RSS measured,
+//! the rest for allocator slack, connection buffers and bodies still arriving).
+inline constexpr std::uint64_t kDaemonReserve = std::uint64_t{64} << 20;
 
 //! Everything `stlrefined` can be told. Defaults are the daemon's defaults.
 struct DaemonConfig {
@@ -36,6 +41,15 @@ struct DaemonConfig {
   std::chrono::seconds write_timeout{60};
   //! Connections open at once (reading, computing, answering); one more gets 503 at once.
   std::size_t max_connections = 1024;
+  //! Bytes the whole daemon may use (0 = half the RAM or the cgroup limit, see
+  //! default_memory_budget). kDaemonReserve of it is kept for the idle daemon; each compute
+  //! request and job reserves its predicted peak (api/memory_model.h) from the rest, body and
+  //! answer included: a prediction above what one request may reserve is a 422 before any
+  //! work, one that does not fit next to the running ones a 503 (jobs wait in the queue).
+  std::uint64_t memory_budget = 0;
+  //! A computation (refine, slice, info, job) running longer is cancelled: 504
+  //! deadline-exceeded, a job ends failed. 0 = no deadline.
+  std::chrono::milliseconds request_deadline{0};
   //! Value of Retry-After on 503 answers.
   int retry_after_seconds = 2;
   //! One JSON line per request on stderr: time, request id, method, path, route, status,
@@ -86,6 +100,7 @@ class Daemon {
   void cancel_running();
 
   ComputeSlots& compute_slots();
+  MemoryBudget& memory_budget();
   //! Null when jobs are not enabled.
   JobStore* jobs();
   const DaemonConfig& config() const;

@@ -13,6 +13,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "api/memory_model.h"
 #include "api/pipeline.h"
 #include "core/error.h"
 #include "slicer/writers.h"
@@ -38,6 +39,8 @@ struct JobStore::Job {
   std::optional<nlohmann::ordered_json> problem;
   std::vector<std::string> results;
   std::uint64_t result_bytes = 0;
+  //! While it computes: its cancel flag (deadline, DELETE, shutdown). Under the mutex.
+  std::shared_ptr<RequestWatch::Ticket> ticket;
 };
 
 namespace {
@@ -129,6 +132,20 @@ void log_line(const std::string& line) {
 }
 
 }  // namespace
+
+api::Problem deadline_problem(std::chrono::milliseconds deadline) {
+  const double seconds = std::chrono::duration<double>(deadline).count();
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", seconds);
+  api::Problem p = api::make_problem(
+      504, "deadline-exceeded",
+      std::string("deadline exceeded: the computation ran longer than this server's request "
+                  "deadline of ") +
+          text + " s and was cancelled");
+  p.extensions["reason"] = "deadline_exceeded";
+  p.extensions["deadline_seconds"] = seconds;
+  return p;
+}
 
 const char* to_string(JobState state) {
   switch (state) {
@@ -353,6 +370,7 @@ JobStore::Lookup JobStore::cancel(const std::string& id, JobView* out) {
     return Lookup::Expired;
   }
   job.cancel = true;
+  if (job.ticket) job.ticket->raise(RequestWatch::Reason::Cancelled);
   if (job.state == JobState::Queued) {
     queue_.erase(std::remove(queue_.begin(), queue_.end(), it->second), queue_.end());
     job.state = JobState::Cancelled;
@@ -419,19 +437,54 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
   nlohmann::ordered_json report;
   std::vector<std::string> results;
   std::uint64_t bytes = 0;
+  std::optional<MemoryBudget::Reservation> memory;
+  std::shared_ptr<RequestWatch::Ticket> ticket;
+  const auto cancelled = [&] { return job->cancel || cancel_all_; };
+  struct Refused {
+    api::Problem problem;
+  };
   try {
     if (!lease) throw Error(ErrorCode::Cancelled, "cancelled", "cancelled before it started");
     const std::string input = read_file(job->dir / kInputFile);
+    const auto input_bytes =
+        std::span(reinterpret_cast<const std::uint8_t*>(input.data()), input.size());
+    if (config_.memory) {
+      // Its predicted peak, before any work (the face budget first, as in run_refine); it
+      // waits for that like for a slot.
+      const api::StlShape shape = api::stl_shape(input_bytes);
+      api::refuse_over_face_budget(shape.faces, job->request.refine);
+      const api::MemoryEstimate predicted =
+          api::estimate_refine_memory(input_bytes, shape, job->request, api::ResultSink::JobFiles);
+      if (predicted.peak_bytes > config_.memory->capacity())
+        throw Refused{api::memory_budget_problem(predicted, config_.memory->capacity())};
+      if (!(memory = config_.memory->try_reserve(predicted.peak_bytes))) {
+        {
+          std::lock_guard lock(mutex_);
+          job->stage = "waiting for memory";
+        }
+        while (!(memory = config_.memory->try_reserve(predicted.peak_bytes)) && !cancelled())
+          std::this_thread::sleep_for(std::chrono::milliseconds(20));
+        if (!memory) throw Error(ErrorCode::Cancelled, "cancelled", "cancelled before it started");
+      }
+    }
+    {
+      // The deadline counts from here; DELETE and shutdown raise the same flag.
+      std::lock_guard lock(mutex_);
+      ticket = watch_.watch(-1, config_.deadline);
+      job->ticket = ticket;
+      if (job->cancel) ticket->raise(RequestWatch::Reason::Cancelled);
+    }
     auto progress = [&](double fraction, std::string_view stage) {
       std::error_code ec;
-      if (fs::exists(job->dir / kCancelFile, ec)) job->cancel = true;  // from another replica
+      if (fs::exists(job->dir / kCancelFile, ec)) {  // from another replica
+        job->cancel = true;
+        ticket->raise(RequestWatch::Reason::Cancelled);
+      }
       std::lock_guard lock(mutex_);
       job->progress = std::clamp(fraction, 0.0, 1.0);
       job->stage = std::string(stage);
     };
-    api::RefineOutcome out = api::run_refine(
-        std::span(reinterpret_cast<const std::uint8_t*>(input.data()), input.size()), job->request,
-        progress, &job->cancel);
+    api::RefineOutcome out = api::run_refine(input_bytes, job->request, progress, &ticket->cancel);
     report = out.report;
     write_atomically(job->dir / "result.stl", out.stl);
     results.push_back("result.stl");
@@ -448,8 +501,13 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
     results.push_back("report.json");
     bytes += report_text.size();
     state = JobState::Done;
+  } catch (const Refused& r) {
+    problem = r.problem;
   } catch (const Error& e) {
-    if (e.code() == ErrorCode::Cancelled || job->cancel || cancel_all_) {
+    if (e.code() == ErrorCode::Cancelled && ticket &&
+        ticket->reason() == RequestWatch::Reason::Deadline) {
+      problem = deadline_problem(config_.deadline);
+    } else if (e.code() == ErrorCode::Cancelled || job->cancel || cancel_all_) {
       state = JobState::Cancelled;
       problem = api::make_problem(409, "cancelled",
                                   cancel_all_ && !job->cancel ? "cancelled: the server shut down"
@@ -462,11 +520,13 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
     problem = api::make_problem(500, "internal", "an internal error occurred");
   }
   lease.reset();
+  memory.reset();
   fs::remove(job->dir / kInputFile);
 
   JobView done;
   {
     std::lock_guard lock(mutex_);
+    job->ticket.reset();
     job->state = state;
     job->finished = Clock::now();
     job->progress = state == JobState::Done ? 1.0 : job->progress;
@@ -546,8 +606,11 @@ void JobStore::janitor() {
 void JobStore::cancel_running() {
   std::lock_guard lock(mutex_);
   cancel_all_ = true;
-  for (auto& [id, job] : jobs_)
-    if (job->state == JobState::Running) job->cancel = true;
+  for (auto& [id, job] : jobs_) {
+    if (job->state != JobState::Running) continue;
+    job->cancel = true;
+    if (job->ticket) job->ticket->raise(RequestWatch::Reason::Shutdown);
+  }
 }
 
 void JobStore::shutdown(std::chrono::milliseconds grace) {

@@ -22,11 +22,17 @@
 #include "api/params.h"
 #include "api/problem.h"
 #include "server/compute_slots.h"
+#include "server/memory_budget.h"
+#include "server/request_watch.h"
 
 namespace stlrefine::server {
 
 enum class JobState { Queued, Running, Done, Failed, Cancelled };
 const char* to_string(JobState state);
+
+//! The problem of a computation cancelled at its deadline: 504 deadline-exceeded, reason
+//! "deadline_exceeded", `deadline_seconds`.
+api::Problem deadline_problem(std::chrono::milliseconds deadline);
 
 struct JobsConfig {
   //! Where inputs, results and each job's job.json live (created if missing). Empty means
@@ -43,6 +49,11 @@ struct JobsConfig {
   //! This daemon's name among replicas sharing data_dir (default: the host name). A job is
   //! run, recovered and expired by its owner; any replica answers for it from disk.
   std::string instance;
+  //! When set, a job reserves its predicted peak (api/memory_model.h) here before it runs,
+  //! waiting for it like for a compute slot; a job that could never fit fails (422).
+  MemoryBudget* memory = nullptr;
+  //! A job computing longer is cancelled and fails with "deadline exceeded"; 0 = never.
+  std::chrono::milliseconds deadline{0};
 };
 
 //! What a client sees of a job (a copy, taken under the store's lock).
@@ -126,6 +137,7 @@ class JobStore {
   std::atomic<bool> cancel_all_{false};
   std::vector<std::thread> runners_;
   std::thread janitor_;
+  RequestWatch watch_;  // deadlines of running jobs
 };
 
 }  // namespace stlrefine::server

@@ -14,16 +14,19 @@
 #include <atomic>
 #include <cctype>
 #include <cerrno>
+#include <cmath>
 #include <csignal>
 #include <cstdint>
 #include <ctime>
 #include <exception>
 #include <fstream>
 #include <iostream>
+#include <stdexcept>
 #include <string>
 #include <thread>
 
 #include "server/daemon.h"
+#include "server/memory_budget.h"
 
 namespace {
 
@@ -86,6 +89,8 @@ int main(int argc, char** argv) {
   int shutdown_grace = 30;
   std::string api_key_file;
   std::size_t max_connections = 1024;
+  std::string memory_budget;
+  double request_deadline = 900;
   bool test_faults = false;
   app.set_config("--config", "", "Read options from this TOML/INI file (key = value)");
   app.add_option("--host", host, "Address to listen on")->capture_default_str();
@@ -142,6 +147,25 @@ int main(int argc, char** argv) {
                  "Connections open at once; one more gets 503 at once")
       ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 20))
       ->capture_default_str();
+  app.add_option("--memory-budget", memory_budget,
+                 "Memory the daemon may use in all: bytes, or with a suffix K, M, G, T (binary: "
+                 "512M, 8G); a request predicted above its share gets 422, one that does not "
+                 "fit next to the running ones 503 (default: half the RAM or cgroup limit)")
+      ->check([](const std::string& text) {
+        try {
+          const std::uint64_t bytes = stlrefine::server::parse_byte_size(text);
+          if (bytes < 2 * stlrefine::server::kDaemonReserve)
+            return std::string("the memory budget must be at least 128M");
+          return std::string();
+        } catch (const std::invalid_argument& e) {
+          return std::string(e.what());
+        }
+      });
+  app.add_option("--request-deadline", request_deadline,
+                 "Seconds a computation (refine, slice, info, job) may run before it is "
+                 "cancelled (504; a job fails); 0 = no deadline")
+      ->check(CLI::Range(0.0, 7.0 * 24 * 3600))
+      ->capture_default_str();
   // Tests only: lets a request header make its handler throw or fail an allocation.
   app.add_flag("--test-faults", test_faults, "")->group("");
   // Every option can also come from the environment: STLREFINED_PORT=9000, ...
@@ -174,6 +198,10 @@ int main(int argc, char** argv) {
     config.jobs.disk_budget_bytes = disk_budget_mib << 20;
     config.shutdown_grace = std::chrono::seconds(shutdown_grace);
     config.max_connections = max_connections;
+    config.memory_budget =
+        memory_budget.empty() ? 0 : stlrefine::server::parse_byte_size(memory_budget);
+    config.request_deadline =
+        std::chrono::milliseconds(static_cast<long long>(std::llround(request_deadline * 1000)));
     config.test_faults = test_faults;
     if (!api_key_file.empty()) {
       std::ifstream keys(api_key_file);

@@ -115,6 +115,13 @@ std::string Metrics::render(const Gauges& g) const {
   out << "# HELP stlrefine_compute_slots_free Compute slots free.\n"
          "# TYPE stlrefine_compute_slots_free gauge\nstlrefine_compute_slots_free "
       << g.compute_slots_free << "\n";
+  out << "# HELP stlrefine_memory_budget_bytes Memory the daemon may use (--memory-budget).\n"
+         "# TYPE stlrefine_memory_budget_bytes gauge\nstlrefine_memory_budget_bytes "
+      << g.memory_budget_bytes << "\n";
+  out << "# HELP stlrefine_memory_reserved_bytes Predicted peak memory reserved by requests "
+         "computing or answering now.\n"
+         "# TYPE stlrefine_memory_reserved_bytes gauge\nstlrefine_memory_reserved_bytes "
+      << g.memory_reserved_bytes << "\n";
   return out.str();
 }
 

@@ -24,6 +24,7 @@ class Metrics {
   struct Gauges {
     std::size_t jobs_queued = 0, jobs_running = 0;
     std::size_t compute_slots = 0, compute_slots_free = 0;
+    std::uint64_t memory_budget_bytes = 0, memory_reserved_bytes = 0;
   };
   std::string render(const Gauges& gauges) const;
 

@@ -13,11 +13,12 @@
 namespace stlrefine::server {
 
 //! Raises a request's cancel flag (the one the core's CancelScope and level loop check) when
-//! its deadline passes, when its client hangs up, or on cancel_all(): runaway or abandoned
+//! its deadline passes, when its client hangs up, or on cancel_all() (raise(Cancelled) is
+//! for owners that cancel it themselves, as DELETE of a job does): runaway or abandoned
 //! work frees its compute slot and memory within one chunk of work.
 class RequestWatch {
  public:
-  enum class Reason { None, Deadline, Disconnected, Shutdown };
+  enum class Reason { None, Deadline, Disconnected, Shutdown, Cancelled };
 
   struct Ticket {
     std::atomic<bool> cancel{false};

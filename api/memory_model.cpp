@@ -1,0 +1,329 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#include "api/memory_model.h"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <string_view>
+#include <vector>
+
+#include "core/refine.h"
+#include "core/schemes/scheme.h"
+
+namespace stlrefine::api {
+
+namespace {
+
+// --- coefficients (bytes); see the calibration note at the end of this file
+
+struct Coefficients {
+  double fixed;           // per request: thread stacks, report, small buffers
+  double input_face;      // ingest: soup, welding, the input mesh and its features
+  double split4_face;     // per output face of a uniform 1-to-4 refinement, STL included
+  double sqrt3_face;      // per output face of a uniform sqrt3 refinement, STL included
+  double adaptive4_face;  // per output face (the bound) of the adaptive 1-to-4 host
+  double adaptive3_face;  // per output face (the bound) of the adaptive sqrt3 host
+  double slice_face;      // per sliced face: the slicer's per-face arrays
+  double info_face;       // per input face of an info report (features, curvatures)
+};
+
+constexpr Coefficients kC{
+    .fixed = 4.0 * (1 << 20),
+    .input_face = 160,
+    .split4_face = 190,
+    .sqrt3_face = 210,
+    .adaptive4_face = 400,
+    .adaptive3_face = 600,
+    .slice_face = 40,
+    .info_face = 400,
+};
+
+// Bytes of one contour point in each format (the answer is held whole).
+double point_bytes(slicer::SliceFormat format) {
+  switch (format) {
+    case slicer::SliceFormat::Json:
+      return 32;
+    case slicer::SliceFormat::Svg:
+      return 24;
+    case slicer::SliceFormat::CliAscii:
+      return 24;
+    case slicer::SliceFormat::CliBinary:
+      return 12;
+  }
+  return 32;
+}
+
+constexpr std::uint64_t kPreamble = 84;
+constexpr std::uint64_t kFacet = 50;
+
+std::uint32_t load_u32le(const std::uint8_t* p) {
+  return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8 | std::uint32_t(p[2]) << 16 |
+         std::uint32_t(p[3]) << 24;
+}
+
+float load_f32le(const std::uint8_t* p) {
+  const std::uint32_t u = load_u32le(p);
+  float f;
+  std::memcpy(&f, &u, sizeof f);
+  return f;
+}
+
+bool is_space(std::uint8_t c) {
+  return c == ' ' || c == '\t' || c == '\n' || c == '\r' || c == '\f' || c == '\v';
+}
+
+bool iequals(std::string_view a, std::string_view b) {
+  if (a.size() != b.size()) return false;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const char x = a[i] >= 'A' && a[i] <= 'Z' ? char(a[i] - 'A' + 'a') : a[i];
+    if (x != b[i]) return false;
+  }
+  return true;
+}
+
+bool starts_with_solid(std::span<const std::uint8_t> bytes) {
+  std::size_t i = 0;
+  if (bytes.size() >= 3 && bytes[0] == 0xEF && bytes[1] == 0xBB && bytes[2] == 0xBF) i = 3;
+  while (i < bytes.size() && is_space(bytes[i])) ++i;
+  if (bytes.size() - i < 5) return false;
+  return iequals(std::string_view(reinterpret_cast<const char*>(bytes.data() + i), 5), "solid");
+}
+
+//! Whitespace-separated tokens of an ASCII STL, in order.
+class Tokens {
+ public:
+  explicit Tokens(std::span<const std::uint8_t> bytes)
+      : text_(reinterpret_cast<const char*>(bytes.data()), bytes.size()) {}
+  bool next(std::string_view& token) {
+    while (pos_ < text_.size() && is_space(static_cast<std::uint8_t>(text_[pos_]))) ++pos_;
+    if (pos_ == text_.size()) return false;
+    const std::size_t start = pos_;
+    while (pos_ < text_.size() && !is_space(static_cast<std::uint8_t>(text_[pos_]))) ++pos_;
+    token = text_.substr(start, pos_ - start);
+    return true;
+  }
+
+ private:
+  std::string_view text_;
+  std::size_t pos_ = 0;
+};
+
+//! Calls fn(z0, z1, z2) for every facet whose three corner z values are readable.
+template <class Fn>
+void for_each_facet_z(std::span<const std::uint8_t> bytes, const StlShape& shape, Fn&& fn) {
+  if (shape.binary) {
+    for (std::uint64_t f = 0; f < shape.faces; ++f) {
+      const std::uint8_t* facet = bytes.data() + kPreamble + f * kFacet;
+      // normal (12 bytes), then three corners of 3 floats: z at +8 of each
+      fn(double(load_f32le(facet + 12 + 8)), double(load_f32le(facet + 24 + 8)),
+         double(load_f32le(facet + 36 + 8)));
+    }
+    return;
+  }
+  if (shape.faces == 0) return;
+  Tokens tokens(bytes);
+  std::string_view token;
+  double z[3];
+  int corner = 0;
+  while (tokens.next(token)) {
+    if (iequals(token, "endfacet")) {
+      if (corner == 3) fn(z[0], z[1], z[2]);
+      corner = 0;
+      continue;
+    }
+    if (!iequals(token, "vertex")) continue;
+    std::string_view coordinate;
+    bool ok = true;
+    double value = 0;
+    for (int k = 0; k < 3 && ok; ++k) {
+      ok = tokens.next(coordinate);
+      if (!ok) break;
+      const auto [end, ec] =
+          std::from_chars(coordinate.data(), coordinate.data() + coordinate.size(), value);
+      ok = ec == std::errc() && end == coordinate.data() + coordinate.size();
+    }
+    if (ok && corner < 3) z[corner++] = value;
+  }
+}
+
+//! Planes at or below z, for the plan of `params` over [lo, hi].
+struct Planes {
+  std::vector<double> heights;  // explicit, ascending
+  double lo = 0, h = 1;
+  std::uint64_t n = 0;  // uniform
+  std::uint64_t at_or_below(double z) const {
+    if (!heights.empty())
+      return std::uint64_t(std::upper_bound(heights.begin(), heights.end(), z) - heights.begin());
+    const double k = std::floor((z - lo) / h - 0.5) + 1;  // planes lo + (k + 1/2) h <= z
+    if (!(k > 0)) return 0;
+    return std::min<std::uint64_t>(n, std::uint64_t(std::min(k, 1e18)));
+  }
+};
+
+std::uint64_t predict_faces(const RefineParams& p, std::uint64_t faces) {
+  const std::unique_ptr<Scheme> scheme = make_scheme(p.scheme);
+  if (!p.adaptive()) return scheme->predict_faces(faces, p.levels);
+  // The adaptive mode stops at max_faces; its output is bounded by the uniform count at
+  // the level cap.
+  return std::min<std::uint64_t>(scheme->predict_faces(faces, p.max_level), p.max_faces);
+}
+
+bool is_sqrt3(const RefineParams& p) {
+  const std::unique_ptr<Scheme> scheme = make_scheme(p.scheme);
+  return adaptive_sqrt3_scheme(*scheme) != nullptr;
+}
+
+// The slice's point estimate, capped by the point budget (over it the slicer refuses).
+std::uint64_t contour_points(std::uint64_t crossings, const slicer::SliceParams& params) {
+  return std::min<std::uint64_t>(crossings, params.max_points);
+}
+
+}  // namespace
+
+StlShape stl_shape(std::span<const std::uint8_t> bytes) {
+  StlShape s;
+  s.bytes = bytes.size();
+  if (bytes.size() >= kPreamble) {
+    const std::uint64_t n = load_u32le(bytes.data() + 80);
+    if (bytes.size() == kPreamble + kFacet * n) {
+      s.binary = true;
+      s.faces = n;
+    }
+  }
+  if (!s.binary && starts_with_solid(bytes)) {
+    Tokens tokens(bytes);
+    std::string_view token;
+    while (tokens.next(token))
+      if (iequals(token, "endfacet")) ++s.faces;
+  }
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for_each_facet_z(bytes, s, [&](double a, double b, double c) {
+    for (const double z : {a, b, c}) {
+      if (!std::isfinite(z)) continue;
+      lo = std::min(lo, z);
+      hi = std::max(hi, z);
+    }
+  });
+  if (lo <= hi) {
+    s.has_z = true;
+    s.z_min = lo;
+    s.z_max = hi;
+  }
+  return s;
+}
+
+std::uint64_t count_crossings(std::span<const std::uint8_t> bytes, const StlShape& shape,
+                              const slicer::SliceParams& params) {
+  Planes planes;
+  if (!params.heights.empty()) {
+    planes.heights = params.heights;
+    std::sort(planes.heights.begin(), planes.heights.end());
+  } else {
+    if (!shape.has_z && !(params.z_min && params.z_max)) return 0;
+    planes.lo = params.z_min.value_or(shape.z_min);
+    const double hi = params.z_max.value_or(shape.z_max);
+    planes.h = params.layer_height;
+    if (!(planes.h > 0) || !(hi >= planes.lo)) return 0;
+    const double span = (hi - planes.lo) / planes.h;
+    // Over max_layers the plan is refused before any work: nothing to estimate.
+    if (!(span <= double(params.max_layers) + 1)) return 0;
+    planes.n = std::uint64_t(std::floor(span + 0.5)) + 1;
+  }
+  std::uint64_t crossings = 0;
+  for_each_facet_z(bytes, shape, [&](double a, double b, double c) {
+    if (!std::isfinite(a) || !std::isfinite(b) || !std::isfinite(c)) return;
+    crossings += planes.at_or_below(std::max({a, b, c})) - planes.at_or_below(std::min({a, b, c}));
+  });
+  return crossings;
+}
+
+MemoryEstimate estimate_refine_memory(std::span<const std::uint8_t> bytes, const StlShape& shape,
+                                      const RefineRequest& request, ResultSink sink) {
+  const RefineParams& p = request.refine;
+  MemoryEstimate e;
+  const std::uint64_t faces = shape.faces;
+  e.output_faces = predict_faces(p, faces);
+  const bool sqrt3 = is_sqrt3(p);
+  const double per_face = p.adaptive() ? (sqrt3 ? kC.adaptive3_face : kC.adaptive4_face)
+                                       : (sqrt3 ? kC.sqrt3_face : kC.split4_face);
+  // Over the face budget, run_refine refuses right after ingest: that is all it needs.
+  if (!p.adaptive() && e.output_faces > p.max_faces) {
+    e.peak_bytes = std::uint64_t(kC.fixed + double(shape.bytes) + kC.input_face * double(faces));
+    e.field = "max_faces";
+    return e;
+  }
+  const double stl = double(kPreamble + kFacet * e.output_faces);
+  double peak = kC.fixed + double(shape.bytes) + kC.input_face * double(faces) +
+                per_face * double(e.output_faces);
+  double contours = 0;
+  if (request.slice) {
+    // Faces crossing a plane grow like 1 / edge length: x2 per 1-to-4 step, x sqrt(3) per
+    // sqrt3 step.
+    const int levels = p.adaptive() ? p.max_level : p.levels;
+    const double growth = std::pow(sqrt3 ? std::sqrt(3.0) : 2.0, levels);
+    const double crossings = double(count_crossings(bytes, shape, request.slice->params)) * growth;
+    e.contour_points =
+        contour_points(std::uint64_t(std::min(crossings, 1e18)), request.slice->params);
+    contours = point_bytes(request.slice->format) * double(e.contour_points);
+    peak += kC.slice_face * double(e.output_faces) + contours;
+    // The synchronous answer is a zip of the STL and the contours, built next to them.
+    if (sink == ResultSink::Answer) peak += stl + contours;
+  }
+  e.answer_bytes =
+      sink == ResultSink::Answer ? std::uint64_t(request.slice ? stl + contours : stl) : 0;
+  e.peak_bytes = std::uint64_t(peak);
+  if (request.slice && contours > 0.5 * peak)
+    e.field = "slice";
+  else if (p.adaptive())
+    e.field = "max_level";
+  else if (p.levels > 0)
+    e.field = "levels";
+  return e;
+}
+
+MemoryEstimate estimate_slice_memory(std::span<const std::uint8_t> bytes, const StlShape& shape,
+                                     const SliceRequest& request) {
+  MemoryEstimate e;
+  const slicer::SliceParams& params = request.slice.params;
+  e.contour_points = contour_points(count_crossings(bytes, shape, params), params);
+  const double contours = point_bytes(request.slice.format) * double(e.contour_points);
+  e.answer_bytes = std::uint64_t(contours);
+  e.peak_bytes = std::uint64_t(kC.fixed + double(shape.bytes) +
+                               (kC.input_face + kC.slice_face) * double(shape.faces) + contours);
+  if (contours > 0.5 * double(e.peak_bytes))
+    e.field = params.heights.empty() ? "layer_height" : "heights";
+  return e;
+}
+
+MemoryEstimate estimate_info_memory(const StlShape& shape) {
+  MemoryEstimate e;
+  e.peak_bytes = std::uint64_t(kC.fixed + double(shape.bytes) + kC.info_face * double(shape.faces));
+  return e;
+}
+
+Problem memory_budget_problem(const MemoryEstimate& estimate, std::uint64_t capacity) {
+  const auto mib = [](std::uint64_t bytes) {
+    return std::to_string((bytes + (1 << 20) - 1) >> 20);
+  };
+  std::string advice = ".";
+  if (estimate.field == "levels") advice = "; use fewer levels or a smaller part.";
+  if (estimate.field == "max_level") advice = "; lower max_level or max_faces.";
+  if (estimate.field == "slice") advice = "; slice with thicker layers or refine less.";
+  if (estimate.field == "layer_height" || estimate.field == "heights")
+    advice = "; slice with fewer layers.";
+  Problem p = make_problem(422, "budget-exceeded",
+                           "this request would need about " + mib(estimate.peak_bytes) +
+                               " MiB of memory; this server gives one request at most " +
+                               mib(capacity) + " MiB" + advice);
+  p.title = "Memory budget exceeded";
+  p.field = estimate.field;
+  p.extensions["reason"] = "memory_budget";
+  p.extensions["predicted_bytes"] = estimate.peak_bytes;
+  p.extensions["memory_budget_bytes"] = capacity;
+  return p;
+}
+
+}  // namespace stlrefine::api

@@ -1,0 +1,75 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#pragma once
+
+// The memory model: the peak memory a request will need, predicted from the STL bytes and
+// the parameters before any work, so the daemon can refuse (422) or delay (503) a request
+// instead of running out of memory in the middle of it. Calibrated against the peak RSS
+// the real daemon adds per request (bench/reliability/memory_calibration.cpp); the
+// coefficients, the calibration set and the error are in memory_model.cpp.
+
+#include <cstdint>
+#include <span>
+#include <string>
+
+#include "api/params.h"
+#include "api/problem.h"
+
+namespace stlrefine::api {
+
+//! What the model reads from an STL body without parsing it into a mesh: one pass over the
+//! bytes, no allocation.
+struct StlShape {
+  std::uint64_t bytes = 0;  //!< the body
+  //! Facets the reader will see at most: the binary count when the size rule says binary
+  //! (84 + 50 n bytes), else the "endfacet" keywords of an ASCII file; 0 for anything else
+  //! (the reader refuses it).
+  std::uint64_t faces = 0;
+  bool binary = false;
+  bool has_z = false;  //!< z_min / z_max were read (some finite corner)
+  double z_min = 0, z_max = 0;
+};
+
+//! The shape of an STL body. O(bytes), no allocation.
+StlShape stl_shape(std::span<const std::uint8_t> bytes);
+
+//! Facet-plane crossings of the plan `params` would make on the facets in `bytes`: one pass
+//! over the corners' z values, planes as slicer::plan_layers places them (uniform from the
+//! part's bounds, or explicit heights). What the slicer's exact pre-pass would count on the
+//! ingested mesh, up to welding and repair. 0 when the bytes are no STL.
+std::uint64_t count_crossings(std::span<const std::uint8_t> bytes, const StlShape& shape,
+                              const slicer::SliceParams& params);
+
+//! A prediction.
+struct MemoryEstimate {
+  //! Peak memory the request adds to an idle daemon, its body included, in bytes.
+  std::uint64_t peak_bytes = 0;
+  std::uint64_t output_faces = 0;    //!< refinement output (a bound in the adaptive mode)
+  std::uint64_t contour_points = 0;  //!< estimated slice output points (0 without slicing)
+  //! Bytes of the answer the daemon keeps until it is sent (the STL, contours or zip).
+  std::uint64_t answer_bytes = 0;
+  //! The parameter to lower when the prediction is over a budget: "levels", "max_level",
+  //! "slice", "layer_height", "heights"; empty when only a smaller input would help.
+  std::string field;
+};
+
+//! Where the result goes: the answer of a synchronous request (refine + slice is then a zip
+//! built in memory) or a job's files on disk.
+enum class ResultSink { Answer, JobFiles };
+
+//! A refinement (optionally sliced). `bytes` is the body (for the slice estimate).
+MemoryEstimate estimate_refine_memory(std::span<const std::uint8_t> bytes, const StlShape& shape,
+                                      const RefineRequest& request,
+                                      ResultSink sink = ResultSink::Answer);
+//! A slice of the input as it is.
+MemoryEstimate estimate_slice_memory(std::span<const std::uint8_t> bytes, const StlShape& shape,
+                                     const SliceRequest& request);
+//! An info report.
+MemoryEstimate estimate_info_memory(const StlShape& shape);
+
+//! The 422 of a request whose prediction is over what one request may reserve
+//! (`capacity`): type budget-exceeded, title "Memory budget exceeded", reason
+//! "memory_budget", `field` from the estimate, and `predicted_bytes`, `memory_budget_bytes`.
+Problem memory_budget_problem(const MemoryEstimate& estimate, std::uint64_t capacity);
+
+}  // namespace stlrefine::api
