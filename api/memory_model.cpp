@@ -17,43 +17,50 @@ namespace stlrefine::api {
 
 namespace {
 
-// --- coefficients (bytes); see the calibration note at the end of this file
+// --- coefficients (bytes); the calibration is at the end of this file
 
 struct Coefficients {
-  double fixed;           // per request: thread stacks, report, small buffers
-  double input_face;      // ingest: soup, welding, the input mesh and its features
-  double split4_face;     // per output face of a uniform 1-to-4 refinement, STL included
-  double sqrt3_face;      // per output face of a uniform sqrt3 refinement, STL included
-  double adaptive4_face;  // per output face (the bound) of the adaptive 1-to-4 host
-  double adaptive3_face;  // per output face (the bound) of the adaptive sqrt3 host
-  double slice_face;      // per sliced face: the slicer's per-face arrays
-  double info_face;       // per input face of an info report (features, curvatures)
+  double fixed;             // per request: thread stacks, report, small buffers, rounding
+  double input_face;        // ingest: soup, welding, the input mesh and its features
+  double output_face;       // per output face of a uniform refinement: the refined mesh and
+                            // its features next to the STL being written (either host)
+  double adaptive4_face;    // per output face (the bound) of the adaptive 1-to-4 host
+  double adaptive3_face;    // per output face (the bound) of the adaptive sqrt3 host
+  double slice_face;        // per sliced face: the slicer's per-face and per-vertex arrays
+  double slice_input_face;  // a slice of the input: ingest and the slicer's arrays
+  double info_face;         // per input face of an info report (features, curvatures)
+  double contour_growth;    // the contour string while it grows (capacity doubling)
+  double zip_growth;        // the zip archive while it grows
+  double text_compression;  // deflate ratio of text contours in the zip (at least)
 };
 
 constexpr Coefficients kC{
-    .fixed = 4.0 * (1 << 20),
+    .fixed = 8.0 * (1 << 20),
     .input_face = 160,
-    .split4_face = 190,
-    .sqrt3_face = 210,
-    .adaptive4_face = 400,
-    .adaptive3_face = 600,
-    .slice_face = 40,
-    .info_face = 400,
+    .output_face = 140,
+    .adaptive4_face = 420,
+    .adaptive3_face = 300,
+    .slice_face = 10,
+    .slice_input_face = 100,
+    .info_face = 160,
+    .contour_growth = 2,
+    .zip_growth = 2,
+    .text_compression = 3,
 };
 
-// Bytes of one contour point in each format (the answer is held whole).
+// Bytes of one contour point in each format (measured 40-43, 38-41, 37-41 and 8.0-8.4).
 double point_bytes(slicer::SliceFormat format) {
   switch (format) {
     case slicer::SliceFormat::Json:
-      return 32;
+      return 44;
     case slicer::SliceFormat::Svg:
-      return 24;
+      return 42;
     case slicer::SliceFormat::CliAscii:
-      return 24;
+      return 42;
     case slicer::SliceFormat::CliBinary:
-      return 12;
+      return 9;
   }
-  return 32;
+  return 44;
 }
 
 constexpr std::uint64_t kPreamble = 84;
@@ -246,18 +253,18 @@ MemoryEstimate estimate_refine_memory(std::span<const std::uint8_t> bytes, const
   MemoryEstimate e;
   const std::uint64_t faces = shape.faces;
   e.output_faces = predict_faces(p, faces);
-  const bool sqrt3 = is_sqrt3(p);
-  const double per_face = p.adaptive() ? (sqrt3 ? kC.adaptive3_face : kC.adaptive4_face)
-                                       : (sqrt3 ? kC.sqrt3_face : kC.split4_face);
   // Over the face budget, run_refine refuses right after ingest: that is all it needs.
   if (!p.adaptive() && e.output_faces > p.max_faces) {
     e.peak_bytes = std::uint64_t(kC.fixed + double(shape.bytes) + kC.input_face * double(faces));
     e.field = "max_faces";
     return e;
   }
+  const bool sqrt3 = is_sqrt3(p);
+  const double per_face =
+      p.adaptive() ? (sqrt3 ? kC.adaptive3_face : kC.adaptive4_face) : kC.output_face;
   const double stl = double(kPreamble + kFacet * e.output_faces);
-  double peak = kC.fixed + double(shape.bytes) + kC.input_face * double(faces) +
-                per_face * double(e.output_faces);
+  const double base = kC.fixed + double(shape.bytes);
+  double peak = base + kC.input_face * double(faces) + per_face * double(e.output_faces);
   double contours = 0;
   if (request.slice) {
     // Faces crossing a plane grow like 1 / edge length: x2 per 1-to-4 step, x sqrt(3) per
@@ -267,15 +274,23 @@ MemoryEstimate estimate_refine_memory(std::span<const std::uint8_t> bytes, const
     const double crossings = double(count_crossings(bytes, shape, request.slice->params)) * growth;
     e.contour_points =
         contour_points(std::uint64_t(std::min(crossings, 1e18)), request.slice->params);
-    contours = point_bytes(request.slice->format) * double(e.contour_points);
-    peak += kC.slice_face * double(e.output_faces) + contours;
-    // The synchronous answer is a zip of the STL and the contours, built next to them.
-    if (sink == ResultSink::Answer) peak += stl + contours;
+    const slicer::SliceFormat format = request.slice->format;
+    contours = point_bytes(format) * double(e.contour_points);
+    // Slicing: the refined mesh and its STL are still there.
+    peak += kC.slice_face * double(e.output_faces) + kC.contour_growth * contours;
+    if (sink == ResultSink::Answer) {
+      // Then the zip is built from the STL and the contours (the mesh is gone by then).
+      const double zipped =
+          stl +
+          (format == slicer::SliceFormat::CliBinary ? contours : contours / kC.text_compression);
+      peak = std::max(peak, base + stl + contours + kC.zip_growth * zipped);
+      e.answer_bytes = std::uint64_t(zipped);
+    }
+  } else if (sink == ResultSink::Answer) {
+    e.answer_bytes = std::uint64_t(stl);
   }
-  e.answer_bytes =
-      sink == ResultSink::Answer ? std::uint64_t(request.slice ? stl + contours : stl) : 0;
   e.peak_bytes = std::uint64_t(peak);
-  if (request.slice && contours > 0.5 * peak)
+  if (request.slice && kC.contour_growth * contours > 0.5 * peak)
     e.field = "slice";
   else if (p.adaptive())
     e.field = "max_level";
@@ -291,9 +306,10 @@ MemoryEstimate estimate_slice_memory(std::span<const std::uint8_t> bytes, const 
   e.contour_points = contour_points(count_crossings(bytes, shape, params), params);
   const double contours = point_bytes(request.slice.format) * double(e.contour_points);
   e.answer_bytes = std::uint64_t(contours);
-  e.peak_bytes = std::uint64_t(kC.fixed + double(shape.bytes) +
-                               (kC.input_face + kC.slice_face) * double(shape.faces) + contours);
-  if (contours > 0.5 * double(e.peak_bytes))
+  e.peak_bytes =
+      std::uint64_t(kC.fixed + double(shape.bytes) + kC.slice_input_face * double(shape.faces) +
+                    kC.contour_growth * contours);
+  if (kC.contour_growth * contours > 0.5 * double(e.peak_bytes))
     e.field = params.heights.empty() ? "layer_height" : "heights";
   return e;
 }
@@ -327,3 +343,28 @@ Problem memory_budget_problem(const MemoryEstimate& estimate, std::uint64_t capa
 }
 
 }  // namespace stlrefine::api
+
+// --- calibration
+//
+// bench/reliability/memory_calibration.cpp (stlrefine_memory_calibration) measured the
+// peak RSS one request adds to an idle stlrefined (fresh daemon per case, warm-up request,
+// VmHWM after clear_refs minus VmRSS before) for 158 requests: gearwheel (2,444 faces,
+// binary and ASCII), fandisk (12,946), armadillo (29,170), cycloidal_nonmanifold (43,368),
+// bunny (69,451) and dragon_full (871,414) from ../shared/meshes; every scheme on fandisk
+// and bunny, butterfly and sqrt3-interp on the others, levels 0 up to 3.5 M output faces;
+// info; slices in every format at two layer heights; refine + slice as zip (json,
+// cli-binary); jobs with and without a slice; adaptive butterfly, lsf and sqrt3-interp.
+//
+// Least squares on the uniform rows gave 111.5 bytes per output face for both hosts (the
+// refined mesh with its features, ~62 bytes, next to its 50-byte STL record), 75-150 per
+// input face and 2-4 MiB fixed; lsf and butterfly-g1 take up to 10 % more than butterfly.
+// Contour points cost 40-43 bytes in json, 37-41 in svg and cli, 8.0-8.4 in cli-binary, and
+// the contour string and the zip grow by doubling, so each may hold up to twice its size.
+// The points themselves are predicted within 1.5 % (count_crossings x growth^levels).
+// The coefficients above are that fit rounded up (140, 160, 8 MiB, 2x growth), so the
+// prediction is an upper bound: predicted / measured over the 97 non-adaptive rows above
+// 20 MiB is 1.05 .. 2.21 (median 1.29); over all 158 non-adaptive rows 1.05 .. 16 (small
+// requests, where the fixed 8 MiB dominates). The adaptive rows are predicted at their
+// bound (the uniform count at max_level, or max_faces if lower), 2-137 times what they
+// used; per face actually made they took <= 383 (1-to-4) and <= 274 (sqrt3) bytes. Run
+// 2026-11-23 on the 2-core development machine (Release, THP madvise, glibc malloc).

@@ -118,7 +118,17 @@ Json common_errors(Json responses, bool with_body) {
   if (with_body) responses["408"] = problem_response("The body stalled or arrived too slowly.");
   responses["431"] = problem_response("Header fields too large or too many.");
   responses["401"] = problem_response("An API key is required.");
-  responses["503"] = problem_response("Busy, overloaded or shutting down; see Retry-After.");
+  responses["503"] = problem_response(
+      "Busy (every compute slot taken, or not enough memory next to the running requests), "
+      "overloaded or shutting down; see Retry-After.");
+  if (with_body) {
+    responses["422"] = problem_response(
+        "Not a usable STL, or over a budget: faces (max_faces), layers, contour points, or the "
+        "memory one request may have (title \"Memory budget exceeded\", field names the "
+        "parameter to lower, predicted_bytes, memory_budget_bytes).");
+    responses["504"] =
+        problem_response("The computation ran longer than the server's request deadline.");
+  }
   return responses;
 }
 

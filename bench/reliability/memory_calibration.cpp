@@ -10,7 +10,10 @@
 // bench/RESULTS.md ("## Load and soak").
 //
 //   stlrefine_memory_calibration [--meshes /work/shared/meshes] [--max-out 3500000]
-//                                [--csv FILE] [--only SUBSTRING]
+//                                [--csv FILE] [--only SUBSTRING] [--from-csv FILE]
+//
+// --from-csv takes the measurements of an earlier --csv run and only predicts again (for
+// fitting the coefficients without measuring again).
 
 #include <algorithm>
 #include <chrono>
@@ -19,8 +22,10 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <span>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -151,6 +156,35 @@ Measured measure(const std::string& daemon, const Input& mesh, const std::string
   return m;
 }
 
+// Measurements of an earlier run, by mesh + target.
+std::map<std::string, Measured> read_csv(const std::string& path) {
+  std::map<std::string, Measured> out;
+  std::ifstream in(path);
+  std::string line;
+  std::getline(in, line);  // header
+  while (std::getline(in, line)) {
+    // mesh,faces,body_bytes,"target",status,out_faces,points,answer_bytes,measured_bytes,...
+    const std::size_t q1 = line.find('"'), q2 = line.find('"', q1 + 1);
+    if (q1 == std::string::npos || q2 == std::string::npos) continue;
+    const std::string mesh = line.substr(0, line.find(','));
+    const std::string target = line.substr(q1 + 1, q2 - q1 - 1);
+    std::stringstream rest(line.substr(q2 + 2));
+    std::vector<std::string> f;
+    for (std::string x; std::getline(rest, x, ',');) f.push_back(x);
+    if (f.size() < 9) continue;
+    Measured m;
+    m.status = std::stoi(f[0]);
+    m.out_faces = std::stoull(f[1]);
+    m.points = std::stoull(f[2]);
+    m.answer = std::stoull(f[3]);
+    m.peak = std::stoll(f[4]);
+    m.baseline = std::stoll(f[7]);
+    m.seconds = std::stod(f[8]);
+    out[mesh + " " + target] = m;
+  }
+  return out;
+}
+
 std::vector<Case> cases(const std::vector<Input>& meshes, std::uint64_t max_out) {
   const std::vector<std::string> split4 = {"butterfly", "loop", "lsf", "loop-g2", "butterfly-g1"};
   const std::vector<std::string> sqrt3 = {"sqrt3-interp", "sqrt3", "sqrt3-unified"};
@@ -205,7 +239,7 @@ double mib(double bytes) {
 int main(int argc, char** argv) {
   std::string meshes_dir = "/work/shared/meshes";
   std::string daemon = STLREFINED;
-  std::string csv_path, only;
+  std::string csv_path, only, from_csv;
   std::uint64_t max_out = 3'500'000;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i];
@@ -214,7 +248,10 @@ int main(int argc, char** argv) {
     if (a == "--csv") csv_path = argv[i + 1];
     if (a == "--only") only = argv[i + 1];
     if (a == "--daemon") daemon = argv[i + 1];
+    if (a == "--from-csv") from_csv = argv[i + 1];
   }
+  const std::map<std::string, Measured> earlier =
+      from_csv.empty() ? std::map<std::string, Measured>() : read_csv(from_csv);
   std::vector<Input> meshes;
   for (const char* name : {"cad/gearwheel.stl", "malformed/gearwheel_ascii.stl", "cad/fandisk.stl",
                            "organic/armadillo.stl", "malformed/cycloidal_nonmanifold.stl",
@@ -242,7 +279,7 @@ int main(int argc, char** argv) {
   for (const Case& c : cases(meshes, max_out)) {
     if (!only.empty() && (c.mesh + c.target).find(only) == std::string::npos) continue;
     const Input& mesh = *std::find_if(meshes.begin(), meshes.end(),
-                                     [&](const Input& m) { return m.path == c.mesh; });
+                                      [&](const Input& m) { return m.path == c.mesh; });
     api::MemoryEstimate e;
     try {
       e = predict(mesh, c.target);
@@ -250,7 +287,14 @@ int main(int argc, char** argv) {
       std::cerr << c.mesh << " " << c.target << ": no prediction: " << ex.what() << "\n";
       continue;
     }
-    const Measured m = measure(daemon, mesh, c.target, data_dir);
+    Measured m;
+    if (from_csv.empty()) {
+      m = measure(daemon, mesh, c.target, data_dir);
+    } else {
+      const auto it = earlier.find(c.mesh + " " + c.target);
+      if (it == earlier.end()) continue;
+      m = it->second;
+    }
     if (m.status != 200) {
       std::cerr << c.mesh << " " << c.target << ": status " << m.status << " " << m.error << "\n";
       continue;
