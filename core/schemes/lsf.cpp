@@ -11,14 +11,11 @@
 
 #include "core/parallel.h"
 #include "core/schemes/crease_rules.h"
+#include "core/schemes/lsf_fast_math.h"
 
 namespace stlrefine {
 
 namespace {
-
-double angle_between(const Vec3& a, const Vec3& b) {
-  return std::atan2(norm(cross(a, b)), dot(a, b));
-}
 
 // Relative singular value of the scaled design matrix below which a direction counts as
 // undetermined. Well-spread rings sit above 1e-1; a perturbed crease strip near 1e-5.
@@ -28,14 +25,12 @@ constexpr double kSingularCutoff = 1e-3;
 // for valence < 5, and small enough that the determined terms are not biased (~1e-6).
 constexpr double kIllConditionedMu = 1e-6;
 
-// The 5x5 symmetric systems of the fit are small enough that Eigen's general-size LDLT
-// machinery (dynamic blocks, blocked triangular solves) costs more than the arithmetic;
-// it was the largest share of LSF's time. Ldlt5 is the same algorithm written for 5x5:
-// Eigen 3.4's LDLT (lower storage, diagonal pivoting on the largest remaining |d|, the
-// same order of every sum and update), so the results are bit for bit those of
-// Eigen::LDLT. They must be: the damping of spec 5 gap 1 (mu = 1e-9) leaves the fits of
-// low-valence vertices so ill-conditioned that a last-bit change grows to ~1e-8 of the
-// model size one level later.
+// The general path's 5x5 factorisation: Eigen 3.4's LDLT written out for 5x5 (lower
+// storage, diagonal pivoting on the largest remaining |d|, the same order of every sum and
+// update), so its decisions (success, sign, smallest pivot) are Eigen::LDLT's. Eigen's
+// general-size machinery cost more than the arithmetic. Low-valence fits under the damping
+// of spec 5 gap 1 (mu = 1e-9) are so ill-conditioned that a last-bit change of their input
+// grows to ~1e-8 of the model size one level later: the fast path below leaves them here.
 using Mat5 = std::array<std::array<double, 5>, 5>;  // [col][row]; the lower part is read
 
 struct Ldlt5 {
@@ -143,7 +138,7 @@ struct Ldlt5 {
 };
 
 // True when the unit-diagonal (Jacobi-scaled) normal matrix has a pivot below the squared
-// cut-off: a test independent of units and parameter scale, cheap enough for every vertex.
+// cut-off: a test independent of units and parameter scale.
 bool poorly_conditioned(const Mat5& normal) {
   std::array<double, 5> inv_sqrt;
   for (int i = 0; i < 5; ++i) {
@@ -157,80 +152,308 @@ bool poorly_conditioned(const Mat5& normal) {
   return !ldlt.success || ldlt.min_pivot() < kSingularCutoff * kSingularCutoff;
 }
 
+using Coefficients = std::array<Vec3, 5>;  // c1..c5
+
+// The normal equations of the fit, summed over the sample: S^T S for rows (u, v, u^2/2,
+// uv, v^2/2) has 12 distinct entries up to factors 1/2 and 1/4 (the monomials of degree 2
+// to 4 in u, v); S^T q has 5 rows of 3.
+struct NormalEquations {
+  // u^2, uv, v^2, u^3, u^2 v, u v^2, v^3, u^4, u^3 v, u^2 v^2, u v^3, v^4
+  double s[12] = {};
+  Coefficients q{};  // sum of (P_i - V) times u, v, u^2/2, uv, v^2/2
+  double radius_sum = 0;
+
+  // S^T S, lower part ([col][row], row >= col).
+  Mat5 matrix() const {
+    Mat5 n{};
+    n[0] = {s[0], s[1], 0.5 * s[3], s[4], 0.5 * s[5]};
+    n[1] = {0, s[2], 0.5 * s[4], s[5], 0.5 * s[6]};
+    n[2] = {0, 0, 0.25 * s[7], 0.5 * s[8], 0.25 * s[9]};
+    n[3] = {0, 0, 0, s[9], 0.5 * s[10]};
+    n[4] = {0, 0, 0, 0, 0.25 * s[11]};
+    return n;
+  }
+};
+
+NormalEquations normal_equations(const double* x, const double* y, const double* z, const double* u,
+                                 const double* v, const double* r, std::size_t count) {
+  NormalEquations e;
+  double s0 = 0, s1 = 0, s2 = 0, s3 = 0, s4 = 0, s5 = 0, s6 = 0, s7 = 0, s8 = 0, s9 = 0, s10 = 0,
+         s11 = 0, radius_sum = 0;
+  Vec3 q0, q1, q2, q3, q4;
+  for (std::size_t i = 0; i < count; ++i) {
+    const double a = u[i], b = v[i];
+    const double a2 = a * a, ab = a * b, b2 = b * b;
+    s0 += a2, s1 += ab, s2 += b2;
+    s3 += a2 * a, s4 += a2 * b, s5 += a * b2, s6 += b2 * b;
+    s7 += a2 * a2, s8 += a2 * ab, s9 += a2 * b2, s10 += ab * b2, s11 += b2 * b2;
+    radius_sum += r[i];
+    const Vec3 d(x[i], y[i], z[i]);
+    q0 += a * d, q1 += b * d, q2 += a2 * d, q3 += ab * d, q4 += b2 * d;
+  }
+  const double sums[12] = {s0, s1, s2, s3, s4, s5, s6, s7, s8, s9, s10, s11};
+  std::copy(std::begin(sums), std::end(sums), std::begin(e.s));
+  e.q = {q0, q1, 0.5 * q2, q3, 0.5 * q4};
+  e.radius_sum = radius_sum;
+  return e;
+}
+
+bool all_finite(const Coefficients& c) {
+  // x - x is 0 for finite x and NaN for inf and NaN; NaN fails every comparison.
+  double zero = 0;
+  for (const Vec3& row : c) zero += (row.x - row.x) + (row.y - row.y) + (row.z - row.z);
+  return zero == 0;
+}
+
+// The damped fit, fast path. Almost every sample is well spread; for those the general
+// path's two pivoted factorisations (conditioning test, damped solve) are replaced by one
+// unpivoted LDL^T of the damped matrix M = N + damping diag(0,0,1,1,1), whose pivots d_k
+// also prove that the general path would take the same decisions:
+//  * Jacobi-scale N to unit diagonal (N_s = S N S) and M alike (M_s = S M S). Then
+//    det M_s = prod d_k / prod N_kk, trace M_s = 5 + damping sum_{k>=2} 1/N_kk, and by the
+//    AM-GM inequality on its eigenvalues lambda_min(M_s) >= det M_s / (trace M_s / 4)^4.
+//    By Weyl, lambda_min(N_s) >= lambda_min(M_s) - damping max_{k>=2} 1/N_kk.
+//    With damping <= 1e-7 min_{k>=2} N_kk and det M_s >= kDetFloor that gives
+//    lambda_min(N_s) >= kDetFloor / ((5 + 3e-7) / 4)^4 - 1e-7 > 2e-6.
+//  * Every pivot of a symmetric-pivoted LDL^T of an SPD matrix is at least its smallest
+//    eigenvalue (a diagonal entry of a Schur complement). So lambda_min(N_s) > 2e-6, twice
+//    kSingularCutoff^2, means the conditioning test passes: mu stays as it is here.
+//  * The general path refuses a fit whose smallest pivot of M is below 1e-14 of its largest;
+//    its pivots lie in [lambda_min(M), max M_kk] and lambda_min(M) >= lambda_min(N) >=
+//    lambda_min(N_s) min N_kk > 2e-6 min N_kk, so min N_kk >= 1e-8 max M_kk means it accepts
+//    (again a factor of two of margin).
+// The margins are far above the rounding of either path, so only the last bits of the
+// solution differ (the elimination order does). Otherwise, and below five points, and when
+// the products leave the comfortable range of doubles, the general path runs.
+constexpr double kDetFloor = 6e-6;  // 2.1e-6 * ((5 + 3e-7) / 4)^4 = 5.13e-6, rounded up
+
+bool fast_solve(const NormalEquations& e, double damping, Coefficients& c) {
+  const double* s = e.s;
+  // Lower part of M, column by column.
+  double a00 = s[0], a10 = s[1], a20 = 0.5 * s[3], a30 = s[4], a40 = 0.5 * s[5];
+  double a11 = s[2], a21 = 0.5 * s[4], a31 = s[5], a41 = 0.5 * s[6];
+  const double n22 = 0.25 * s[7], n33 = s[9], n44 = 0.25 * s[11];
+  double a22 = n22 + damping, a32 = 0.5 * s[8], a42 = 0.25 * s[9];
+  double a33 = n33 + damping, a43 = 0.5 * s[10];
+  double a44 = n44 + damping;
+  const double min_quadratic = std::min(n22, std::min(n33, n44));
+  const double min_diag = std::min(std::min(a00, a11), min_quadratic);
+  const double max_diag = std::max(std::max(a00, a11), std::max(a22, std::max(a33, a44)));
+  const double diag_product = a00 * a11 * n22 * n33 * n44;
+  if (!(damping <= 1e-7 * min_quadratic) || !(min_diag >= 1e-8 * max_diag) ||
+      !(diag_product >= 1e-250 && diag_product <= 1e250))
+    return false;
+  Vec3 b0 = e.q[0], b1 = e.q[1], b2 = e.q[2], b3 = e.q[3], b4 = e.q[4];
+  // Right-looking elimination; the forward substitution of b goes along.
+  const double d0 = a00;
+  const double i0 = 1.0 / d0;
+  const double l10 = a10 * i0, l20 = a20 * i0, l30 = a30 * i0, l40 = a40 * i0;
+  a11 -= l10 * a10, a21 -= l20 * a10, a31 -= l30 * a10, a41 -= l40 * a10;
+  a22 -= l20 * a20, a32 -= l30 * a20, a42 -= l40 * a20;
+  a33 -= l30 * a30, a43 -= l40 * a30;
+  a44 -= l40 * a40;
+  b1 -= l10 * b0, b2 -= l20 * b0, b3 -= l30 * b0, b4 -= l40 * b0;
+  const double d1 = a11;
+  const double i1 = 1.0 / d1;
+  const double l21 = a21 * i1, l31 = a31 * i1, l41 = a41 * i1;
+  a22 -= l21 * a21, a32 -= l31 * a21, a42 -= l41 * a21;
+  a33 -= l31 * a31, a43 -= l41 * a31;
+  a44 -= l41 * a41;
+  b2 -= l21 * b1, b3 -= l31 * b1, b4 -= l41 * b1;
+  const double d2 = a22;
+  const double i2 = 1.0 / d2;
+  const double l32 = a32 * i2, l42 = a42 * i2;
+  a33 -= l32 * a32, a43 -= l42 * a32;
+  a44 -= l42 * a42;
+  b3 -= l32 * b2, b4 -= l42 * b2;
+  const double d3 = a33;
+  const double i3 = 1.0 / d3;
+  const double l43 = a43 * i3;
+  a44 -= l43 * a43;
+  b4 -= l43 * b3;
+  const double d4 = a44;
+  const double i4 = 1.0 / d4;
+  // Positive pivots (NaN fails too) whose product clears the floor: the certificate.
+  if (!(d0 > 0 && d1 > 0 && d2 > 0 && d3 > 0 && d4 > 0) ||
+      !(d0 * d1 * d2 * d3 * d4 >= kDetFloor * diag_product))
+    return false;
+  // Back substitution through D and L^T.
+  c[4] = i4 * b4;
+  c[3] = i3 * b3 - l43 * c[4];
+  c[2] = i2 * b2 - l32 * c[3] - l42 * c[4];
+  c[1] = i1 * b1 - l21 * c[2] - l31 * c[3] - l41 * c[4];
+  c[0] = i0 * b0 - l10 * c[1] - l20 * c[2] - l30 * c[3] - l40 * c[4];
+  return true;
+}
+
+// Solves the damped normal equations (spec 5 gap 1); false for a degenerate sample.
+bool solve_fit(const NormalEquations& e, std::size_t count, double mu, Coefficients& c) {
+  if (count == 0) return false;
+  const double mean_radius = e.radius_sum / static_cast<double>(count);
+  const double h2 = mean_radius * mean_radius;
+  if (count >= 5 && fast_solve(e, mu * (h2 * h2), c)) return all_finite(c);
+  Mat5 normal = e.matrix();
+  if (count >= 5) {
+    // Five or more points can still be nearly degenerate: the side points of a crease
+    // vertex on a developable strip lie close to two lines parallel to the crease (a
+    // degenerate conic), and the exact least-squares quadric then swings far off the
+    // surface (50 mm on a 10 mm cylinder in the fidelity bench). Such samples are damped
+    // firmly.
+    if (poorly_conditioned(normal)) mu = std::max(mu, kIllConditionedMu);
+  }
+  // Damp only the second-order terms: below valence 5 S^T S is singular, and the damped
+  // solution tends to the interpolating quadric with the smallest curvature terms.
+  const double damping = mu * (h2 * h2);
+  for (int k = 2; k < 5; ++k) normal[k][k] += damping;
+  const Ldlt5 ldlt(normal);
+  if (!ldlt.success || !ldlt.positive) return false;
+  std::array<std::array<double, 3>, 5> x;
+  for (int k = 0; k < 5; ++k) x[k] = {e.q[k].x, e.q[k].y, e.q[k].z};
+  ldlt.solve(x);
+  // A rank-deficient linear part (collinear sample) shows as a tiny pivot: refuse it.
+  if (ldlt.min_pivot() <= 1e-14 * ldlt.max_pivot()) return false;
+  for (int k = 0; k < 5; ++k) c[k] = {x[k][0], x[k][1], x[k][2]};
+  return all_finite(c);
+}
+
+// Welch-Witkin parameters (u_i, v_i) and radii r_i of ring offsets (x_i, y_i, z_i) = P_i - V:
+// angles between consecutive offsets scaled to `total_angle` (0: natural), `closed` when
+// the last point is followed by the first. `gap` is scratch for count angles.
+void ring_parameters(const double* x, const double* y, const double* z, std::size_t count,
+                     bool closed, double total_angle, double* u, double* v, double* r,
+                     double* gap) {
+  if (count == 0) return;
+  const std::size_t gaps = closed ? count : count - 1;
+  double angle_sum = 0;
+  for (std::size_t i = 0; i < gaps; ++i) {
+    const std::size_t j = i + 1 < count ? i + 1 : 0;
+    const Vec3 a(x[i], y[i], z[i]), b(x[j], y[j], z[j]);
+    const double angle = lsf_math::atan2(norm(cross(a, b)), dot(a, b));
+    gap[i] = angle;
+    angle_sum += angle;
+  }
+  const double scale = (total_angle > 0 && angle_sum > 0) ? total_angle / angle_sum : 1.0;
+  double phi = 0;
+  for (std::size_t i = 0; i < count; ++i) {
+    const double ri = std::sqrt(x[i] * x[i] + y[i] * y[i] + z[i] * z[i]);
+    r[i] = ri;
+    if (i == 0) {
+      u[i] = ri, v[i] = 0;  // r cos 0, r sin 0
+    } else {
+      double s, c;
+      lsf_math::sincos(phi, s, c);
+      u[i] = ri * c, v[i] = ri * s;
+    }
+    if (i < gaps) phi += scale * gap[i];
+  }
+}
+
+// Per-thread storage for one ring (structure of arrays), grown on demand.
+struct RingBuffer {
+  std::vector<double> data;
+  std::vector<HalfedgeId> spoke;
+  std::vector<std::uint8_t> sharp;
+  std::size_t size = 0, capacity = 0;
+  double *x = nullptr, *y = nullptr, *z = nullptr, *u = nullptr, *v = nullptr, *r = nullptr,
+         *gap = nullptr;
+
+  void reserve(std::size_t n) {
+    if (n <= capacity) return;
+    const std::size_t grown_capacity = std::max<std::size_t>(2 * n, 32);
+    std::vector<double> grown(7 * grown_capacity);
+    for (std::size_t a = 0; a < 3; ++a)  // keep x, y, z
+      std::copy_n(data.begin() + static_cast<std::ptrdiff_t>(a * capacity), size,
+                  grown.begin() + static_cast<std::ptrdiff_t>(a * grown_capacity));
+    data.swap(grown);
+    capacity = grown_capacity;
+    spoke.resize(capacity);
+    sharp.resize(capacity);
+    x = data.data(), y = x + capacity, z = y + capacity, u = z + capacity, v = u + capacity;
+    r = v + capacity, gap = r + capacity;
+  }
+  void push(const Vec3& d, HalfedgeId h, bool is_sharp) {
+    if (size == capacity) reserve(size + 1);
+    x[size] = d.x, y[size] = d.y, z[size] = d.z;
+    spoke[size] = h;
+    sharp[size] = is_sharp;
+    ++size;
+  }
+};
+
+RingBuffer& ring_buffer() {
+  thread_local RingBuffer buffer;
+  buffer.size = 0;
+  buffer.reserve(32);
+  return buffer;
+}
+
+// One sector of a ring buffer, fitted: its points begin..begin+count, their parameters,
+// and the coefficients (valid == false for a degenerate sample).
+struct SectorFit {
+  const RingBuffer* ring;
+  std::size_t begin, count;
+  bool valid;
+  Coefficients c;
+
+  QuadricFit quadric(const Vec3& origin) const {
+    QuadricFit fit;
+    fit.origin = origin;
+    if (!valid) return fit;
+    fit.c = c;
+    fit.valid = true;
+    return fit;
+  }
+  // Evaluates the fit at half of each point's parameter, relative to V:
+  // s(u/2, v/2) - V = (c1 u + c2 v) / 2 + (c3 u^2 + 2 c4 uv + c5 v^2) / 8.
+  template <class Out>
+  void half_points(Out&& out) const {
+    const Vec3 h0 = 0.5 * c[0], h1 = 0.5 * c[1], h2 = 0.125 * c[2], h3 = 0.25 * c[3],
+               h4 = 0.125 * c[4];
+    for (std::size_t i = 0; i < count; ++i) {
+      const double a = ring->u[begin + i], b = ring->v[begin + i];
+      out(i, a * h0 + b * h1 + (a * a) * h2 + (a * b) * h3 + (b * b) * h4);
+    }
+  }
+};
+
+SectorFit fit_sector(RingBuffer& ring, std::size_t begin, std::size_t count, bool closed,
+                     double total_angle, double mu = 1e-9) {
+  SectorFit f{&ring, begin, count, false, {}};
+  ring_parameters(ring.x + begin, ring.y + begin, ring.z + begin, count, closed, total_angle,
+                  ring.u + begin, ring.v + begin, ring.r + begin, ring.gap + begin);
+  const NormalEquations e = normal_equations(ring.x + begin, ring.y + begin, ring.z + begin,
+                                             ring.u + begin, ring.v + begin, ring.r + begin, count);
+  f.valid = solve_fit(e, count, mu, f.c);
+  return f;
+}
+
 }  // namespace
 
 void polar_parameters(const Vec3& origin, std::span<const Vec3> points, bool closed,
                       double total_angle, std::span<std::array<double, 2>> params) {
-  const std::size_t n = points.size();
-  if (n == 0) return;
-  const std::size_t gaps = closed ? n : n - 1;
-  // One atan2 per gap: params[i][0] holds the angle of gap i until the walk below
-  // overwrites it with point i's own parameters.
-  double sum = 0;
-  const Vec3 first = points[0] - origin;
-  Vec3 here = first;
-  for (std::size_t i = 0; i < gaps; ++i) {
-    const Vec3 next = i + 1 < n ? points[i + 1] - origin : first;
-    const double angle = angle_between(here, next);
-    params[i][0] = angle;
-    sum += angle;
-    here = next;
-  }
-  const double scale = (total_angle > 0 && sum > 0) ? total_angle / sum : 1.0;
-  double phi = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    const double angle = params[i][0];  // unset for the last point of an open fan: unused
-    const double r = distance(points[i], origin);
-    if (i == 0) {
-      params[i] = {r, 0.0};  // r cos 0, r sin 0
-    } else {
-      params[i] = {r * std::cos(phi), r * std::sin(phi)};
-    }
-    if (i + 1 < n) phi += scale * angle;
-  }
+  RingBuffer& ring = ring_buffer();
+  for (const Vec3& p : points) ring.push(p - origin, HalfedgeId(), false);
+  ring_parameters(ring.x, ring.y, ring.z, ring.size, closed, total_angle, ring.u, ring.v, ring.r,
+                  ring.gap);
+  for (std::size_t i = 0; i < points.size(); ++i) params[i] = {ring.u[i], ring.v[i]};
 }
 
 QuadricFit fit_quadric(const Vec3& origin, std::span<const Vec3> points,
                        std::span<const std::array<double, 2>> params, double mu) {
-  // Normal equations (S^T S) c = S^T q, accumulated point by point (lower part only).
-  Mat5 normal{};
-  std::array<std::array<double, 3>, 5> rhs{};
-  double mean_radius = 0;
+  RingBuffer& ring = ring_buffer();
+  ring.reserve(points.size());  // u, v, r are written between pushes: no regrowth
   for (std::size_t i = 0; i < points.size(); ++i) {
+    ring.push(points[i] - origin, HalfedgeId(), false);
     const auto [u, v] = params[i];
-    const std::array<double, 5> row = {u, v, 0.5 * u * u, u * v, 0.5 * v * v};
-    const Vec3 q = points[i] - origin;
-    for (int c = 0; c < 5; ++c) {
-      for (int r = c; r < 5; ++r) normal[c][r] += row[c] * row[r];
-      rhs[c][0] += q.x * row[c];
-      rhs[c][1] += q.y * row[c];
-      rhs[c][2] += q.z * row[c];
-    }
-    mean_radius += std::hypot(u, v);
+    ring.u[i] = u, ring.v[i] = v, ring.r[i] = std::sqrt(u * u + v * v);
   }
   QuadricFit fit;
   fit.origin = origin;
-  if (points.empty()) return fit;
-  mean_radius /= static_cast<double>(points.size());
-  // Five or more points can still be nearly degenerate: the side points of a crease vertex
-  // on a developable strip lie close to two lines parallel to the crease (a degenerate
-  // conic), and the exact least-squares quadric then swings far off the surface (50 mm on
-  // a 10 mm cylinder in the fidelity bench). Such samples are damped firmly.
-  if (points.size() >= 5 && poorly_conditioned(normal)) mu = std::max(mu, kIllConditionedMu);
-  // Damp only the second-order terms: below valence 5 S^T S is singular, and the damped
-  // solution tends to the interpolating quadric with the smallest curvature terms.
-  const double damping = mu * std::pow(mean_radius, 4);
-  for (int k = 2; k < 5; ++k) normal[k][k] += damping;
-  const Ldlt5 ldlt(normal);
-  if (!ldlt.success || !ldlt.positive) return fit;
-  std::array<std::array<double, 3>, 5> c = rhs;
-  ldlt.solve(c);
-  for (const auto& row : c)
-    for (double x : row)
-      if (!std::isfinite(x)) return fit;
-  // A rank-deficient linear part (collinear sample) shows as a tiny pivot: refuse it.
-  if (ldlt.min_pivot() <= 1e-14 * ldlt.max_pivot()) return fit;
-  for (int k = 0; k < 5; ++k) fit.c[k] = {c[k][0], c[k][1], c[k][2]};
+  Coefficients c;
+  const NormalEquations e =
+      normal_equations(ring.x, ring.y, ring.z, ring.u, ring.v, ring.r, points.size());
+  if (!solve_fit(e, points.size(), mu, c)) return fit;
+  fit.c = c;
   fit.valid = true;
   return fit;
 }
@@ -238,19 +461,30 @@ QuadricFit fit_quadric(const Vec3& origin, std::span<const Vec3> points,
 namespace {
 
 //! Walks v's ring once and fits one quadric per sector (the whole ring for smooth and dart
-//! vertices), calling on_sector(fit, spokes, sharp, params) for each: spokes[i] is the
+//! vertices), calling on_sector(sector) for each. The ring buffer's spoke[i] is the
 //! outgoing half-edge to ring point i (invalid for the point that closes an open fan),
-//! params[i] its (u, v). Crease sectors are scaled to pi, corners keep natural angles.
+//! sharp[i] whether it is sharp. Crease sectors are scaled to pi, corners keep natural
+//! angles.
 template <class OnSector>
 void for_each_sector_fit(const Mesh& m, const Features& f, VertexId v, OnSector&& on_sector) {
-  thread_local std::vector<Vec3> ring;
-  thread_local std::vector<HalfedgeId> spoke;
-  thread_local std::vector<std::uint8_t> sharp;
-  thread_local std::vector<std::array<double, 2>> params;
-  ring.clear(), spoke.clear(), sharp.clear();
   const HalfedgeId start = m.halfedge(v);
   if (!start.valid()) return;
+  RingBuffer& ring = ring_buffer();
+  const Vec3 p = m.position(v);
   const VertexKind kind = f.kind(v);
+  if (kind == VertexKind::Smooth) {
+    // No sharp spoke, and not on a boundary (boundary edges are sharp): a closed ring.
+    HalfedgeId h = start;
+    do {
+      ring.push(m.position(m.to(h)) - p, h, false);
+      h = m.ccw_rotated(h);
+    } while (h.valid() && h != start);
+    if (h.valid()) {
+      on_sector(fit_sector(ring, 0, ring.size, true, 2.0 * std::numbers::pi));
+      return;
+    }
+    ring.size = 0;  // not expected: treat it like any other vertex
+  }
   // Start a closed ring at a sharp spoke so every sector is a contiguous run.
   HalfedgeId first = start;
   if (!m.is_boundary(v) && kind >= VertexKind::Crease) {
@@ -260,73 +494,53 @@ void for_each_sector_fit(const Mesh& m, const Features& f, VertexId v, OnSector&
   }
   HalfedgeId h = first, last;
   do {
-    ring.push_back(m.position(m.to(h)));
-    spoke.push_back(h);
-    sharp.push_back(f.is_sharp(m.edge(h)));
+    ring.push(m.position(m.to(h)) - p, h, f.is_sharp(m.edge(h)));
     last = h;
     h = m.ccw_rotated(h);
   } while (h.valid() && h != first);
   const bool closed = h.valid();
-  if (!closed) {
-    ring.push_back(m.position(m.from(Mesh::prev(last))));
-    spoke.push_back(HalfedgeId());
-    sharp.push_back(1);
-  }
-  params.resize(ring.size());
-  const Vec3& p = m.position(v);
-
-  auto fit_sector = [&](std::size_t begin, std::size_t count, bool sector_closed,
-                        double total_angle) {
-    const std::span<const Vec3> pts(ring.data() + begin, count);
-    const std::span<std::array<double, 2>> prm(params.data() + begin, count);
-    polar_parameters(p, pts, sector_closed, total_angle, prm);
-    on_sector(fit_quadric(p, pts, prm), std::span<const HalfedgeId>(spoke.data() + begin, count),
-              std::span<const std::uint8_t>(sharp.data() + begin, count),
-              std::span<const std::array<double, 2>>(prm));
-  };
+  if (!closed) ring.push(m.position(m.from(Mesh::prev(last))) - p, HalfedgeId(), true);
 
   if (kind <= VertexKind::Dart) {
     // Smooth or dart: the whole ring, angles scaled to 2 pi (a dart's crease is ignored).
-    fit_sector(0, ring.size(), true, 2.0 * std::numbers::pi);
+    on_sector(fit_sector(ring, 0, ring.size, true, 2.0 * std::numbers::pi));
     return;
   }
   // Crease and corner: one fit per sector between consecutive sharp spokes, including the
   // two sharp neighbours that bound it.
   const double total = kind == VertexKind::Crease ? std::numbers::pi : 0.0;
   if (closed) {
-    ring.push_back(ring.front());  // the sector that wraps around ends at the first spoke
-    spoke.push_back(HalfedgeId());
-    sharp.push_back(1);
-    params.resize(ring.size());
+    // The sector that wraps around ends at the first spoke.
+    ring.push(Vec3(ring.x[0], ring.y[0], ring.z[0]), HalfedgeId(), true);
   }
   std::size_t sector_begin = 0;
-  for (std::size_t i = 1; i < ring.size(); ++i) {
-    if (!sharp[i]) continue;
-    fit_sector(sector_begin, i - sector_begin + 1, false, total);
+  for (std::size_t i = 1; i < ring.size; ++i) {
+    if (!ring.sharp[i]) continue;
+    on_sector(fit_sector(ring, sector_begin, i - sector_begin + 1, false, total));
     sector_begin = i;
   }
 }
-
-}  // namespace
-
-namespace {
 
 // The fitted surface of v at half of each smooth spoke's parameter, passed to
 // sink(spoke, point); a degenerate sample gives the chord midpoint.
 template <class Sink>
 void vertex_estimates(const Mesh& m, const Features& f, VertexId v, Sink&& sink) {
-  const Vec3& p = m.position(v);
-  for_each_sector_fit(
-      m, f, v,
-      [&](const QuadricFit& fit, std::span<const HalfedgeId> spokes,
-          std::span<const std::uint8_t> sharp, std::span<const std::array<double, 2>> prm) {
-        for (std::size_t i = 0; i < spokes.size(); ++i) {
-          const HalfedgeId s = spokes[i];
-          if (!s.valid() || sharp[i]) continue;
-          sink(s, fit.valid ? fit.evaluate(0.5 * prm[i][0], 0.5 * prm[i][1])
-                            : 0.5 * (p + m.position(m.to(s))));
-        }
-      });
+  const Vec3 p = m.position(v);
+  for_each_sector_fit(m, f, v, [&](const SectorFit& fit) {
+    const RingBuffer& ring = *fit.ring;
+    auto emit = [&](std::size_t i, const Vec3& offset) {
+      const std::size_t k = fit.begin + i;
+      if (ring.spoke[k].valid() && !ring.sharp[k]) sink(ring.spoke[k], p + offset);
+    };
+    if (fit.valid) {
+      fit.half_points(emit);
+    } else {
+      for (std::size_t i = 0; i < fit.count; ++i) {
+        const std::size_t k = fit.begin + i;
+        emit(i, 0.5 * Vec3(ring.x[k], ring.y[k], ring.z[k]));
+      }
+    }
+  });
 }
 
 }  // namespace
@@ -338,13 +552,12 @@ void LsfStencil::half_edge_estimates(const Mesh& m, const Features& f, VertexId 
 
 QuadricFit vertex_fit(const Mesh& m, const Features& f, VertexId v) {
   QuadricFit first;
+  first.origin = m.position(v);
   bool have = false;
   if (f.kind(v) == VertexKind::Corner) return first;
-  for_each_sector_fit(m, f, v,
-                      [&](const QuadricFit& fit, std::span<const HalfedgeId>,
-                          std::span<const std::uint8_t>, std::span<const std::array<double, 2>>) {
-                        if (!have) first = fit, have = true;
-                      });
+  for_each_sector_fit(m, f, v, [&](const SectorFit& fit) {
+    if (!have) first = fit.quadric(m.position(v)), have = true;
+  });
   return first;
 }
 

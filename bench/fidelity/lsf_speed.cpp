@@ -1,0 +1,116 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+//
+// stlrefine_lsf_speed: warm, in-process timing of refine() for a few schemes on one STL
+// file (issue 4 item 7, "LSF speed" in bench/RESULTS.md). Each scheme refines the same
+// ingested mesh `--reps` times per round; reported is the minimum over `--rounds` of the
+// round's median process CPU time and wall time, so other jobs on a shared machine disturb
+// the figures less than a single cold run. Also prints a hash of every output coordinate
+// (bit-identity checks between builds) and the output face count. Hand-run, never a test.
+#include <time.h>
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <chrono>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "core/io/stl.h"
+#include "core/mesh/build_mesh.h"
+#include "core/refine.h"
+
+namespace {
+
+double cpu_seconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+std::uint64_t hash_positions(const stlrefine::Mesh& mesh) {
+  std::uint64_t h = 1469598103934665603ull;  // FNV-1a over the coordinate bytes
+  for (const stlrefine::Vec3& p : mesh.positions()) {
+    for (double x : {p.x, p.y, p.z}) {
+      std::uint64_t bits;
+      std::memcpy(&bits, &x, sizeof bits);
+      for (int i = 0; i < 8; ++i) h = (h ^ ((bits >> (8 * i)) & 0xff)) * 1099511628211ull;
+    }
+  }
+  return h;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"stlrefine_lsf_speed: warm refine() timing per scheme"};
+  std::string input;
+  std::vector<std::string> schemes = {"butterfly", "lsf"};
+  int levels = 2, threads = 1, reps = 5, rounds = 3;
+  double adaptive_tol = 0;
+  app.add_option("input", input, "STL file")->required();
+  app.add_option("--schemes", schemes, "schemes to time");
+  app.add_option("--levels", levels, "uniform levels (the cap in the adaptive mode)");
+  app.add_option("--threads", threads, "RefineParams::threads (0 = every core)");
+  app.add_option("--reps", reps, "refinements per round");
+  app.add_option("--rounds", rounds, "rounds; the minimum of the round medians is reported");
+  app.add_option("--adaptive-tol", adaptive_tol, "adaptive mode with this tolerance (mm)");
+  CLI11_PARSE(app, argc, argv);
+
+  const stlrefine::IngestResult ingest =
+      stlrefine::build_mesh(stlrefine::weld(stlrefine::read_stl_file(input)));
+  struct Row {
+    stlrefine::RefineParams params;
+    double best_cpu = 1e300, best_wall = 1e300;
+    std::size_t faces = 0;
+    std::uint64_t hash = 0;
+  };
+  std::vector<Row> rows;
+  for (const std::string& scheme : schemes) {
+    Row row;
+    row.params.scheme = scheme;
+    row.params.levels = levels;
+    row.params.threads = threads;
+    row.params.max_faces = (std::uint64_t(1) << 31) - 1;
+    row.params.adaptive_tol = adaptive_tol;
+    row.params.max_level = levels;
+    stlrefine::refine(ingest.mesh, row.params);  // warm-up: page faults, TBB pool
+    rows.push_back(row);
+  }
+  // Rounds interleave the schemes, so a change of load hits all of them alike.
+  for (int r = 0; r < rounds; ++r) {
+    for (Row& row : rows) {
+      std::vector<double> cpu, wall;
+      for (int i = 0; i < reps; ++i) {
+        const double c0 = cpu_seconds();
+        const auto w0 = std::chrono::steady_clock::now();
+        const stlrefine::RefineResult result = stlrefine::refine(ingest.mesh, row.params);
+        wall.push_back(
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count());
+        cpu.push_back(cpu_seconds() - c0);
+        row.faces = result.mesh.num_faces();
+        row.hash = hash_positions(result.mesh);
+      }
+      row.best_cpu = std::min(row.best_cpu, median(cpu));
+      row.best_wall = std::min(row.best_wall, median(wall));
+    }
+  }
+  std::printf(
+      "| scheme | levels | threads | out faces | CPU s | wall s | CPU / first | wall / first | "
+      "hash |\n");
+  std::printf("|---|--:|--:|--:|--:|--:|--:|--:|---|\n");
+  for (const Row& row : rows) {
+    std::printf("| %s | %d | %d | %zu | %.4f | %.4f | %.2f | %.2f | %016llx |\n",
+                row.params.scheme.c_str(), levels, threads, row.faces, row.best_cpu, row.best_wall,
+                row.best_cpu / rows.front().best_cpu, row.best_wall / rows.front().best_wall,
+                static_cast<unsigned long long>(row.hash));
+  }
+  return 0;
+}
