@@ -463,6 +463,8 @@ DaemonConfig checked(DaemonConfig c) {
   if (c.memory_budget < 2 * kDaemonReserve)
     throw std::invalid_argument("the memory budget must be at least " +
                                 std::to_string(2 * kDaemonReserve >> 20) + " MiB");
+  if (c.compute_nice < 0 || c.compute_nice > 19)
+    throw std::invalid_argument("compute_nice must be in [0, 19]");
   if (c.request_deadline.count() < 0)
     throw std::invalid_argument("the request deadline must be >= 0");
   if (c.http_threads == 0) c.http_threads = c.compute_slots + 4;
@@ -502,6 +504,7 @@ Daemon::Impl::Impl(DaemonConfig c)
     if (jc.runners == 0) jc.runners = config.compute_slots;
     jc.memory = &memory;
     jc.deadline = config.request_deadline;
+    jc.runner_nice = config.compute_nice;
     jobs = std::make_unique<JobStore>(jc, slots, [this](const JobView& job, double seconds) {
       const auto& r = job.report;
       const std::uint64_t in = r.contains("input") ? r["input"].value("faces", 0ull) : 0;
@@ -516,6 +519,7 @@ Daemon::Impl::Impl(DaemonConfig c)
   fo.head_timeout = config.read_timeout;
   fo.idle_timeout = config.read_timeout;
   fo.write_timeout = config.write_timeout;
+  fo.worker_nice = config.compute_nice;
   front = std::make_unique<FrontEnd>(fo, *this);
   install();
 }

@@ -50,6 +50,11 @@ struct DaemonConfig {
   //! A computation (refine, slice, info, job) running longer is cancelled: 504
   //! deadline-exceeded, a job ends failed. 0 = no deadline.
   std::chrono::milliseconds request_deadline{0};
+  //! Nice increment of the threads that compute (HTTP workers, job runners and the TBB
+  //! workers they start); the accept loop, the event loop and the request watch keep the
+  //! process's priority, so /healthz and refusals are answered at once even when every
+  //! core computes. 0 = all threads at one priority.
+  int compute_nice = 10;
   //! Value of Retry-After on 503 answers.
   int retry_after_seconds = 2;
   //! One JSON line per request on stderr: time, request id, method, path, route, status,

@@ -18,6 +18,8 @@
 #include <optional>
 #include <stdexcept>
 
+#include "server/thread_priority.h"
+
 namespace stlrefine::server {
 
 namespace {
@@ -238,6 +240,7 @@ std::size_t FrontEnd::open_connections() const {
 }
 
 void FrontEnd::work() {
+  lower_thread_priority(options_.worker_nice);
   for (;;) {
     std::unique_ptr<ReadRequest> request;
     {

@@ -98,6 +98,9 @@ class FrontEnd {
     std::chrono::milliseconds head_timeout{10000};
     std::chrono::milliseconds idle_timeout{10000};  //!< between two reads of a body
     std::chrono::milliseconds write_timeout{60000};
+    //! Workers run at this much lower priority (nice increment; the computations run on
+    //! them), the event loop at the process's: probes and refusals never wait for compute.
+    int worker_nice = 0;
   };
 
   FrontEnd(Options options, FrontEndDelegate& delegate);

@@ -16,6 +16,7 @@
 #include "api/memory_model.h"
 #include "api/pipeline.h"
 #include "core/error.h"
+#include "server/thread_priority.h"
 #include "slicer/writers.h"
 
 namespace stlrefine::server {
@@ -401,6 +402,7 @@ std::size_t JobStore::running() const {
 }
 
 void JobStore::run_jobs() {
+  lower_thread_priority(config_.runner_nice);
   for (;;) {
     std::shared_ptr<Job> job;
     {

@@ -54,6 +54,8 @@ struct JobsConfig {
   MemoryBudget* memory = nullptr;
   //! A job computing longer is cancelled and fails with "deadline exceeded"; 0 = never.
   std::chrono::milliseconds deadline{0};
+  //! Runners compute at this much lower priority (nice increment), as the HTTP workers do.
+  int runner_nice = 0;
 };
 
 //! What a client sees of a job (a copy, taken under the store's lock).
