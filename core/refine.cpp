@@ -124,7 +124,8 @@ RefineResult run_levels(Mesh mesh, const RefineParams& params, const Scheme& sch
   // Old vertices keep their ids at every level, so input vertex v is output vertex v.
   const BigVector<Vec3> input_positions(mesh.positions().begin(), mesh.positions().end());
 
-  if (params.adaptive()) require_simple_mesh(mesh);  // before any work
+  // The adaptive sqrt3 host knows edges by their vertex pairs (AdaptiveSplit4 does not).
+  if (params.adaptive() && adaptive_sqrt3_scheme(scheme)) require_simple_mesh(mesh);
   Features features = detect_features(mesh, params.features);
   Level level{std::move(mesh), std::move(features)};
   r.sharp_edges_in = level.features.num_sharp_edges();

@@ -97,17 +97,18 @@ struct RefineResult {
 //! stops with the same error as soon as its exact count would pass max_faces.
 std::uint64_t check_face_budget(std::size_t faces, const RefineParams& params);
 
-//! What both adaptive hosts need: no two edges join the same two vertices and no two faces
-//! have the same three. Their output's edges are known by their vertex pairs; ingest leaves
-//! doubled edges where it cuts a non-manifold edge apart, and a facet plus its reverse is a
-//! two-face pillow. Uniform levels refine such meshes.
+//! What the adaptive sqrt3 host needs: no two edges join the same two vertices and no two
+//! faces have the same three. Its output's edges are known by their vertex pairs; ingest
+//! leaves doubled edges where it cuts a non-manifold edge apart, and a facet plus its
+//! reverse is a two-face pillow. Uniform levels and the adaptive 1-to-4 host (lsf,
+//! butterfly) refine such meshes.
 //! \throw Error(NotTriangleMesh, "adaptive_non_simple") naming the vertices or faces.
 void require_simple_mesh(const Mesh& mesh);
 
 //! Applies params.scheme params.levels times. Checks the face budget before any work,
 //! the cancel flag between levels. Takes the mesh by value: move it in to save a copy.
 //! \throw Error(InvalidParameter | BudgetExceeded | Cancelled); Error(NotTriangleMesh) in the
-//! adaptive mode on a mesh that is not simple (see require_simple_mesh).
+//! adaptive mode of a sqrt3 scheme on a mesh that is not simple (see require_simple_mesh).
 RefineResult refine(Mesh mesh, const RefineParams& params, const ProgressFn& progress = {},
                     const std::atomic<bool>* cancel = nullptr);
 

@@ -5,8 +5,6 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
-#include <unordered_map>
-#include <unordered_set>
 #include <vector>
 
 #include "core/schemes/split4_host.h"
@@ -40,10 +38,13 @@ std::size_t count_edges_over_tolerance(const Level& level, const Split4Stencil& 
 //! triangle that would get two hanging midpoints, or a midpoint on a half of its own split
 //! edge, is split red too. Vertices are never moved or renumbered (the schemes are
 //! interpolating), so input vertex v is output vertex v; watertight in, watertight out.
+//!
+//! Edges are known by identity (the input's EdgeIds, then one entry per half and per inner
+//! edge of a split), never by their end vertices, so meshes that are not simple work as
+//! they do in uniform refinement: two edges between the same two vertices (ingest cuts a
+//! non-manifold edge apart that way) and a facet with its reverse (a two-face pillow).
 class AdaptiveSplit4 {
  public:
-  //! \pre `coarse` is simple (require_simple_mesh): midpoints and green bisectors are keyed
-  //! by vertex pair.
   explicit AdaptiveSplit4(const Level& coarse);
 
   //! One step. Returns false, changing nothing, when no edge is over a criterion (see
@@ -57,14 +58,28 @@ class AdaptiveSplit4 {
   Level release() { return std::move(level_); }
 
  private:
-  using Triangle = std::array<std::uint32_t, 3>;
+  static constexpr std::uint32_t kNone = 0xffffffffu;
+  struct Edge {
+    std::array<std::uint32_t, 2> v;                   // end vertices
+    std::uint32_t mid = kNone;                        // midpoint vertex once split
+    std::array<std::uint32_t, 2> half{kNone, kNone};  // edges v[0]-mid and mid-v[1]
+    std::uint32_t parent = kNone;                     // the edge this one is a half of
+    bool sharp = false;
+  };
+  struct Leaf {
+    std::array<std::uint32_t, 3> v;  // corners, oriented like the input
+    std::array<std::uint32_t, 3> e;  // e[k] joins v[k] and v[k+1]
+  };
   void build_level();
-  std::uint32_t midpoint(std::uint32_t a, std::uint32_t b) const;
+  //! The half of split edge e that ends at vertex x.
+  std::uint32_t half_at(std::uint32_t e, std::uint32_t x) const {
+    return edges_[e].v[0] == x ? edges_[e].half[0] : edges_[e].half[1];
+  }
+  std::uint32_t add_edge(std::uint32_t a, std::uint32_t b, bool sharp, std::uint32_t parent);
 
   std::vector<Vec3> positions_;
-  std::vector<Triangle> red_;  // the hierarchy's leaves, oriented like the input
-  std::unordered_map<std::uint64_t, std::uint32_t> midpoint_;  // vertex pair -> midpoint
-  std::unordered_set<std::uint64_t> sharp_;                    // sharp vertex pairs
+  std::vector<Edge> edges_;
+  std::vector<Leaf> leaves_;  // the hierarchy's leaves
   Level level_;
   // For each face of level_: the leaf it belongs to; for each leaf edge k the half-edge of
   // level_ that is that edge, or invalid when the edge is split by a hanging midpoint.

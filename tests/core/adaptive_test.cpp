@@ -6,7 +6,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "core/error.h"
 #include "core/refine.h"
@@ -197,27 +199,169 @@ TEST(Adaptive, RejectsApproximatingSchemesAndBadRanges) {
   EXPECT_EQ(field_of(adaptive("butterfly", 0.1, 8)), "none");
 }
 
-// fuzz_pipeline's findings: both adaptive hosts know their output's edges by vertex pair,
+// fuzz_pipeline's findings: both adaptive hosts knew their output's edges by vertex pair,
 // so on a mesh that is not simple faces overlapped and they failed with an Internal error
-// (a 500). Both shapes are refused before any work; uniform levels refine them.
+// (a 500); both shapes were then refused before any work.
 //  - crash-fb7b3439...: a tetrahedron's corner with one facet repeated in reverse; ingest
 //    cuts the non-manifold edge apart and leaves two edges between vertices 0 and 2.
 //  - crash-02345917...: a facet and its reverse (a closed two-face pillow) among other
 //    parts: the inner edges of the two faces' 1-to-4 children join the same vertices.
-TEST(Adaptive, RefusesMeshesThatAreNotSimpleBeforeAnyWork) {
-  IndexedSoup doubled_edge;
-  doubled_edge.positions = {{0, 0, 0}, {0, 2, 0}, {2, 0, 0}, {0, 0, 2}};
-  doubled_edge.triangles = {{{0, 1, 2}}, {{0, 2, 3}}, {{0, 3, 1}}, {{2, 0, 3}}};
-  IndexedSoup pillow;
-  pillow.positions = {{0, 0, 0}, {4, 0, 0}, {0, 3, 1}, {9, 9, 9}, {13, 9, 9}, {9, 12, 9}};
-  pillow.triangles = {{{0, 1, 2}}, {{0, 2, 1}}, {{3, 4, 5}}};
-  for (const IndexedSoup& soup : {doubled_edge, pillow}) {
+// AdaptiveSplit4 now knows edges by identity and refines both; the adaptive sqrt3 host
+// still refuses them before any work.
+IndexedSoup doubled_edge_soup() {
+  IndexedSoup s;
+  s.positions = {{0, 0, 0}, {0, 2, 0}, {2, 0, 0}, {0, 0, 2}};
+  s.triangles = {{{0, 1, 2}}, {{0, 2, 3}}, {{0, 3, 1}}, {{2, 0, 3}}};
+  return s;
+}
+
+IndexedSoup pillow_soup() {
+  IndexedSoup s;
+  s.positions = {{0, 0, 0}, {4, 0, 0}, {0, 3, 1}, {9, 9, 9}, {13, 9, 9}, {9, 12, 9}};
+  s.triangles = {{{0, 1, 2}}, {{0, 2, 1}}, {{3, 4, 5}}};
+  return s;
+}
+
+// A closed, curved mesh that is not simple: an icosphere with one facet repeated in
+// reverse. Each of the facet's edges then has three facets; ingest cuts them apart and
+// leaves two edges between each pair of the facet's corners.
+IndexedSoup sphere_with_reversed_facet_soup() {
+  IndexedSoup s = icosphere_soup(2, 10.0);
+  const auto t = s.triangles[0];
+  s.triangles.push_back({{t[0], t[2], t[1]}});
+  return s;
+}
+
+bool is_simple(const Mesh& mesh) {
+  try {
+    require_simple_mesh(mesh);
+  } catch (const Error&) {
+    return false;
+  }
+  return true;
+}
+
+// The boundary loops of a mesh as cyclic sequences of the vertices below `keep` (input
+// vertices keep their ids), each rotated to start at its smallest vertex, sorted.
+std::vector<std::vector<std::uint32_t>> boundary_loops(const Mesh& m, std::uint32_t keep) {
+  std::vector<HalfedgeId> out_of(m.num_vertices());
+  for (std::uint32_t h = 0; h < m.num_halfedges(); ++h)
+    if (m.is_boundary(HalfedgeId(h))) out_of[m.from(HalfedgeId(h)).idx] = HalfedgeId(h);
+  std::vector<std::uint8_t> seen(m.num_halfedges(), 0);
+  std::vector<std::vector<std::uint32_t>> loops;
+  for (std::uint32_t h0 = 0; h0 < m.num_halfedges(); ++h0) {
+    if (!m.is_boundary(HalfedgeId(h0)) || seen[h0]) continue;
+    std::vector<std::uint32_t> loop;
+    for (HalfedgeId h(h0); h.valid() && !seen[h.idx]; h = out_of[m.to(h).idx]) {
+      seen[h.idx] = 1;
+      if (m.from(h).idx < keep) loop.push_back(m.from(h).idx);
+    }
+    if (!loop.empty())
+      std::rotate(loop.begin(), std::min_element(loop.begin(), loop.end()), loop.end());
+    loops.push_back(loop);
+  }
+  std::sort(loops.begin(), loops.end());
+  return loops;
+}
+
+// Watertight and conforming: a valid half-edge mesh whose boundary loops are the input's,
+// only subdivided (a crack or a T-junction inside would add a loop or break one), input
+// vertices untouched, and every edge within tolerance when the refinement stopped early.
+void expect_adaptive_output_is_sound(const Mesh& in, const char* scheme, double tol) {
+  SCOPED_TRACE(scheme);
+  const RefineResult r = refine(in, adaptive(scheme, tol, 6));
+  EXPECT_EQ(r.mesh.check_invariants(), "");
+  const auto nv = static_cast<std::uint32_t>(in.num_vertices());
+  EXPECT_EQ(boundary_loops(r.mesh, nv), boundary_loops(in, nv));
+  for (std::uint32_t v = 0; v < nv; ++v)
+    EXPECT_EQ(r.mesh.position(VertexId(v)), in.position(VertexId(v)));
+  EXPECT_GT(r.report.levels, 0);
+  if (r.report.levels < 6) {
+    EXPECT_EQ(r.report.edges_over_tolerance, 0u);
+    const Level final_level{r.mesh, detect_features(r.mesh, {})};
+    EXPECT_EQ(count_edges_over_tolerance(final_level, *adaptive_scheme(*make_scheme(scheme)), tol),
+              0u);
+  }
+}
+
+TEST(Adaptive, RefinesMeshesThatAreNotSimpleLikeSimpleOnes) {
+  for (const IndexedSoup& soup :
+       {doubled_edge_soup(), pillow_soup(), sphere_with_reversed_facet_soup()}) {
     const Mesh mesh = to_mesh(soup);
-    for (const char* scheme : {"butterfly", "lsf", "sqrt3-interp", "sqrt3"}) {
+    ASSERT_FALSE(is_simple(mesh));
+    for (const char* scheme : {"lsf", "butterfly"})
+      expect_adaptive_output_is_sound(mesh, scheme, soup.positions.size() > 6 ? 0.05 : 0.01);
+  }
+}
+
+// A closed manifold that is not simple: a torus with only two vertex rings around the
+// tube. Going up from ring 0 to ring 1 and on from ring 1 back to ring 0 gives two distinct
+// edges between each pair (0, j), (1, j). Ingest, seeing each directed pair twice, would
+// cut them apart, so the mesh is assembled here with its twins given explicitly. Each
+// band's quads are split along a different diagonal, so no two faces share three vertices.
+Mesh two_ring_torus(int n) {
+  BigVector<Vec3> positions;
+  for (int i = 0; i < 2; ++i) {
+    for (int j = 0; j < n; ++j) {
+      const double a = 2 * M_PI * (j + 0.5 * i) / n, rho = i == 0 ? 10.0 : 6.0;
+      positions.push_back({rho * std::cos(a), rho * std::sin(a), i == 0 ? 2.0 : -2.0});
+    }
+  }
+  auto at = [n](int i, int j) { return VertexId(static_cast<std::uint32_t>(i * n + (j % n))); };
+  // Edge keys: rings (i, j) -> (i, j+1), the two bands' verticals at j, the diagonals.
+  auto ring = [n](int i, int j) { return i * n + j % n; };
+  auto vertical = [n](int band, int j) { return 2 * n + band * n + j % n; };
+  auto diagonal = [n](int band, int j) { return 4 * n + band * n + j; };
+  BigVector<VertexId> corners;
+  std::vector<int> keys;
+  auto add = [&](std::array<VertexId, 3> v, std::array<int, 3> k) {
+    corners.insert(corners.end(), v.begin(), v.end());
+    keys.insert(keys.end(), k.begin(), k.end());
+  };
+  for (int j = 0; j < n; ++j) {
+    // Band 0: (0,j) (0,j+1) (1,j+1) (1,j), diagonal (0,j)-(1,j+1).
+    add({at(0, j), at(0, j + 1), at(1, j + 1)}, {ring(0, j), vertical(0, j + 1), diagonal(0, j)});
+    add({at(0, j), at(1, j + 1), at(1, j)}, {diagonal(0, j), ring(1, j), vertical(0, j)});
+    // Band 1: (1,j) (1,j+1) (0,j+1) (0,j), diagonal (1,j)-(0,j+1).
+    add({at(1, j), at(1, j + 1), at(0, j + 1)}, {ring(1, j), vertical(1, j + 1), diagonal(1, j)});
+    add({at(1, j), at(0, j + 1), at(0, j)}, {diagonal(1, j), ring(0, j), vertical(1, j)});
+  }
+  BigVector<HalfedgeId> twin(corners.size());
+  std::vector<int> first(6 * n, -1);
+  for (std::size_t h = 0; h < keys.size(); ++h) {
+    int& other = first[keys[h]];
+    if (other < 0) {
+      other = static_cast<int>(h);
+    } else {
+      twin[h] = HalfedgeId(static_cast<std::uint32_t>(other));
+      twin[other] = HalfedgeId(static_cast<std::uint32_t>(h));
+    }
+  }
+  return Mesh::from_parts(std::move(positions), std::move(corners), std::move(twin));
+}
+
+TEST(Adaptive, AClosedMeshThatIsNotSimpleStaysClosed) {
+  const Mesh mesh = two_ring_torus(12);
+  ASSERT_FALSE(is_simple(mesh));
+  ASSERT_EQ(mesh.check_invariants(), "");
+  ASSERT_TRUE(boundary_loops(mesh, static_cast<std::uint32_t>(mesh.num_vertices())).empty());
+  for (const char* scheme : {"lsf", "butterfly"}) {
+    SCOPED_TRACE(scheme);
+    const RefineResult r = refine(mesh, adaptive(scheme, 0.05, 3));
+    expect_watertight_manifold(r.mesh);
+    EXPECT_GT(r.mesh.num_faces(), mesh.num_faces());
+    expect_adaptive_output_is_sound(mesh, scheme, 0.05);
+  }
+}
+
+TEST(Adaptive, Sqrt3SchemesStillRefuseMeshesThatAreNotSimpleBeforeAnyWork) {
+  for (const IndexedSoup& soup : {doubled_edge_soup(), pillow_soup()}) {
+    const Mesh mesh = to_mesh(soup);
+    for (const char* scheme : {"sqrt3-interp", "sqrt3"}) {
       SCOPED_TRACE(scheme);
       try {
         refine(mesh, adaptive(scheme, 1e-6, 2));
-        ADD_FAILURE() << "the adaptive mode accepted a mesh that is not simple";
+        ADD_FAILURE() << "the adaptive sqrt3 mode accepted a mesh that is not simple";
       } catch (const Error& e) {
         EXPECT_EQ(e.code(), ErrorCode::NotTriangleMesh) << e.what();
         EXPECT_EQ(e.reason(), "adaptive_non_simple");
