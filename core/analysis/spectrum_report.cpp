@@ -262,7 +262,8 @@ std::string spectra_markdown() {
   }
   out +=
       "\n## Masks the spectral schemes change\n\n"
-      "Derived at first use from the base stencil's own matrices for every valence up to " +
+      "Derived from the base stencil's own matrices, each valence when a mesh first has it, "
+      "for every valence up to " +
       std::to_string(kSpectralMaxValence) +
       " (higher valences keep the base rules). A mask reads `rings read` rings (the smallest "
       "closed net that holds every moved eigenvalue: for Loop at n >= 7 one ring, so only the "

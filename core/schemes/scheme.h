@@ -7,11 +7,26 @@
 #include <memory>
 #include <span>
 #include <string_view>
+#include <utility>
+#include <vector>
 
 #include "core/features/features.h"
 #include "core/mesh/mesh.h"
 
 namespace stlrefine {
+
+//! The interior vertices of a mesh whose valence is not 6, each with its valence: the only
+//! places the spectral stencils (loop-g2, butterfly-g1) change anything. A 1-to-4 step keeps
+//! this set (old vertices keep their ids and valences, new interior vertices have valence
+//! 6), so the split4 host finds it once and carries it from level to level. It describes
+//! the mesh with `vertices` vertices and `faces` faces only: any other mesh may differ.
+struct IrregularVertices {
+  std::shared_ptr<const std::vector<std::pair<VertexId, int>>> list;
+  std::size_t vertices = 0, faces = 0;
+  bool valid_for(const Mesh& m) const {
+    return list && vertices == m.num_vertices() && faces == m.num_faces();
+  }
+};
 
 //! One subdivision level: connectivity and positions plus the sharp features on it.
 struct Level {
@@ -23,6 +38,8 @@ struct Level {
   //! Per-vertex blend parameter of sqrt3-unified (Lin-Luo alpha: 1 interpolates, 0
   //! approximates), carried to new vertices by the sqrt3 host; empty for other schemes.
   BigVector<double> alpha{};
+  //! Set by the split4 host when its stencil asked for it (split4_host.h); empty otherwise.
+  IrregularVertices irregular{};
 };
 
 //! Counters a step adds to, reported to the user.

@@ -2,7 +2,6 @@
 // Copyright (c) 2026 stlrefine authors
 #include "core/schemes/spectral_stencil.h"
 
-#include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
 #include <algorithm>
@@ -101,19 +100,21 @@ ValenceMasks derive_masks(const Split4Stencil& base, const MoveRule& rule, int n
   return out;
 }
 
-SpectralMaskTable::SpectralMaskTable(const Split4Stencil& base, const MoveRule& rule,
-                                     int max_valence)
-    : by_valence_(std::max(max_valence + 1, 3)) {
-  // Valences are independent: derive them side by side. isolate() keeps this thread from
-  // picking up unrelated work while it waits (it may be inside a static initialiser).
-  tbb::this_task_arena::isolate([&] {
-    tbb::parallel_for(3, max_valence + 1,
-                      [&](int n) { by_valence_[n] = derive_masks(base, rule, n); });
-  });
-}
+SpectralMaskTable::SpectralMaskTable(const Split4Stencil& base, MoveRule rule, int max_valence)
+    : base_(base),
+      rule_(std::move(rule)),
+      max_valence_(std::max(max_valence, 2)),
+      once_(new std::once_flag[max_valence_ + 1]),
+      by_valence_(new ValenceMasks[max_valence_ + 1]) {}
 
 const ValenceMasks& SpectralMaskTable::at(int valence) const {
-  if (valence < 3 || valence >= static_cast<int>(by_valence_.size())) return none_;
+  if (valence < 3 || valence > max_valence_) return none_;
+  std::call_once(once_[valence], [&] {
+    // isolate(): while the derivation's own parallel loops wait, this thread must not pick
+    // up unrelated work that could ask for the same valence again.
+    tbb::this_task_arena::isolate(
+        [&] { by_valence_[valence] = derive_masks(base_, rule_, valence); });
+  });
   return by_valence_[valence];
 }
 
@@ -127,49 +128,71 @@ SpectralStencil::SpectralStencil(std::unique_ptr<Split4Stencil> base,
                                  const SpectralMaskTable& table, SpectralSchedule schedule)
     : base_(std::move(base)), table_(table), schedule_(schedule) {}
 
+void SpectralStencil::points(const Level& coarse, const IrregularVertices& irregular,
+                             std::span<Vec3> vertex_out, std::span<Vec3> edge_out) const {
+  base_->points(coarse, irregular, vertex_out, edge_out);
+  if (schedule_.move_fraction(coarse.step) == 0) return;
+  apply(coarse, find_sites(coarse, irregular), vertex_out, edge_out);
+}
+
 void SpectralStencil::edge_points(const Level& coarse, std::span<Vec3> out) const {
   base_->edge_points(coarse, out);
-  apply(coarse, out, false);
+  if (schedule_.move_fraction(coarse.step) == 0) return;
+  apply(coarse, find_sites(coarse, irregular_vertices(coarse)), {}, out);
 }
 
 void SpectralStencil::vertex_points(const Level& coarse, std::span<Vec3> out) const {
   base_->vertex_points(coarse, out);
-  apply(coarse, out, true);
+  if (schedule_.move_fraction(coarse.step) == 0) return;
+  apply(coarse, find_sites(coarse, irregular_vertices(coarse)), out, {});
 }
 
-void SpectralStencil::apply(const Level& coarse, std::span<Vec3> out, bool vertices) const {
-  const double t = schedule_.move_fraction(coarse.step);
-  if (t == 0) return;
+SpectralStencil::Sites SpectralStencil::find_sites(const Level& coarse,
+                                                   const IrregularVertices& irregular) const {
   const Mesh& m = coarse.mesh;
   const Features& f = coarse.features;
-  // Candidates by face count, one pass over the corners: a vertex with six faces is never
-  // an interior extraordinary vertex, and most valences have no masks.
-  std::vector<std::uint32_t> faces(m.num_vertices(), 0);
-  for (VertexId v : m.corner_vertices()) ++faces[v.idx];
-  std::vector<VertexId> candidates;
+  Sites out;
+  // Derive the masks of the valences present here, one valence at a time, before the
+  // parallel walk below (whose tasks then only read them).
+  std::vector<std::pair<VertexId, int>> candidates;
   std::vector<std::uint8_t> present(table_.max_valence() + 1, 0);
-  for (std::uint32_t v = 0; v < faces.size(); ++v) {
-    const std::uint32_t n = faces[v];
-    if (n == 6 || n < 3 || int(n) > table_.max_valence() || table_.at(int(n)).empty()) continue;
-    candidates.push_back(VertexId(v));
+  for (const auto& [v, n] : *irregular.list) {
+    if (n < 3 || n > table_.max_valence() || table_.at(n).empty()) continue;
+    if (f.kind(v) != VertexKind::Smooth) continue;
+    candidates.emplace_back(v, n);
     present[n] = 1;
   }
-  if (candidates.empty()) return;
-  std::vector<std::vector<Eigen::VectorXd>> rows(present.size());
+  if (candidates.empty()) return out;
+  const double t = schedule_.move_fraction(coarse.step);
+  out.rows.resize(present.size());
   for (std::size_t n = 0; n < present.size(); ++n)
-    if (present[n]) rows[n] = table_.at(int(n)).rows(schedule_.fraction, t);
+    if (present[n]) out.rows[n] = table_.at(int(n)).rows(schedule_.fraction, t);
 
-  // Eligible vertices have disjoint changed points (their clean rings hold no other
-  // special vertex), so they are written in parallel.
+  std::vector<Site> all(candidates.size());
   parallel_for_each_index(candidates.size(), [&](std::size_t i) {
-    const VertexId v = candidates[i];
-    const int n = static_cast<int>(faces[v.idx]);
-    const ValenceMasks& masks = table_.at(n);
-    if (f.kind(v) != VertexKind::Smooth || m.is_boundary(v)) return;
-    const std::vector<VertexId> ids = analysis::walk_polar_net(m, m.halfedge(v), masks.clean_rings);
+    const auto [v, n] = candidates[i];
+    std::vector<VertexId> ids =
+        analysis::walk_polar_net(m, m.halfedge(v), table_.at(n).clean_rings);
     if (ids.empty()) return;
     for (VertexId w : ids)
       if (f.kind(w) != VertexKind::Smooth) return;
+    all[i] = {v, n, std::move(ids)};
+  });
+  for (Site& s : all)
+    if (!s.net.empty()) out.sites.push_back(std::move(s));
+  return out;
+}
+
+void SpectralStencil::apply(const Level& coarse, const Sites& sites, std::span<Vec3> vertex_out,
+                            std::span<Vec3> edge_out) const {
+  const Mesh& m = coarse.mesh;
+  // Sites have disjoint changed points (their clean rings hold no other special vertex),
+  // so they are written in parallel.
+  parallel_for_each_index(sites.sites.size(), [&](std::size_t i) {
+    const Site& site = sites.sites[i];
+    const int n = site.valence;
+    const std::vector<VertexId>& ids = site.net;
+    const ValenceMasks& masks = table_.at(n);
     const PolarLayout lay{n, masks.rings};
     // Coarse lattice point (k, a, b), a + b <= rings.
     auto coarse_at = [&](int k, int a, int b) {
@@ -182,8 +205,9 @@ void SpectralStencil::apply(const Level& coarse, std::span<Vec3> out, bool verti
       int fa = 0, fb = 0;
       if (p >= 0) PolarLayout::lattice(p, fa, fb);
       const bool even = fa % 2 == 0 && fb % 2 == 0;  // the centre included
-      if (even != vertices) continue;
-      const Eigen::VectorXd& w = rows[n][r];
+      const std::span<Vec3> out = even ? vertex_out : edge_out;
+      if (out.empty()) continue;
+      const Eigen::VectorXd& w = sites.rows[n][r];
       for (int j = 0; j < (p < 0 ? 1 : n); ++j) {
         // Fine point (j, fa, fb) of a 1-to-4 step: an old vertex when both coordinates are
         // even, else the edge point between the two coarse points it halves.

@@ -15,6 +15,26 @@ void Split4Stencil::vertex_points(const Level& coarse, std::span<Vec3> out) cons
   std::copy(p.begin(), p.end(), out.begin());
 }
 
+void Split4Stencil::points(const Level& coarse, const IrregularVertices&,
+                           std::span<Vec3> vertex_out, std::span<Vec3> edge_out) const {
+  vertex_points(coarse, vertex_out);
+  edge_points(coarse, edge_out);
+}
+
+IrregularVertices irregular_vertices(const Level& level) {
+  const Mesh& m = level.mesh;
+  if (level.irregular.valid_for(m)) return level.irregular;
+  std::vector<int> valence(m.num_vertices(), 6);
+  parallel_for_each_index(m.num_vertices(), [&](std::size_t i) {
+    const VertexId v(static_cast<std::uint32_t>(i));
+    if (!m.is_isolated(v) && !m.is_boundary(v)) valence[i] = m.valence(v);
+  });
+  auto list = std::make_shared<std::vector<std::pair<VertexId, int>>>();
+  for (std::size_t i = 0; i < valence.size(); ++i)
+    if (valence[i] != 6) list->emplace_back(VertexId(static_cast<std::uint32_t>(i)), valence[i]);
+  return {std::move(list), m.num_vertices(), m.num_faces()};
+}
+
 namespace {
 
 // Connectivity of the 1-to-4 split, derived arithmetically from the coarse mesh.
@@ -228,8 +248,10 @@ Level split4(const Level& coarse, const Split4Stencil& stencil, StepStats& stats
   const Mesh& m = coarse.mesh;
   const std::size_t nv = m.num_vertices();
   BigVector<Vec3> positions(nv + m.num_edges());
-  stencil.vertex_points(coarse, std::span<Vec3>(positions.data(), nv));
-  stencil.edge_points(coarse, std::span<Vec3>(positions.data() + nv, m.num_edges()));
+  const IrregularVertices irregular =
+      stencil.uses_irregular() ? irregular_vertices(coarse) : IrregularVertices{};
+  stencil.points(coarse, irregular, std::span<Vec3>(positions.data(), nv),
+                 std::span<Vec3>(positions.data() + nv, m.num_edges()));
   if (guard == FoldGuard::AsStencil && stencil.guards_folds())
     stats.fold_fallbacks += guard_folds(m, coarse.features, positions);
 
@@ -240,6 +262,11 @@ Level split4(const Level& coarse, const Split4Stencil& stencil, StepStats& stats
                                           std::move(t.edge_halfedge), std::move(t.vertex_halfedge));
   fine.features = split4_features(m, coarse.features, std::move(t.sharp));
   fine.step = coarse.step + 1;
+  // Old vertices keep their ids and valences and new interior vertices have valence 6:
+  // the fine level's irregular vertices are the coarse level's.
+  const IrregularVertices& carried = irregular.list ? irregular : coarse.irregular;
+  if (carried.valid_for(m))
+    fine.irregular = {carried.list, fine.mesh.num_vertices(), fine.mesh.num_faces()};
   return fine;
 }
 

@@ -23,7 +23,18 @@ class Split4Stencil {
   //! Whether the host runs its fold guard after this stencil: interpolating stencils by
   //! default; butterfly-g1 (which moves a few later-level vertices) asks for it too.
   virtual bool guards_folds() const { return interpolating(); }
+  //! Whether points() reads the level's irregular vertices (the spectral stencils): the
+  //! host then finds them once and carries them to the next level.
+  virtual bool uses_irregular() const { return false; }
+  //! Vertex and edge points together, the host's entry point. `irregular` is valid for
+  //! the coarse mesh when uses_irregular(), else empty. Default: vertex_points, edge_points.
+  virtual void points(const Level& coarse, const IrregularVertices& irregular,
+                      std::span<Vec3> vertex_out, std::span<Vec3> edge_out) const;
 };
+
+//! level.irregular when it is valid for level.mesh, else found now (one pass over the
+//! vertices).
+IrregularVertices irregular_vertices(const Level& level);
 
 //! Whether split4 runs the fold guard: as the stencil asks (production), or never (the
 //! spectral analysis, which must see the stencil's linear rules alone).

@@ -353,6 +353,48 @@ TEST(SpectralSchemes, PlanarStaysPlanarFacesQuadrupleClosedStaysClosed) {
   }
 }
 
+TEST(SpectralSchemes, CarriedIrregularVerticesChangeNothing) {
+  // The split4 host finds the irregular vertices once and carries them (scheme.h); a level
+  // without them, and the stencil's separate vertex_points/edge_points (the adaptive
+  // host's entry points), must give the same bits.
+  std::vector<Level> inputs{closed_level(3), closed_level(9), closed_level(12),
+                            make_level(to_mesh(cylinder_soup(12, 1.0, 2.0)), 35)};
+  for (const char* name : {"loop-g2", "butterfly-g1"}) {
+    const auto scheme = make_scheme(name);
+    const auto& stencil = static_cast<const Split4Scheme&>(*scheme).stencil();
+    for (std::size_t i = 0; i < inputs.size(); ++i) {
+      Level carried = inputs[i];
+      StepStats stats;
+      for (int step = 0; step < 4; ++step) {
+        Level fresh = carried;
+        fresh.irregular = {};
+        const IrregularVertices found = irregular_vertices(fresh);
+        if (step > 0) {
+          ASSERT_TRUE(carried.irregular.valid_for(carried.mesh)) << name << " " << i;
+          EXPECT_EQ(*carried.irregular.list, *found.list) << name << " " << i << " " << step;
+        }
+        EXPECT_FALSE(found.list->empty());
+        std::vector<Vec3> separate(fresh.mesh.num_vertices() + fresh.mesh.num_edges());
+        stencil.vertex_points(fresh, std::span<Vec3>(separate.data(), fresh.mesh.num_vertices()));
+        stencil.edge_points(fresh, std::span<Vec3>(separate.data() + fresh.mesh.num_vertices(),
+                                                   fresh.mesh.num_edges()));
+        const Level a = scheme->refine_once(carried, stats);
+        const Level b = scheme->refine_once(fresh, stats);
+        ASSERT_EQ(stats.fold_fallbacks, 0u) << name << " " << i;
+        EXPECT_TRUE(std::equal(a.mesh.positions().begin(), a.mesh.positions().end(),
+                               b.mesh.positions().begin(), b.mesh.positions().end()))
+            << name << " " << i << " " << step;
+        // No fold guard moved anything on these shapes, so the host's points are the
+        // stencil's.
+        EXPECT_TRUE(std::equal(separate.begin(), separate.end(), b.mesh.positions().begin(),
+                               b.mesh.positions().end()))
+            << name << " " << i << " " << step;
+        carried = a;
+      }
+    }
+  }
+}
+
 TEST(SpectralSchemes, NoMasksWithoutCleanRings) {
   // Two rings around a valence-9 vertex, the second on the boundary: neither scheme has
   // the regular rings its masks assume, so both are their base there.
