@@ -97,6 +97,7 @@ int main(int argc, char** argv) {
   std::size_t max_connections = 1024;
   std::string memory_budget;
   double request_deadline = 900;
+  int compute_nice = 10;
   bool test_faults = false;
   app.set_config("--config", "", "Read options from this TOML/INI file (key = value)");
   app.add_option("--host", host, "Address to listen on")->capture_default_str();
@@ -172,6 +173,11 @@ int main(int argc, char** argv) {
                  "cancelled (504; a job fails); 0 = no deadline")
       ->check(CLI::Range(0.0, 7.0 * 24 * 3600))
       ->capture_default_str();
+  app.add_option("--compute-nice", compute_nice,
+                 "Nice increment of the threads that compute; the event loop keeps the "
+                 "process's priority so probes and refusals are answered at once (0 = off)")
+      ->check(CLI::Range(0, 19))
+      ->capture_default_str();
   // Tests only: lets a request header make its handler throw or fail an allocation.
   app.add_flag("--test-faults", test_faults, "")->group("");
   // Every option can also come from the environment: STLREFINED_PORT=9000, ...
@@ -204,6 +210,7 @@ int main(int argc, char** argv) {
     config.jobs.disk_budget_bytes = disk_budget_mib << 20;
     config.shutdown_grace = std::chrono::seconds(shutdown_grace);
     config.max_connections = max_connections;
+    config.compute_nice = compute_nice;
     config.memory_budget =
         memory_budget.empty() ? 0 : stlrefine::server::parse_byte_size(memory_budget);
     config.request_deadline =
