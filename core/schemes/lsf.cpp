@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numbers>
 #include <utility>
@@ -175,29 +176,6 @@ struct NormalEquations {
   }
 };
 
-NormalEquations normal_equations(const double* x, const double* y, const double* z, const double* u,
-                                 const double* v, const double* r, std::size_t count) {
-  NormalEquations e;
-  double s0 = 0, s1 = 0, s2 = 0, s3 = 0, s4 = 0, s5 = 0, s6 = 0, s7 = 0, s8 = 0, s9 = 0, s10 = 0,
-         s11 = 0, radius_sum = 0;
-  Vec3 q0, q1, q2, q3, q4;
-  for (std::size_t i = 0; i < count; ++i) {
-    const double a = u[i], b = v[i];
-    const double a2 = a * a, ab = a * b, b2 = b * b;
-    s0 += a2, s1 += ab, s2 += b2;
-    s3 += a2 * a, s4 += a2 * b, s5 += a * b2, s6 += b2 * b;
-    s7 += a2 * a2, s8 += a2 * ab, s9 += a2 * b2, s10 += ab * b2, s11 += b2 * b2;
-    radius_sum += r[i];
-    const Vec3 d(x[i], y[i], z[i]);
-    q0 += a * d, q1 += b * d, q2 += a2 * d, q3 += ab * d, q4 += b2 * d;
-  }
-  const double sums[12] = {s0, s1, s2, s3, s4, s5, s6, s7, s8, s9, s10, s11};
-  std::copy(std::begin(sums), std::end(sums), std::begin(e.s));
-  e.q = {q0, q1, 0.5 * q2, q3, 0.5 * q4};
-  e.radius_sum = radius_sum;
-  return e;
-}
-
 bool all_finite(const Coefficients& c) {
   // x - x is 0 for finite x and NaN for inf and NaN; NaN fails every comparison.
   double zero = 0;
@@ -316,51 +294,33 @@ bool solve_fit(const NormalEquations& e, std::size_t count, double mu, Coefficie
   return all_finite(c);
 }
 
-// Welch-Witkin parameters (u_i, v_i) and radii r_i of ring offsets (x_i, y_i, z_i) = P_i - V:
-// angles between consecutive offsets scaled to `total_angle` (0: natural), `closed` when
-// the last point is followed by the first. `gap` is scratch for count angles.
-void ring_parameters(const double* x, const double* y, const double* z, std::size_t count,
-                     bool closed, double total_angle, double* u, double* v, double* r,
-                     double* gap) {
-  if (count == 0) return;
-  const std::size_t gaps = closed ? count : count - 1;
-  double angle_sum = 0;
-  for (std::size_t i = 0; i < gaps; ++i) {
-    const std::size_t j = i + 1 < count ? i + 1 : 0;
-    const Vec3 a(x[i], y[i], z[i]), b(x[j], y[j], z[j]);
-    const double angle = lsf_math::atan2(norm(cross(a, b)), dot(a, b));
-    gap[i] = angle;
-    angle_sum += angle;
-  }
-  const double scale = (total_angle > 0 && angle_sum > 0) ? total_angle / angle_sum : 1.0;
-  double phi = 0;
-  for (std::size_t i = 0; i < count; ++i) {
-    const double ri = std::sqrt(x[i] * x[i] + y[i] * y[i] + z[i] * z[i]);
-    r[i] = ri;
-    if (i == 0) {
-      u[i] = ri, v[i] = 0;  // r cos 0, r sin 0
-    } else {
-      double s, c;
-      lsf_math::sincos(phi, s, c);
-      u[i] = ri * c, v[i] = ri * s;
-    }
-    if (i < gaps) phi += scale * gap[i];
-  }
+using lsf_math::V2d;
+
+V2d load2(const double* p) {
+  V2d v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+void store2(double* p, V2d v) {
+  std::memcpy(p, &v, sizeof v);
 }
 
-// Per-thread storage for one ring (structure of arrays), grown on demand.
-struct RingBuffer {
+// A vertex's ring (or one sector of it) in structure-of-arrays form: the offsets P_i - V
+// and, once fitted, the Welch-Witkin parameters (u_i, v_i) and radii r_i. The kernels
+// below take two points at a time (lsf_math::V2d), so every array has room for padding.
+struct Sample {
   std::vector<double> data;
-  std::vector<HalfedgeId> spoke;
-  std::vector<std::uint8_t> sharp;
   std::size_t size = 0, capacity = 0;
   double *x = nullptr, *y = nullptr, *z = nullptr, *u = nullptr, *v = nullptr, *r = nullptr,
-         *gap = nullptr;
+         *phi = nullptr;
+  std::vector<HalfedgeId> spoke;    // the outgoing half-edge to point i (ring buffers)
+  std::vector<std::uint8_t> sharp;  // whether it is sharp
 
+  static constexpr std::size_t kArrays = 7;
   void reserve(std::size_t n) {
-    if (n <= capacity) return;
-    const std::size_t grown_capacity = std::max<std::size_t>(2 * n, 32);
-    std::vector<double> grown(7 * grown_capacity);
+    if (n + 2 <= capacity) return;
+    const std::size_t grown_capacity = std::max<std::size_t>(2 * n + 2, 32);
+    std::vector<double> grown(kArrays * grown_capacity);
     for (std::size_t a = 0; a < 3; ++a)  // keep x, y, z
       std::copy_n(data.begin() + static_cast<std::ptrdiff_t>(a * capacity), size,
                   grown.begin() + static_cast<std::ptrdiff_t>(a * grown_capacity));
@@ -369,29 +329,112 @@ struct RingBuffer {
     spoke.resize(capacity);
     sharp.resize(capacity);
     x = data.data(), y = x + capacity, z = y + capacity, u = z + capacity, v = u + capacity;
-    r = v + capacity, gap = r + capacity;
+    r = v + capacity, phi = r + capacity;
   }
-  void push(const Vec3& d, HalfedgeId h, bool is_sharp) {
-    if (size == capacity) reserve(size + 1);
+  void clear() { size = 0; }
+  void push(const Vec3& d, HalfedgeId h = HalfedgeId(), bool is_sharp = false) {
+    if (size + 2 >= capacity) reserve(size + 1);
     x[size] = d.x, y[size] = d.y, z[size] = d.z;
     spoke[size] = h;
     sharp[size] = is_sharp;
     ++size;
   }
+  // Points begin..begin+count of another sample.
+  void assign(const Sample& from, std::size_t begin, std::size_t count) {
+    clear();
+    reserve(count);
+    std::copy_n(from.x + begin, count, x);
+    std::copy_n(from.y + begin, count, y);
+    std::copy_n(from.z + begin, count, z);
+    size = count;
+  }
 };
 
-RingBuffer& ring_buffer() {
-  thread_local RingBuffer buffer;
-  buffer.size = 0;
-  buffer.reserve(32);
-  return buffer;
+// Welch-Witkin parameters of the sample: angles between consecutive offsets (the last and
+// the first too when `closed`) scaled to sum to `total_angle` (0: natural angles), radius
+// = distance. Leaves x, y, z zero at index size (the pairs' padding).
+void ring_parameters(Sample& s, bool closed, double total_angle) {
+  const std::size_t n = s.size;
+  if (n == 0) return;
+  const std::size_t gaps = closed ? n : n - 1;
+  // Padding: gap i joins points i and i+1; the pair loop reads up to point gaps + 1.
+  for (std::size_t i = n; i < n + 2; ++i) {
+    const std::size_t from = closed ? i - n : n - 1;
+    s.x[i] = s.x[from], s.y[i] = s.y[from], s.z[i] = s.z[from];
+  }
+  for (std::size_t i = 0; i < gaps; i += 2) {
+    const V2d ax = load2(s.x + i), ay = load2(s.y + i), az = load2(s.z + i);
+    const V2d bx = load2(s.x + i + 1), by = load2(s.y + i + 1), bz = load2(s.z + i + 1);
+    const V2d cx = ay * bz - az * by, cy = az * bx - ax * bz, cz = ax * by - ay * bx;
+    const V2d cross_len = lsf_math::sqrt(cx * cx + cy * cy + cz * cz);
+    store2(s.phi + i, lsf_math::atan2(cross_len, ax * bx + ay * by + az * bz));
+  }
+  double angle_sum = 0;
+  for (std::size_t i = 0; i < gaps; ++i) angle_sum += s.phi[i];
+  const double scale = (total_angle > 0 && angle_sum > 0) ? total_angle / angle_sum : 1.0;
+  double phi = 0;
+  for (std::size_t i = 0; i < n; ++i) {  // gap angles -> polar angles, in place
+    const double angle = s.phi[i];       // unset for the last point of an open fan: unused
+    s.phi[i] = phi;
+    if (i < gaps) phi += scale * angle;
+  }
+  s.phi[n] = 0;  // the padding lane
+  for (std::size_t i = 0; i < n; i += 2) {
+    const V2d px = load2(s.x + i), py = load2(s.y + i), pz = load2(s.z + i);
+    const V2d radius = lsf_math::sqrt(px * px + py * py + pz * pz);
+    V2d sin_phi, cos_phi;
+    lsf_math::sincos(load2(s.phi + i), sin_phi, cos_phi);
+    store2(s.u + i, radius * cos_phi);
+    store2(s.v + i, radius * sin_phi);
+    store2(s.r + i, radius);
+  }
+  // A point at the origin with zero parameters adds nothing to any sum below.
+  s.x[n] = s.y[n] = s.z[n] = s.u[n] = s.v[n] = s.r[n] = 0;
 }
 
-// One sector of a ring buffer, fitted: its points begin..begin+count, their parameters,
-// and the coefficients (valid == false for a degenerate sample).
-struct SectorFit {
-  const RingBuffer* ring;
-  std::size_t begin, count;
+double sum_lanes(V2d v) {
+  return v[0] + v[1];
+}
+
+// The normal equations of the sample's fit, two points at a time (each lane sums every
+// other point; the padding point adds zeros).
+NormalEquations normal_equations(const Sample& s) {
+  const std::size_t n = s.size;
+  NormalEquations e;
+  // Three passes, so each one's running sums fit in registers.
+  V2d m[12] = {}, radius = {0, 0};
+  for (std::size_t i = 0; i < n; i += 2) {
+    const V2d a = load2(s.u + i), b = load2(s.v + i);
+    const V2d a2 = a * a, ab = a * b, b2 = b * b;
+    m[0] += a2, m[1] += ab, m[2] += b2;
+    m[3] += a2 * a, m[4] += a2 * b, m[5] += a * b2, m[6] += b2 * b;
+    m[7] += a2 * a2, m[8] += a2 * ab, m[9] += a2 * b2, m[10] += ab * b2, m[11] += b2 * b2;
+    radius += load2(s.r + i);
+  }
+  for (int k = 0; k < 12; ++k) e.s[k] = sum_lanes(m[k]);
+  e.radius_sum = sum_lanes(radius);
+  V2d qx[5] = {}, qy[5] = {}, qz[5] = {};
+  for (std::size_t i = 0; i < n; i += 2) {
+    const V2d a = load2(s.u + i), b = load2(s.v + i);
+    const V2d basis[5] = {a, b, a * a, a * b, b * b};
+    const V2d wx = load2(s.x + i), wy = load2(s.y + i);
+    for (int k = 0; k < 5; ++k) qx[k] += wx * basis[k], qy[k] += wy * basis[k];
+  }
+  for (std::size_t i = 0; i < n; i += 2) {
+    const V2d a = load2(s.u + i), b = load2(s.v + i);
+    const V2d basis[5] = {a, b, a * a, a * b, b * b};
+    const V2d wz = load2(s.z + i);
+    for (int k = 0; k < 5; ++k) qz[k] += wz * basis[k];
+  }
+  constexpr double kScale[5] = {1, 1, 0.5, 1, 0.5};  // rows u, v, u^2/2, uv, v^2/2
+  for (int k = 0; k < 5; ++k)
+    e.q[k] = kScale[k] * Vec3(sum_lanes(qx[k]), sum_lanes(qy[k]), sum_lanes(qz[k]));
+  return e;
+}
+
+// A fitted sample: valid == false for a degenerate one.
+struct SampleFit {
+  const Sample* sample;
   bool valid;
   Coefficients c;
 
@@ -403,56 +446,74 @@ struct SectorFit {
     fit.valid = true;
     return fit;
   }
-  // Evaluates the fit at half of each point's parameter, relative to V:
-  // s(u/2, v/2) - V = (c1 u + c2 v) / 2 + (c3 u^2 + 2 c4 uv + c5 v^2) / 8.
+  // Calls out(i, offset) with the fit at half of point i's parameter, relative to V:
+  // s(u/2, v/2) - V = (c1 u + c2 v) / 2 + (c3 u^2 + 2 c4 uv + c5 v^2) / 8; the chord
+  // midpoint offset (P_i - V) / 2 when the fit is not valid.
   template <class Out>
   void half_points(Out&& out) const {
+    const Sample& s = *sample;
+    if (!valid) {
+      for (std::size_t i = 0; i < s.size; ++i) out(i, 0.5 * Vec3(s.x[i], s.y[i], s.z[i]));
+      return;
+    }
     const Vec3 h0 = 0.5 * c[0], h1 = 0.5 * c[1], h2 = 0.125 * c[2], h3 = 0.25 * c[3],
                h4 = 0.125 * c[4];
-    for (std::size_t i = 0; i < count; ++i) {
-      const double a = ring->u[begin + i], b = ring->v[begin + i];
-      out(i, a * h0 + b * h1 + (a * a) * h2 + (a * b) * h3 + (b * b) * h4);
+    for (std::size_t i = 0; i < s.size; i += 2) {
+      const V2d a = load2(s.u + i), b = load2(s.v + i);
+      const V2d a2 = a * a, ab = a * b, b2 = b * b;
+      const V2d px = a * h0.x + b * h1.x + a2 * h2.x + ab * h3.x + b2 * h4.x;
+      const V2d py = a * h0.y + b * h1.y + a2 * h2.y + ab * h3.y + b2 * h4.y;
+      const V2d pz = a * h0.z + b * h1.z + a2 * h2.z + ab * h3.z + b2 * h4.z;
+      out(i, Vec3(px[0], py[0], pz[0]));
+      if (i + 1 < s.size) out(i + 1, Vec3(px[1], py[1], pz[1]));
     }
   }
 };
 
-SectorFit fit_sector(RingBuffer& ring, std::size_t begin, std::size_t count, bool closed,
-                     double total_angle, double mu = 1e-9) {
-  SectorFit f{&ring, begin, count, false, {}};
-  ring_parameters(ring.x + begin, ring.y + begin, ring.z + begin, count, closed, total_angle,
-                  ring.u + begin, ring.v + begin, ring.r + begin, ring.gap + begin);
-  const NormalEquations e = normal_equations(ring.x + begin, ring.y + begin, ring.z + begin,
-                                             ring.u + begin, ring.v + begin, ring.r + begin, count);
-  f.valid = solve_fit(e, count, mu, f.c);
+SampleFit fit_sample(Sample& s, bool closed, double total_angle, double mu = 1e-9) {
+  SampleFit f{&s, false, {}};
+  ring_parameters(s, closed, total_angle);
+  f.valid = solve_fit(normal_equations(s), s.size, mu, f.c);
   return f;
+}
+
+// Per-thread samples: the ring being walked, and one sector of it.
+Sample& ring_sample() {
+  thread_local Sample sample;
+  sample.clear();
+  sample.reserve(32);
+  return sample;
+}
+Sample& sector_sample() {
+  thread_local Sample sample;
+  sample.clear();
+  sample.reserve(32);
+  return sample;
 }
 
 }  // namespace
 
 void polar_parameters(const Vec3& origin, std::span<const Vec3> points, bool closed,
                       double total_angle, std::span<std::array<double, 2>> params) {
-  RingBuffer& ring = ring_buffer();
-  for (const Vec3& p : points) ring.push(p - origin, HalfedgeId(), false);
-  ring_parameters(ring.x, ring.y, ring.z, ring.size, closed, total_angle, ring.u, ring.v, ring.r,
-                  ring.gap);
-  for (std::size_t i = 0; i < points.size(); ++i) params[i] = {ring.u[i], ring.v[i]};
+  Sample& s = ring_sample();
+  for (const Vec3& p : points) s.push(p - origin);
+  ring_parameters(s, closed, total_angle);
+  for (std::size_t i = 0; i < points.size(); ++i) params[i] = {s.u[i], s.v[i]};
 }
 
 QuadricFit fit_quadric(const Vec3& origin, std::span<const Vec3> points,
                        std::span<const std::array<double, 2>> params, double mu) {
-  RingBuffer& ring = ring_buffer();
-  ring.reserve(points.size());  // u, v, r are written between pushes: no regrowth
+  Sample& s = ring_sample();
+  for (const Vec3& p : points) s.push(p - origin);
   for (std::size_t i = 0; i < points.size(); ++i) {
-    ring.push(points[i] - origin, HalfedgeId(), false);
     const auto [u, v] = params[i];
-    ring.u[i] = u, ring.v[i] = v, ring.r[i] = std::sqrt(u * u + v * v);
+    s.u[i] = u, s.v[i] = v, s.r[i] = std::sqrt(u * u + v * v);
   }
+  s.x[s.size] = s.y[s.size] = s.z[s.size] = s.u[s.size] = s.v[s.size] = s.r[s.size] = 0;
   QuadricFit fit;
   fit.origin = origin;
   Coefficients c;
-  const NormalEquations e =
-      normal_equations(ring.x, ring.y, ring.z, ring.u, ring.v, ring.r, points.size());
-  if (!solve_fit(e, points.size(), mu, c)) return fit;
+  if (!solve_fit(normal_equations(s), points.size(), mu, c)) return fit;
   fit.c = c;
   fit.valid = true;
   return fit;
@@ -461,15 +522,15 @@ QuadricFit fit_quadric(const Vec3& origin, std::span<const Vec3> points,
 namespace {
 
 //! Walks v's ring once and fits one quadric per sector (the whole ring for smooth and dart
-//! vertices), calling on_sector(sector) for each. The ring buffer's spoke[i] is the
-//! outgoing half-edge to ring point i (invalid for the point that closes an open fan),
-//! sharp[i] whether it is sharp. Crease sectors are scaled to pi, corners keep natural
-//! angles.
+//! vertices), calling on_sector(fit, ring, begin) for each sector: points begin..begin +
+//! fit.sample->size of `ring`. ring.spoke[i] is the outgoing half-edge to ring point i
+//! (invalid for the point that closes an open fan), ring.sharp[i] whether it is sharp.
+//! Crease sectors are scaled to pi, corners keep natural angles.
 template <class OnSector>
 void for_each_sector_fit(const Mesh& m, const Features& f, VertexId v, OnSector&& on_sector) {
   const HalfedgeId start = m.halfedge(v);
   if (!start.valid()) return;
-  RingBuffer& ring = ring_buffer();
+  Sample& ring = ring_sample();
   const Vec3 p = m.position(v);
   const VertexKind kind = f.kind(v);
   if (kind == VertexKind::Smooth) {
@@ -480,10 +541,10 @@ void for_each_sector_fit(const Mesh& m, const Features& f, VertexId v, OnSector&
       h = m.ccw_rotated(h);
     } while (h.valid() && h != start);
     if (h.valid()) {
-      on_sector(fit_sector(ring, 0, ring.size, true, 2.0 * std::numbers::pi));
+      on_sector(fit_sample(ring, true, 2.0 * std::numbers::pi), ring, std::size_t{0});
       return;
     }
-    ring.size = 0;  // not expected: treat it like any other vertex
+    ring.clear();  // not expected: treat it like any other vertex
   }
   // Start a closed ring at a sharp spoke so every sector is a contiguous run.
   HalfedgeId first = start;
@@ -503,7 +564,7 @@ void for_each_sector_fit(const Mesh& m, const Features& f, VertexId v, OnSector&
 
   if (kind <= VertexKind::Dart) {
     // Smooth or dart: the whole ring, angles scaled to 2 pi (a dart's crease is ignored).
-    on_sector(fit_sector(ring, 0, ring.size, true, 2.0 * std::numbers::pi));
+    on_sector(fit_sample(ring, true, 2.0 * std::numbers::pi), ring, std::size_t{0});
     return;
   }
   // Crease and corner: one fit per sector between consecutive sharp spokes, including the
@@ -513,10 +574,12 @@ void for_each_sector_fit(const Mesh& m, const Features& f, VertexId v, OnSector&
     // The sector that wraps around ends at the first spoke.
     ring.push(Vec3(ring.x[0], ring.y[0], ring.z[0]), HalfedgeId(), true);
   }
+  Sample& sector = sector_sample();
   std::size_t sector_begin = 0;
   for (std::size_t i = 1; i < ring.size; ++i) {
     if (!ring.sharp[i]) continue;
-    on_sector(fit_sector(ring, sector_begin, i - sector_begin + 1, false, total));
+    sector.assign(ring, sector_begin, i - sector_begin + 1);
+    on_sector(fit_sample(sector, false, total), ring, sector_begin);
     sector_begin = i;
   }
 }
@@ -526,20 +589,11 @@ void for_each_sector_fit(const Mesh& m, const Features& f, VertexId v, OnSector&
 template <class Sink>
 void vertex_estimates(const Mesh& m, const Features& f, VertexId v, Sink&& sink) {
   const Vec3 p = m.position(v);
-  for_each_sector_fit(m, f, v, [&](const SectorFit& fit) {
-    const RingBuffer& ring = *fit.ring;
-    auto emit = [&](std::size_t i, const Vec3& offset) {
-      const std::size_t k = fit.begin + i;
+  for_each_sector_fit(m, f, v, [&](const SampleFit& fit, const Sample& ring, std::size_t begin) {
+    fit.half_points([&](std::size_t i, const Vec3& offset) {
+      const std::size_t k = begin + i;
       if (ring.spoke[k].valid() && !ring.sharp[k]) sink(ring.spoke[k], p + offset);
-    };
-    if (fit.valid) {
-      fit.half_points(emit);
-    } else {
-      for (std::size_t i = 0; i < fit.count; ++i) {
-        const std::size_t k = fit.begin + i;
-        emit(i, 0.5 * Vec3(ring.x[k], ring.y[k], ring.z[k]));
-      }
-    }
+    });
   });
 }
 
@@ -555,7 +609,7 @@ QuadricFit vertex_fit(const Mesh& m, const Features& f, VertexId v) {
   first.origin = m.position(v);
   bool have = false;
   if (f.kind(v) == VertexKind::Corner) return first;
-  for_each_sector_fit(m, f, v, [&](const SectorFit& fit) {
+  for_each_sector_fit(m, f, v, [&](const SampleFit& fit, const Sample&, std::size_t) {
     if (!have) first = fit.quadric(m.position(v)), have = true;
   });
   return first;

@@ -365,6 +365,35 @@ TEST(LsfFastMath, Atan2IsWithinFourUlpOfStdEverywhere) {
   std::printf("[fast math] atan2: worst %.2f ulp\n", worst);
 }
 
+TEST(LsfFastMath, PairVersionsGiveTheScalarResultInEachLane) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> unit(-4.0, 4.0);
+  for (int i = 0; i < 200000; ++i) {
+    // Every eighth pair has a lane the fast path leaves to std:: (zero, huge, NaN).
+    const double odd = i % 8 == 0 ? any_double(rng) : unit(rng);
+    const lsf_math::V2d y{unit(rng), odd}, x{unit(rng), i % 16 == 0 ? 0.0 : unit(rng)};
+    const lsf_math::V2d a = lsf_math::atan2(y, x);
+    for (int k = 0; k < 2; ++k) {
+      const double scalar = lsf_math::atan2(y[k], x[k]);
+      ASSERT_TRUE(a[k] == scalar || (std::isnan(a[k]) && std::isnan(scalar)))
+          << y[k] << " " << x[k];
+    }
+    const lsf_math::V2d phi{unit(rng), i % 8 == 0 ? any_double(rng) : unit(rng)};
+    lsf_math::V2d s, c;
+    lsf_math::sincos(phi, s, c);
+    for (int k = 0; k < 2; ++k) {
+      double sk, ck;
+      lsf_math::sincos(phi[k], sk, ck);
+      ASSERT_TRUE(s[k] == sk || (std::isnan(s[k]) && std::isnan(sk))) << phi[k];
+      ASSERT_TRUE(c[k] == ck || (std::isnan(c[k]) && std::isnan(ck))) << phi[k];
+    }
+    const lsf_math::V2d q{std::abs(unit(rng)), std::abs(odd)};
+    const lsf_math::V2d root = lsf_math::sqrt(q);
+    ASSERT_EQ(root[0], std::sqrt(q[0]));
+    ASSERT_TRUE(root[1] == std::sqrt(q[1]) || std::isnan(q[1]));
+  }
+}
+
 TEST(LsfFastMath, SincosIsWithin2p5em16OfStdEverywhere) {
   // Absolute error at most 2.5e-16 (a little over 2^-52, one ulp of 1) for every input, and
   // at most 4 ulp relative wherever the result is not tiny.
