@@ -19,12 +19,15 @@ namespace stlrefine {
 //! places the spectral stencils (loop-g2, butterfly-g1) change anything. A 1-to-4 step keeps
 //! this set (old vertices keep their ids and valences, new interior vertices have valence
 //! 6), so the split4 host finds it once and carries it from level to level. It describes
-//! the mesh with `vertices` vertices and `faces` faces only: any other mesh may differ.
+//! one mesh only, recognised by its corner array and sizes (a copied or replaced mesh has
+//! another array: the list is then found again).
 struct IrregularVertices {
   std::shared_ptr<const std::vector<std::pair<VertexId, int>>> list;
+  const VertexId* corners = nullptr;
   std::size_t vertices = 0, faces = 0;
   bool valid_for(const Mesh& m) const {
-    return list && vertices == m.num_vertices() && faces == m.num_faces();
+    return list && corners == m.corner_vertices().data() && vertices == m.num_vertices() &&
+           faces == m.num_faces();
   }
 };
 

@@ -32,7 +32,7 @@ IrregularVertices irregular_vertices(const Level& level) {
   auto list = std::make_shared<std::vector<std::pair<VertexId, int>>>();
   for (std::size_t i = 0; i < valence.size(); ++i)
     if (valence[i] != 6) list->emplace_back(VertexId(static_cast<std::uint32_t>(i)), valence[i]);
-  return {std::move(list), m.num_vertices(), m.num_faces()};
+  return {std::move(list), m.corner_vertices().data(), m.num_vertices(), m.num_faces()};
 }
 
 namespace {
@@ -266,7 +266,8 @@ Level split4(const Level& coarse, const Split4Stencil& stencil, StepStats& stats
   // the fine level's irregular vertices are the coarse level's.
   const IrregularVertices& carried = irregular.list ? irregular : coarse.irregular;
   if (carried.valid_for(m))
-    fine.irregular = {carried.list, fine.mesh.num_vertices(), fine.mesh.num_faces()};
+    fine.irregular = {carried.list, fine.mesh.corner_vertices().data(), fine.mesh.num_vertices(),
+                      fine.mesh.num_faces()};
   return fine;
 }
 
