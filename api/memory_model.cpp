@@ -348,7 +348,7 @@ Problem memory_budget_problem(const MemoryEstimate& estimate, std::uint64_t capa
 //
 // bench/reliability/memory_calibration.cpp (stlrefine_memory_calibration) measured the
 // peak RSS one request adds to an idle stlrefined (fresh daemon per case, warm-up request,
-// VmHWM after clear_refs minus VmRSS before) for 158 requests: gearwheel (2,444 faces,
+// VmHWM after clear_refs minus VmRSS before) for 173 requests: gearwheel (2,444 faces,
 // binary and ASCII), fandisk (12,946), armadillo (29,170), cycloidal_nonmanifold (43,368),
 // bunny (69,451) and dragon_full (871,414) from ../shared/meshes; every scheme on fandisk
 // and bunny, butterfly and sqrt3-interp on the others, levels 0 up to 3.5 M output faces;
