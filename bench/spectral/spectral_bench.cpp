@@ -82,8 +82,8 @@ double jitter_value(std::uint32_t v, int c) {
 // A polar net of `rings` rings (unit lattice, the extraordinary vertex 0 at the origin).
 // In the plane every vertex but the centre moves by `twist` r (cos 2t, sin 2t) (polar
 // coordinates r, t: a frequency-2 distortion, z -> z + twist z^2/|z|) and then by up to
-// `jitter` times its distance to the nearest spoke neighbour (2 r sin(pi/n), at most 1) in
-// each coordinate, so the net stays a valid net at every valence. Then it is lifted onto the
+// `jitter` times the lattice's shortest edge (2 sin(pi/n), at most 1: the edge between two
+// spokes' first points) in each coordinate, so the net stays a valid net at every valence. Then it is lifted onto the
 // surface. The outer ring is the boundary; nothing else is sharp.
 Level make_net(int valence, int rings, const std::function<double(double, double)>& z,
                double jitter, double twist) {
@@ -93,7 +93,7 @@ Level make_net(int valence, int rings, const std::function<double(double, double
     const double r = std::hypot(p[v].x, p[v].y), t = std::atan2(p[v].y, p[v].x);
     p[v].x += twist * r * std::cos(2 * t);
     p[v].y += twist * r * std::sin(2 * t);
-    const double spacing = std::min(1.0, 2 * r * std::sin(kPi / valence));
+    const double spacing = std::min(1.0, 2 * std::sin(kPi / valence));
     p[v].x += jitter * spacing * jitter_value(v, 0);
     p[v].y += jitter * spacing * jitter_value(v, 1);
   }
@@ -350,7 +350,7 @@ int main(int argc, char** argv) {
             rows[a].push_back(centre_curvature(level.mesh));
           }
           sb::Line line{algos[a].first, kColours[a], a > 0, {}};
-          for (int l = 0; l <= opt.levels; ++l)
+          for (int l = 1; l <= opt.levels; ++l)
             line.points.push_back({double(l), std::abs(rows[a][l].fit)});
           chart.lines.push_back(std::move(line));
         }
@@ -443,7 +443,7 @@ int main(int argc, char** argv) {
   if (!opt.svg.empty() && !sb::write_svg(opt.svg,
                                          "Prautzsch-Umlauf: curvature (loop vs loop-g2) and "
                                          "self-intersection (butterfly vs butterfly-g1)",
-                                         charts, 4)) {
+                                         charts, 3)) {
     std::cerr << "cannot write " << opt.svg << "\n";
     return 1;
   }

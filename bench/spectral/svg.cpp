@@ -57,10 +57,18 @@ void panel(std::ostringstream& svg, const Chart& c, double ox, double oy) {
       y0 = std::min(y0, y_of(v)), y1 = std::max(y1, y_of(v));
     }
   if (x0 > x1) x0 = 0, x1 = 1, y0 = 0, y1 = 1;
+  // Linear axes start at 0 and end at a multiple of a 1, 2 or 5 step (five to ten steps).
+  double step = 1;
   if (c.log_y) {
     y0 = std::floor(y0), y1 = std::ceil(y1);
   } else {
     y0 = std::min(y0, 0.0);
+    const double raw = (y1 - y0) / 5, decade = std::pow(10.0, std::floor(std::log10(raw)));
+    step = raw <= decade       ? decade
+           : raw <= 2 * decade ? 2 * decade
+           : raw <= 5 * decade ? 5 * decade
+                               : 10 * decade;
+    y1 = y0 + std::ceil((y1 - y0) / step - 1e-9) * step;
   }
   if (y1 - y0 < 1e-12) y1 = y0 + 1;
   if (x1 - x0 < 1e-12) x1 = x0 + 1;
@@ -74,7 +82,7 @@ void panel(std::ostringstream& svg, const Chart& c, double ox, double oy) {
   svg << "<rect x=\"" << num(ox + kLeft) << "\" y=\"" << num(oy + kTop) << "\" width=\"" << num(pw)
       << "\" height=\"" << num(ph) << "\" fill=\"none\" stroke=\"#444\"/>\n";
   // y ticks: every decade on a log axis, else five steps.
-  const int steps = c.log_y ? static_cast<int>(std::lround(y1 - y0)) : 5;
+  const int steps = static_cast<int>(std::lround((y1 - y0) / step));
   const int every = std::max(1, steps / 8);
   for (int i = 0; i <= steps; i += every) {
     const double y = y0 + (y1 - y0) * i / steps;

@@ -2,6 +2,7 @@
 // Copyright (c) 2026 stlrefine authors
 #include "core/schemes/spectral_stencil.h"
 
+#include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
 #include <algorithm>
@@ -152,10 +153,16 @@ SpectralStencil::Sites SpectralStencil::find_sites(const Level& coarse,
   const Mesh& m = coarse.mesh;
   const Features& f = coarse.features;
   Sites out;
-  // Derive the masks of the valences present here, one valence at a time, before the
-  // parallel walk below (whose tasks then only read them).
-  std::vector<std::pair<VertexId, int>> candidates;
+  // The masks of the valences present here, derived side by side (each on its first use
+  // ever) before the walk below, whose tasks then only read them.
   std::vector<std::uint8_t> present(table_.max_valence() + 1, 0);
+  std::vector<int> valences;
+  for (const auto& [v, n] : *irregular.list)
+    if (n >= 3 && n <= table_.max_valence() && !present[n]) present[n] = 1, valences.push_back(n);
+  tbb::parallel_for(std::size_t(0), valences.size(),
+                    [&](std::size_t i) { table_.at(valences[i]); });
+  std::vector<std::pair<VertexId, int>> candidates;
+  std::fill(present.begin(), present.end(), 0);
   for (const auto& [v, n] : *irregular.list) {
     if (n < 3 || n > table_.max_valence() || table_.at(n).empty()) continue;
     if (f.kind(v) != VertexKind::Smooth) continue;
