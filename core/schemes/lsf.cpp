@@ -160,9 +160,9 @@ using Coefficients = std::array<Vec3, 5>;  // c1..c5
 // to 4 in u, v); S^T q has 5 rows of 3.
 struct NormalEquations {
   // u^2, uv, v^2, u^3, u^2 v, u v^2, v^3, u^4, u^3 v, u^2 v^2, u v^3, v^4
-  double s[12] = {};
-  Coefficients q{};  // sum of (P_i - V) times u, v, u^2/2, uv, v^2/2
-  double radius_sum = 0;
+  double s[12];
+  Coefficients q;  // sum of (P_i - V) times u, v, u^2/2, uv, v^2/2
+  double radius_sum;
 
   // S^T S, lower part ([col][row], row >= col).
   Mat5 matrix() const {
@@ -265,11 +265,20 @@ bool fast_solve(const NormalEquations& e, double damping, Coefficients& c) {
 }
 
 // Solves the damped normal equations (spec 5 gap 1); false for a degenerate sample.
+bool general_solve(const NormalEquations& e, std::size_t count, double mu, double h2,
+                   Coefficients& c);
+
 bool solve_fit(const NormalEquations& e, std::size_t count, double mu, Coefficients& c) {
   if (count == 0) return false;
   const double mean_radius = e.radius_sum / static_cast<double>(count);
   const double h2 = mean_radius * mean_radius;
   if (count >= 5 && fast_solve(e, mu * (h2 * h2), c)) return all_finite(c);
+  return general_solve(e, count, mu, h2, c);
+}
+
+// The general path: the conditioning test, then Eigen's pivoted LDLT (Ldlt5).
+[[gnu::noinline]] bool general_solve(const NormalEquations& e, std::size_t count, double mu,
+                                     double h2, Coefficients& c) {
   Mat5 normal = e.matrix();
   if (count >= 5) {
     // Five or more points can still be nearly degenerate: the side points of a crease
@@ -314,7 +323,8 @@ struct Sample {
   double *x = nullptr, *y = nullptr, *z = nullptr, *u = nullptr, *v = nullptr, *r = nullptr,
          *phi = nullptr;
   std::vector<HalfedgeId> spoke;    // the outgoing half-edge to point i (ring buffers)
-  std::vector<std::uint8_t> sharp;  // whether it is sharp
+  std::vector<std::uint8_t> sharp;  // whether it is sharp; only read when any_sharp
+  bool any_sharp = false;
 
   static constexpr std::size_t kArrays = 7;
   void reserve(std::size_t n) {
@@ -331,12 +341,13 @@ struct Sample {
     x = data.data(), y = x + capacity, z = y + capacity, u = z + capacity, v = u + capacity;
     r = v + capacity, phi = r + capacity;
   }
-  void clear() { size = 0; }
+  void clear() { size = 0, any_sharp = false; }
   void push(const Vec3& d, HalfedgeId h = HalfedgeId(), bool is_sharp = false) {
     if (size + 2 >= capacity) reserve(size + 1);
     x[size] = d.x, y[size] = d.y, z[size] = d.z;
     spoke[size] = h;
     sharp[size] = is_sharp;
+    any_sharp |= is_sharp;
     ++size;
   }
   // Points begin..begin+count of another sample.
@@ -400,7 +411,7 @@ double sum_lanes(V2d v) {
 // other point; the padding point adds zeros).
 NormalEquations normal_equations(const Sample& s) {
   const std::size_t n = s.size;
-  NormalEquations e;
+  NormalEquations e;  // every field is written below
   // Three passes, so each one's running sums fit in registers.
   V2d m[12] = {}, radius = {0, 0};
   for (std::size_t i = 0; i < n; i += 2) {
@@ -471,7 +482,8 @@ struct SampleFit {
 };
 
 SampleFit fit_sample(Sample& s, bool closed, double total_angle, double mu = 1e-9) {
-  SampleFit f{&s, false, {}};
+  SampleFit f;  // c is written when valid
+  f.sample = &s;
   ring_parameters(s, closed, total_angle);
   f.valid = solve_fit(normal_equations(s), s.size, mu, f.c);
   return f;
@@ -535,11 +547,25 @@ void for_each_sector_fit(const Mesh& m, const Features& f, VertexId v, OnSector&
   const VertexKind kind = f.kind(v);
   if (kind == VertexKind::Smooth) {
     // No sharp spoke, and not on a boundary (boundary edges are sharp): a closed ring.
+    // Through local pointers: stores to the sample's arrays would otherwise make the compiler
+    // reload its fields after each one.
     HalfedgeId h = start;
+    std::size_t n = 0, capacity = ring.capacity;
+    double *x = ring.x, *y = ring.y, *z = ring.z;
+    HalfedgeId* spoke = ring.spoke.data();
     do {
-      ring.push(m.position(m.to(h)) - p, h, false);
+      if (n + 2 >= capacity) {
+        ring.size = n;
+        ring.reserve(n + 1);
+        capacity = ring.capacity, x = ring.x, y = ring.y, z = ring.z, spoke = ring.spoke.data();
+      }
+      const Vec3 d = m.position(m.to(h)) - p;
+      x[n] = d.x, y[n] = d.y, z[n] = d.z;
+      spoke[n] = h;
+      ++n;
       h = m.ccw_rotated(h);
     } while (h.valid() && h != start);
+    ring.size = n;  // and ring.any_sharp stays false: ring.sharp is not read
     if (h.valid()) {
       on_sector(fit_sample(ring, true, 2.0 * std::numbers::pi), ring, std::size_t{0});
       return;
@@ -592,7 +618,8 @@ void vertex_estimates(const Mesh& m, const Features& f, VertexId v, Sink&& sink)
   for_each_sector_fit(m, f, v, [&](const SampleFit& fit, const Sample& ring, std::size_t begin) {
     fit.half_points([&](std::size_t i, const Vec3& offset) {
       const std::size_t k = begin + i;
-      if (ring.spoke[k].valid() && !ring.sharp[k]) sink(ring.spoke[k], p + offset);
+      if (ring.spoke[k].valid() && !(ring.any_sharp && ring.sharp[k]))
+        sink(ring.spoke[k], p + offset);
     });
   });
 }
