@@ -55,6 +55,7 @@ int main(int argc, char** argv) {
   std::vector<std::string> schemes = {"butterfly", "lsf"};
   int levels = 2, threads = 1, reps = 5, rounds = 3;
   double adaptive_tol = 0;
+  bool no_hash = false;
   app.add_option("input", input, "STL file")->required();
   app.add_option("--schemes", schemes, "schemes to time");
   app.add_option("--levels", levels, "uniform levels (the cap in the adaptive mode)");
@@ -62,6 +63,7 @@ int main(int argc, char** argv) {
   app.add_option("--reps", reps, "refinements per round");
   app.add_option("--rounds", rounds, "rounds; the minimum of the round medians is reported");
   app.add_option("--adaptive-tol", adaptive_tol, "adaptive mode with this tolerance (mm)");
+  app.add_flag("--no-hash", no_hash, "skip the output hash (cleaner instruction counts)");
   CLI11_PARSE(app, argc, argv);
 
   const stlrefine::IngestResult ingest =
@@ -96,7 +98,7 @@ int main(int argc, char** argv) {
             std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count());
         cpu.push_back(cpu_seconds() - c0);
         row.faces = result.mesh.num_faces();
-        row.hash = hash_positions(result.mesh);
+        if (!no_hash) row.hash = hash_positions(result.mesh);
       }
       row.best_cpu = std::min(row.best_cpu, median(cpu));
       row.best_wall = std::min(row.best_wall, median(wall));

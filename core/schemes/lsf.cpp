@@ -138,19 +138,33 @@ struct Ldlt5 {
   }
 };
 
-// True when the unit-diagonal (Jacobi-scaled) normal matrix has a pivot below the squared
-// cut-off: a test independent of units and parameter scale.
+// True when the unit-diagonal (Jacobi-scaled) normal matrix has an eigenvalue below the
+// squared cut-off, i.e. a relative singular value of the scaled design matrix below
+// kSingularCutoff: a test independent of units and parameter scale. Decided exactly by
+// Sylvester's criterion: unit - cutoff^2 I is positive definite iff every pivot of its
+// unpivoted LDL^T is positive. (The smallest pivot of a pivoted factorisation, used before,
+// depends on the pivot order, which the all-ones diagonal leaves to rounding noise: a
+// last-bit change of the sample flipped the decision on borderline crease sectors.)
 bool poorly_conditioned(const Mat5& normal) {
   std::array<double, 5> inv_sqrt;
   for (int i = 0; i < 5; ++i) {
-    if (normal[i][i] <= 0) return true;
+    if (!(normal[i][i] > 0)) return true;
     inv_sqrt[i] = 1.0 / std::sqrt(normal[i][i]);
   }
-  Mat5 unit;
+  // Lower part, [col][row]; right-looking elimination.
+  Mat5 a;
   for (int i = 0; i < 5; ++i)
-    for (int j = 0; j <= i; ++j) unit[j][i] = (inv_sqrt[i] * normal[j][i]) * inv_sqrt[j];
-  const Ldlt5 ldlt(unit);
-  return !ldlt.success || ldlt.min_pivot() < kSingularCutoff * kSingularCutoff;
+    for (int j = 0; j <= i; ++j) a[j][i] = (inv_sqrt[i] * normal[j][i]) * inv_sqrt[j];
+  for (int k = 0; k < 5; ++k) a[k][k] -= kSingularCutoff * kSingularCutoff;
+  for (int j = 0; j < 5; ++j) {
+    const double d = a[j][j];
+    if (!(d > 0)) return true;  // NaN too
+    for (int i = j + 1; i < 5; ++i) {
+      const double l = a[j][i] / d;
+      for (int k = i; k < 5; ++k) a[i][k] -= l * a[j][k];
+    }
+  }
+  return false;
 }
 
 using Coefficients = std::array<Vec3, 5>;  // c1..c5
@@ -193,13 +207,13 @@ bool all_finite(const Coefficients& c) {
 //    By Weyl, lambda_min(N_s) >= lambda_min(M_s) - damping max_{k>=2} 1/N_kk.
 //    With damping <= 1e-7 min_{k>=2} N_kk and det M_s >= kDetFloor that gives
 //    lambda_min(N_s) >= kDetFloor / ((5 + 3e-7) / 4)^4 - 1e-7 > 2e-6.
-//  * Every pivot of a symmetric-pivoted LDL^T of an SPD matrix is at least its smallest
-//    eigenvalue (a diagonal entry of a Schur complement). So lambda_min(N_s) > 2e-6, twice
-//    kSingularCutoff^2, means the conditioning test passes: mu stays as it is here.
-//  * The general path refuses a fit whose smallest pivot of M is below 1e-14 of its largest;
-//    its pivots lie in [lambda_min(M), max M_kk] and lambda_min(M) >= lambda_min(N) >=
-//    lambda_min(N_s) min N_kk > 2e-6 min N_kk, so min N_kk >= 1e-8 max M_kk means it accepts
-//    (again a factor of two of margin).
+//  * lambda_min(N_s) > 2e-6, twice kSingularCutoff^2, means the conditioning test passes:
+//    mu stays as it is here.
+//  * The general path refuses a fit whose smallest pivot of M is below 1e-14 of its largest.
+//    Every pivot of a symmetric-pivoted LDL^T of an SPD matrix is a diagonal entry of a
+//    Schur complement, so its pivots lie in [lambda_min(M), max M_kk]; lambda_min(M) >=
+//    lambda_min(N) >= lambda_min(N_s) min N_kk > 2e-6 min N_kk, so min N_kk >= 1e-8 max M_kk
+//    means it accepts (again a factor of two of margin).
 // The margins are far above the rounding of either path, so only the last bits of the
 // solution differ (the elimination order does). Otherwise, and below five points, and when
 // the products leave the comfortable range of doubles, the general path runs.
