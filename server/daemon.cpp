@@ -72,9 +72,9 @@
 //  - Compute requests take a ComputeSlots lease and get 503 + Retry-After at once when
 //    none is free. A RequestWatch cancels them when the client hangs up or their deadline
 //    (--request-deadline) passes.
-//  - Memory: decide() reserves a compute request's body in the MemoryBudget before it is
-//    read (503 when it does not fit now, 413 when it never can); the handler grows that to
-//    the request's predicted peak (api/memory_model.h) before any work (422 naming the
+//  - Memory: decide() reserves a compute request's (or job's) body in the MemoryBudget
+//    before it is read (503 when it does not fit now, 413 when it never can); the handler grows
+//    that to the request's predicted peak (api/memory_model.h) before any work (422 naming the
 //    parameter when one request may never have that much, 503 when it does not fit next to
 //    the running ones) and shrinks it to the answer once computed; the rest is given back
 //    when the connection closes.
@@ -741,8 +741,9 @@ Verdict Daemon::Impl::decide(const RequestHead& head) {
     // precheck validated it: one decimal number, under the cap
     const std::string length = req.get_header_value("Content-Length");
     std::from_chars(length.data(), length.data() + length.size(), verdict.body_bytes);
-    if (route->kind == RouteKind::Compute) {
-      // The body is memory from now on: reserved before it is read.
+    if (route->kind == RouteKind::Compute || route->kind == RouteKind::Submit) {
+      // The body is memory from now on (a job's until it is on disk): reserved before it is
+      // read.
       if (verdict.body_bytes > memory.capacity()) {
         api::Problem p =
             api::make_problem(413, "payload-too-large",

@@ -285,6 +285,16 @@ void JobStore::persist(const Job& job) const {
   write_atomically(job.dir / kJobFile, j.dump(2) + "\n");
 }
 
+void JobStore::persist_or_log(const Job& job) const {
+  // On a runner thread nothing may escape: a data directory removed or full under a
+  // running job costs that job's record on disk, not the daemon.
+  try {
+    persist(job);
+  } catch (const std::exception& e) {
+    log_line("job " + job.id + ": cannot record its state: " + e.what());
+  }
+}
+
 JobView JobStore::view(const Job& job) const {
   JobView v;
   v.id = job.id;
@@ -432,7 +442,7 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
     std::lock_guard lock(mutex_);
     job->started = Clock::now();
     job->stage = "starting";
-    persist(*job);
+    persist_or_log(*job);
   }
   JobState state = JobState::Failed;
   std::optional<api::Problem> problem;
@@ -537,7 +547,7 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
     if (problem) job->problem = api::to_json(*problem);
     job->results = std::move(results);
     job->result_bytes = bytes;
-    persist(*job);
+    persist_or_log(*job);
     done = view(*job);
   }
   if (on_finished_)

@@ -121,6 +121,7 @@ class JobStore {
   void run_one(const std::shared_ptr<Job>& job);
   void janitor();
   void persist(const Job& job) const;
+  void persist_or_log(const Job& job) const;
   std::shared_ptr<Job> read_job(const std::filesystem::path& dir) const;
   Lookup find_on_disk(const std::string& id, JobView* out) const;
   void load_existing();

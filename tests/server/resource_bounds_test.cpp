@@ -223,8 +223,11 @@ TEST(MemoryBudgetRoute, AJobWaitsForMemoryAndThenRuns) {
   RunningDaemon d(config_with(512 * kMiB, dir));
   MemoryBudget& budget = d.daemon().memory_budget();
   httplib::Client c = d.client();
-  std::optional<MemoryBudget::Reservation> held = budget.try_reserve(budget.capacity());
+  // Room for the upload, not for the job.
+  std::optional<MemoryBudget::Reservation> held =
+      budget.try_reserve(budget.capacity() - fandisk().size());
   ASSERT_TRUE(held);
+  ASSERT_LT(fandisk().size(), predicted_refine("levels=2", api::ResultSink::JobFiles));
   auto r = post(c, "/v1/jobs?levels=2", fandisk());
   ASSERT_TRUE(r);
   ASSERT_EQ(r->status, 202) << r->body;
@@ -238,6 +241,27 @@ TEST(MemoryBudgetRoute, AJobWaitsForMemoryAndThenRuns) {
   });
   EXPECT_EQ(done.value("state", ""), "done") << done.dump();
   EXPECT_TRUE(wait_for_reserved(d.daemon(), 0));
+  fs::remove_all(dir);
+}
+
+TEST(MemoryBudgetRoute, AJobUploadIsReservedToo) {
+  const fs::path dir = fresh_dir("upload");
+  RunningDaemon d(config_with(256 * kMiB, dir));
+  MemoryBudget& budget = d.daemon().memory_budget();
+  httplib::Client c = d.client();
+  {
+    auto held = budget.try_reserve(budget.capacity() - fandisk().size() + 1);
+    ASSERT_TRUE(held);
+    const Json j = problem_of(post(c, "/v1/jobs?levels=1", fandisk()), 503, "busy");
+    EXPECT_EQ(j.value("reason", ""), "memory");
+  }
+  auto r = post(c, "/v1/jobs?levels=1", fandisk());
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 202);
+  const Json done = wait_for_job(c, r->get_header_value("Location"), [](const Json& j) {
+    return j.value("state", "") != "running" && j.value("state", "") != "queued";
+  });
+  EXPECT_EQ(done.value("state", ""), "done");
   fs::remove_all(dir);
 }
 
