@@ -202,7 +202,11 @@ class MeshDistance {
 
   //! Distance from p to the mesh: cells in growing shells around p's cell until the best
   //! distance found is below the shell's distance.
-  double operator()(const Vec3& p) const {
+  double operator()(const Vec3& p) const { return nearest(p).first; }
+
+  //! The distance from p to the mesh and the nearest face.
+  std::pair<double, std::uint32_t> nearest(const Vec3& p) const {
+    std::uint32_t face = 0;
     std::array<int, 3> c{};
     for (int k = 0; k < 3; ++k) c[k] = index(coord(p, k), k);
     double best = std::numeric_limits<double>::max();
@@ -217,13 +221,14 @@ class MeshDistance {
             const std::size_t id = cell(x, y, z);
             for (std::size_t i = start_[id]; i < start_[id + 1]; ++i) {
               const auto [a, b, cc] = m_.face_vertices(FaceId(faces_[i]));
-              best = std::min(best, point_triangle_distance(p, m_.position(a), m_.position(b),
-                                                            m_.position(cc)));
+              const double d =
+                  point_triangle_distance(p, m_.position(a), m_.position(b), m_.position(cc));
+              if (d < best) best = d, face = faces_[i];
             }
           }
       if (best <= r * cell_) break;  // every unvisited cell is at least r cells away
     }
-    return best;
+    return {best, face};
   }
 
  private:
@@ -321,6 +326,68 @@ TolRun tol_butterfly(const Level& input, double tol, int cap, const MeshDistance
   return r;
 }
 
+//! Which output faces of adaptive sqrt3-interp at tol are farther than tol from the uniform
+//! level at the cap: every vertex of each uniform level k <= cap is given to its nearest
+//! output face, whose e_k is the largest distance given to it (nondecreasing in k for an
+//! interpolating scheme, whose levels keep their vertices; e_cap is what the unit test checks).
+//! Lists the worst faces: level, valences, e_k / tol, and where the farthest point lies.
+void diagnose(const Level& input, double tol, int cap, std::size_t list) {
+  const auto scheme = make_scheme("sqrt3-interp");
+  AdaptiveSqrt3 adaptive(input, *adaptive_sqrt3_scheme(*scheme), {0, tol, cap});
+  adaptive.run(std::uint64_t{1} << 31);
+  std::vector<std::uint8_t> face_level;
+  const Level out = adaptive.result(&face_level);
+  const Mesh& m = out.mesh;
+  const MeshDistance dist(m);
+  std::vector<std::vector<double>> e(cap + 1, std::vector<double>(m.num_faces(), 0.0));
+  std::vector<Vec3> worst_point(m.num_faces());
+  for (int k = 1; k <= cap; ++k) {
+    const Level u = uniform(input, "sqrt3-interp", k);
+    for (const Vec3& p : u.mesh.positions()) {
+      const auto [d, f] = dist.nearest(p);
+      if (d > e[k][f] && k == cap) worst_point[f] = p;
+      e[k][f] = std::max(e[k][f], d);
+    }
+  }
+  std::vector<std::size_t> faces_at(cap + 2, 0), over_at(cap + 2, 0);
+  double worst = 0;
+  std::vector<std::uint32_t> over;
+  for (std::uint32_t f = 0; f < m.num_faces(); ++f) {
+    const int l = face_level[f];
+    ++faces_at[l];
+    worst = std::max(worst, e[cap][f]);
+    if (e[cap][f] <= tol) continue;
+    ++over_at[l];
+    over.push_back(f);
+  }
+  std::sort(over.begin(), over.end(),
+            [&](std::uint32_t x, std::uint32_t y) { return e[cap][x] > e[cap][y]; });
+  if (over.size() > list) over.resize(list);
+  for (std::uint32_t f : over) {
+    const int l = face_level[f];
+    const auto [a, b, c] = m.face_vertices(FaceId(f));
+    int sharp = 0;
+    for (int k = 0; k < 3; ++k) sharp += out.features.is_sharp(m.edge(HalfedgeId(3 * f + k)));
+    std::printf("face %u level %d valences %d %d %d (input: %d%d%d) sharp edges %d  e_k/tol:", f, l,
+                m.valence(a), m.valence(b), m.valence(c), a.idx < input.mesh.num_vertices(),
+                b.idx < input.mesh.num_vertices(), c.idx < input.mesh.num_vertices(), sharp);
+    for (int k = 1; k <= cap; ++k) std::printf(" %.2f", e[k][f] / tol);
+    {  // where the farthest point is: barycentric over the face, and its height above it
+      const Vec3 A = m.position(a), B = m.position(b), C = m.position(c), p = worst_point[f];
+      const Vec3 n = cross(B - A, C - A);
+      const double n2 = dot(n, n);
+      const double u = dot(cross(C - B, p - B), n) / n2, v = dot(cross(A - C, p - C), n) / n2;
+      std::printf("  at (%.2f %.2f %.2f) plane %.2f", u, v, 1 - u - v,
+                  std::abs(dot(p - A, n)) / std::sqrt(n2) / tol);
+    }
+    std::printf("\n");
+  }
+  std::printf("tol %g cap %d: %zu faces, worst %.5f (%.2f tol); by level faces/over:", tol, cap,
+              std::size_t(m.num_faces()), worst, worst / tol);
+  for (int l = 0; l <= cap + 1; ++l) std::printf(" L%d %zu/%zu", l, faces_at[l], over_at[l]);
+  std::printf("\n");
+}
+
 std::string thousands(std::size_t n) {
   const std::string digits = std::to_string(n);
   std::string out;
@@ -350,7 +417,30 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--tol-split4-cap", o.tol_split4_cap, "max_level of butterfly there")
       ->capture_default_str();
+  std::vector<double> diagnose_tols;
+  std::size_t diagnose_list = 40;
+  app.add_option("--diagnose", diagnose_tols,
+                 "Only list the faces of adaptive sqrt3-interp over these tolerances (cap "
+                 "--tol-sqrt3-cap) and stop");
+  app.add_option("--diagnose-list", diagnose_list, "Faces listed per run")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+
+  auto load = [&](const std::string& name) {
+    std::cerr << "reading " << name << '\n';
+    return name == "icosphere" ? build_mesh(icosphere()).mesh
+                               : build_mesh(weld(read_stl_file(fs::path(o.mesh_dir) / name))).mesh;
+  };
+  if (!diagnose_tols.empty()) {
+    for (const std::string& name : o.inputs) {
+      const Mesh mesh = load(name);
+      const Level input{mesh, detect_features(mesh, {o.crease_angle})};
+      for (double tol : diagnose_tols) {
+        std::printf("## %s\n", name.c_str());
+        diagnose(input, tol, o.tol_sqrt3_cap, diagnose_list);
+      }
+    }
+    return 0;
+  }
 
   std::cout << "sqrt3-interp max_level " << o.sqrt3_cap << ", butterfly max_level " << o.split4_cap
             << ", crease angle " << o.crease_angle
@@ -362,11 +452,6 @@ int main(int argc, char** argv) {
                "| s | edge closure | butterfly | levels | uniform | over at cap | refined | s | "
                "sqrt3 / butterfly | edge closure / butterfly |\n"
                "|---|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|--:|\n";
-  auto load = [&](const std::string& name) {
-    std::cerr << "reading " << name << '\n';
-    return name == "icosphere" ? build_mesh(icosphere()).mesh
-                               : build_mesh(weld(read_stl_file(fs::path(o.mesh_dir) / name))).mesh;
-  };
   auto pow_faces = [](std::size_t faces, int base, int levels) {
     for (int i = 0; i < levels; ++i) faces *= std::size_t(base);
     return faces;
