@@ -6,7 +6,10 @@
 // ingested mesh `--reps` times per round; reported is the minimum over `--rounds` of the
 // round's median process CPU time and wall time, so other jobs on a shared machine disturb
 // the figures less than a single cold run. Also prints a hash of every output coordinate
-// (bit-identity checks between builds) and the output face count. Hand-run, never a test.
+// (bit-identity checks between builds) and the output face count. With --stencil-only it
+// times only the 1-to-4 stencil's points() (LSF's fits, butterfly's masks) on every level
+// but the last, without the host around it. Hand-run, never a test.
+#include <tbb/task_arena.h>
 #include <time.h>
 
 #include <CLI/CLI.hpp>
@@ -21,6 +24,7 @@
 #include "core/io/stl.h"
 #include "core/mesh/build_mesh.h"
 #include "core/refine.h"
+#include "core/schemes/split4_host.h"
 
 namespace {
 
@@ -55,7 +59,7 @@ int main(int argc, char** argv) {
   std::vector<std::string> schemes = {"butterfly", "lsf"};
   int levels = 2, threads = 1, reps = 5, rounds = 3;
   double adaptive_tol = 0;
-  bool no_hash = false;
+  bool no_hash = false, stencil_only = false;
   app.add_option("input", input, "STL file")->required();
   app.add_option("--schemes", schemes, "schemes to time");
   app.add_option("--levels", levels, "uniform levels (the cap in the adaptive mode)");
@@ -64,6 +68,8 @@ int main(int argc, char** argv) {
   app.add_option("--rounds", rounds, "rounds; the minimum of the round medians is reported");
   app.add_option("--adaptive-tol", adaptive_tol, "adaptive mode with this tolerance (mm)");
   app.add_flag("--no-hash", no_hash, "skip the output hash (cleaner instruction counts)");
+  app.add_flag("--stencil-only", stencil_only,
+               "time the split4 stencil's points() on levels 0..levels-1 only (uniform)");
   CLI11_PARSE(app, argc, argv);
 
   const stlrefine::IngestResult ingest =
@@ -75,6 +81,8 @@ int main(int argc, char** argv) {
     std::uint64_t hash = 0;
   };
   std::vector<Row> rows;
+  // --stencil-only: the levels each scheme refines, made once; hash = the stencil's points.
+  std::vector<std::vector<stlrefine::Level>> levels_of;
   for (const std::string& scheme : schemes) {
     Row row;
     row.params.scheme = scheme;
@@ -85,25 +93,75 @@ int main(int argc, char** argv) {
     row.params.max_level = levels;
     stlrefine::refine(ingest.mesh, row.params);  // warm-up: page faults, TBB pool
     rows.push_back(row);
+    if (!stencil_only) continue;
+    const auto made = stlrefine::make_scheme(scheme, stlrefine::scheme_options(row.params));
+    const auto* split4 = dynamic_cast<const stlrefine::Split4Scheme*>(made.get());
+    if (!split4) {
+      std::fprintf(stderr, "--stencil-only: %s is not a 1-to-4 scheme\n", scheme.c_str());
+      return 1;
+    }
+    std::vector<stlrefine::Level> chain;
+    chain.push_back({stlrefine::Mesh(ingest.mesh),
+                     stlrefine::detect_features(ingest.mesh, row.params.features)});
+    stlrefine::StepStats stats;
+    for (int l = 1; l < levels; ++l) chain.push_back(split4->refine_once(chain.back(), stats));
+    levels_of.push_back(std::move(chain));
   }
+  // One stencil pass over every level but the last; returns the face count it leads to.
+  auto run_stencil = [&](std::size_t i, std::uint64_t* hash) {
+    const auto made = stlrefine::make_scheme(rows[i].params.scheme);
+    const auto& stencil = dynamic_cast<const stlrefine::Split4Scheme&>(*made).stencil();
+    std::size_t faces = 0;
+    std::uint64_t h = 1469598103934665603ull;
+    for (const stlrefine::Level& level : levels_of[i]) {
+      const stlrefine::Mesh& m = level.mesh;
+      stlrefine::BigVector<stlrefine::Vec3> points(m.num_vertices() + m.num_edges());
+      const stlrefine::IrregularVertices irregular = stencil.uses_irregular()
+                                                         ? stlrefine::irregular_vertices(level)
+                                                         : stlrefine::IrregularVertices{};
+      stencil.points(level, irregular, std::span<stlrefine::Vec3>(points.data(), m.num_vertices()),
+                     std::span<stlrefine::Vec3>(points.data() + m.num_vertices(), m.num_edges()));
+      faces = 4 * m.num_faces();
+      if (hash) {
+        for (const stlrefine::Vec3& p : points) {
+          for (double x : {p.x, p.y, p.z}) {
+            std::uint64_t bits;
+            std::memcpy(&bits, &x, sizeof bits);
+            for (int b = 0; b < 8; ++b) h = (h ^ ((bits >> (8 * b)) & 0xff)) * 1099511628211ull;
+          }
+        }
+      }
+    }
+    if (hash) *hash = h;
+    return faces;
+  };
+  tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
   // Rounds interleave the schemes, so a change of load hits all of them alike.
   for (int r = 0; r < rounds; ++r) {
-    for (Row& row : rows) {
+    for (std::size_t k = 0; k < rows.size(); ++k) {
+      Row& row = rows[k];
       std::vector<double> cpu, wall;
       for (int i = 0; i < reps; ++i) {
         const double c0 = cpu_seconds();
         const auto w0 = std::chrono::steady_clock::now();
-        const stlrefine::RefineResult result = stlrefine::refine(ingest.mesh, row.params);
+        if (stencil_only) {
+          row.faces = arena.execute([&] { return run_stencil(k, nullptr); });
+        } else {
+          const stlrefine::RefineResult result = stlrefine::refine(ingest.mesh, row.params);
+          row.faces = result.mesh.num_faces();
+          if (!no_hash) row.hash = hash_positions(result.mesh);
+        }
         wall.push_back(
             std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count());
         cpu.push_back(cpu_seconds() - c0);
-        row.faces = result.mesh.num_faces();
-        if (!no_hash) row.hash = hash_positions(result.mesh);
       }
       row.best_cpu = std::min(row.best_cpu, median(cpu));
       row.best_wall = std::min(row.best_wall, median(wall));
     }
   }
+  if (stencil_only && !no_hash)
+    for (std::size_t k = 0; k < rows.size(); ++k)
+      arena.execute([&] { run_stencil(k, &rows[k].hash); });
   std::printf(
       "| scheme | levels | threads | out faces | CPU s | wall s | CPU / first | wall / first | "
       "hash |\n");

@@ -3,6 +3,7 @@
 #include "core/schemes/lsf.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -13,6 +14,16 @@
 #include "core/parallel.h"
 #include "core/schemes/crease_rules.h"
 #include "core/schemes/lsf_fast_math.h"
+
+// 32-byte vectors (V4d) in the signatures of internal inline functions: GCC warns that
+// their ABI differs with and without AVX, which cannot matter for functions never called
+// across translation units built with different flags.
+#if defined(__clang__)
+#pragma clang diagnostic ignored "-Wunknown-warning-option"
+#endif
+#if defined(__GNUC__)
+#pragma GCC diagnostic ignored "-Wpsabi"
+#endif
 
 namespace stlrefine {
 
@@ -675,6 +686,349 @@ Vec3 lsf_curve_point(const Mesh& m, const Features& f, HalfedgeId h) {
   return 0.5 * (endpoint_estimate(a, b) + endpoint_estimate(b, a));
 }
 
+namespace {
+
+// Smooth and dart vertices whose closed ring has kMinBatchValence..kMaxBatchValence points
+// are fitted four at a time, one vertex per lane of lsf_math::V4d. Every lane runs the
+// operations of fit_sample and half_points in the same order (the even- and odd-indexed
+// points summed apart and then added, as the pair kernels do), so the results are
+// bit-identical to the one-vertex path; what changes is that the angle bookkeeping, the
+// reductions and the certified 5x5 solve of four vertices share their instructions, and
+// nothing is summed across lanes. Lanes the fast solve cannot certify take solve_fit.
+using lsf_math::V4d;
+using lsf_math::V4i;
+constexpr int kLanes = 4;
+constexpr std::size_t kMinBatchValence = 5;  // below five points the general solve decides
+constexpr std::size_t kMaxBatchValence = 12;
+
+struct SmoothBatch {
+  int lanes = 0;
+  alignas(32) double ox[kLanes], oy[kLanes], oz[kLanes];  // the vertices V
+  alignas(32) double x[kMaxBatchValence][kLanes];         // ring offsets P_i - V
+  alignas(32) double y[kMaxBatchValence][kLanes];
+  alignas(32) double z[kMaxBatchValence][kLanes];
+  HalfedgeId spoke[kMaxBatchValence][kLanes];  // the outgoing half-edge to P_i
+};
+
+// The fitted surface at half of each spoke's parameter (or the chord midpoint), per lane.
+struct BatchPoints {
+  alignas(32) double x[kMaxBatchValence][kLanes];
+  alignas(32) double y[kMaxBatchValence][kLanes];
+  alignas(32) double z[kMaxBatchValence][kLanes];
+};
+
+[[gnu::always_inline]] inline V4d load4(const double* p) {
+  V4d v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+[[gnu::always_inline]] inline void store4(double* p, V4d v) {
+  std::memcpy(p, &v, sizeof v);
+}
+
+// Lane l of a solve the fast path could not certify: solve_fit on that lane's sums. Out of
+// line, so the batch kernels below do not carry a copy of the general path.
+// (Everything it takes is passed by reference: a V4d by value would be passed in a register
+// by the AVX2 kernel and in memory by this baseline-compiled function.)
+[[gnu::noinline]] bool solve_lane(const V4d (&sum)[12], const V4d (&rhs)[5][3], const V4d& radii,
+                                  std::size_t n, int l, V4d (&c)[5][3]) {
+  NormalEquations e;
+  for (int k = 0; k < 12; ++k) e.s[k] = sum[k][l];
+  for (int k = 0; k < 5; ++k) e.q[k] = Vec3(rhs[k][0][l], rhs[k][1][l], rhs[k][2][l]);
+  e.radius_sum = radii[l];
+  Coefficients fit;
+  const bool ok = solve_fit(e, n, 1e-9, fit);
+  for (int k = 0; k < 5; ++k) c[k][0][l] = fit[k].x, c[k][1][l] = fit[k].y, c[k][2][l] = fit[k].z;
+  return ok;
+}
+
+// Sums terms(i) over i < n as the pair kernels do: (t0 + t2 + ...) + (t1 + t3 + ...).
+template <int K, class Terms>
+[[gnu::always_inline]] inline void pair_sums(std::size_t n, V4d (&out)[K], Terms&& terms) {
+  V4d even[K] = {}, odd[K] = {};
+  std::size_t i = 0;
+  for (; i + 1 < n; i += 2) {
+    V4d t[K];
+    terms(i, t);
+    for (int k = 0; k < K; ++k) even[k] += t[k];
+    terms(i + 1, t);
+    for (int k = 0; k < K; ++k) odd[k] += t[k];
+  }
+  if (i < n) {
+    V4d t[K];
+    terms(i, t);
+    for (int k = 0; k < K; ++k) even[k] += t[k];
+  }
+  for (int k = 0; k < K; ++k) out[k] = even[k] + odd[k];
+}
+
+[[gnu::always_inline]] inline V4d min4(V4d a, V4d b) {  // std::min, lane by lane
+  return lsf_math::detail::select(b < a, b, a);
+}
+[[gnu::always_inline]] inline V4d max4(V4d a, V4d b) {  // std::max, lane by lane
+  return lsf_math::detail::select(a < b, b, a);
+}
+
+// The kernel, compiled once per instruction set below. Lanes from b.lanes to kLanes must
+// hold some valid ring (a copy of lane 0).
+[[gnu::always_inline]] inline void fit_batch_body(const SmoothBatch& b, std::size_t n,
+                                                  BatchPoints& out) {
+  using lsf_math::detail::select;
+  // ring_parameters(closed, 2 pi): gap angles, their sum, the scaled polar angles.
+  V4d theta[kMaxBatchValence];
+  V4d angle_sum = {0, 0, 0, 0};
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t j = i + 1 == n ? 0 : i + 1;
+    const V4d ax = load4(b.x[i]), ay = load4(b.y[i]), az = load4(b.z[i]);
+    const V4d bx = load4(b.x[j]), by = load4(b.y[j]), bz = load4(b.z[j]);
+    const V4d cx = ay * bz - az * by, cy = az * bx - ax * bz, cz = ax * by - ay * bx;
+    const V4d cross_len = lsf_math::sqrt(cx * cx + cy * cy + cz * cz);
+    theta[i] = lsf_math::atan2(cross_len, ax * bx + ay * by + az * bz);
+  }
+  for (std::size_t i = 0; i < n; ++i) angle_sum += theta[i];
+  const V4d one = {1, 1, 1, 1};
+  const V4d scale = select(angle_sum > 0, (2.0 * std::numbers::pi) / angle_sum, one);
+  V4d u[kMaxBatchValence], v[kMaxBatchValence], r[kMaxBatchValence];
+  V4d phi = {0, 0, 0, 0};
+  for (std::size_t i = 0; i < n; ++i) {
+    const V4d px = load4(b.x[i]), py = load4(b.y[i]), pz = load4(b.z[i]);
+    const V4d radius = lsf_math::sqrt(px * px + py * py + pz * pz);
+    V4d sin_phi, cos_phi;
+    lsf_math::sincos(phi, sin_phi, cos_phi);
+    u[i] = radius * cos_phi, v[i] = radius * sin_phi, r[i] = radius;
+    phi += scale * theta[i];
+  }
+
+  // normal_equations: S^T S in three groups of four moments, S^T q by coordinate.
+  V4d sum[12], radii[1];
+  pair_sums<4>(n, *reinterpret_cast<V4d(*)[4]>(sum + 0), [&](std::size_t i, V4d(&t)[4]) {
+    const V4d a = u[i], c = v[i], a2 = a * a;
+    t[0] = a2, t[1] = a * c, t[2] = c * c, t[3] = a2 * a;
+  });
+  pair_sums<4>(n, *reinterpret_cast<V4d(*)[4]>(sum + 4), [&](std::size_t i, V4d(&t)[4]) {
+    const V4d a = u[i], c = v[i], a2 = a * a, ac = a * c, c2 = c * c;
+    t[0] = a2 * c, t[1] = a * c2, t[2] = c2 * c, t[3] = a2 * a2;
+    (void)ac;
+  });
+  pair_sums<4>(n, *reinterpret_cast<V4d(*)[4]>(sum + 8), [&](std::size_t i, V4d(&t)[4]) {
+    const V4d a = u[i], c = v[i], a2 = a * a, ac = a * c, c2 = c * c;
+    t[0] = a2 * ac, t[1] = a2 * c2, t[2] = ac * c2, t[3] = c2 * c2;
+  });
+  pair_sums<1>(n, radii, [&](std::size_t i, V4d(&t)[1]) { t[0] = r[i]; });
+  constexpr double kScale[5] = {1, 1, 0.5, 1, 0.5};  // rows u, v, u^2/2, uv, v^2/2
+  V4d rhs[5][3];
+  for (int d = 0; d < 3; ++d) {
+    const double(*w)[kLanes] = d == 0 ? b.x : d == 1 ? b.y : b.z;
+    V4d q[5];
+    pair_sums<5>(n, q, [&](std::size_t i, V4d(&t)[5]) {
+      const V4d a = u[i], c = v[i], p = load4(w[i]);
+      t[0] = p * a, t[1] = p * c, t[2] = p * (a * a), t[3] = p * (a * c), t[4] = p * (c * c);
+    });
+    for (int k = 0; k < 5; ++k) rhs[k][d] = kScale[k] * q[k];
+  }
+
+  // solve_fit and fast_solve (mu = 1e-9), every lane at once.
+  const V4d mean_radius = radii[0] / static_cast<double>(n);
+  const V4d h2 = mean_radius * mean_radius;
+  const V4d damping = 1e-9 * (h2 * h2);
+  V4d a00 = sum[0], a10 = sum[1], a20 = 0.5 * sum[3], a30 = sum[4], a40 = 0.5 * sum[5];
+  V4d a11 = sum[2], a21 = 0.5 * sum[4], a31 = sum[5], a41 = 0.5 * sum[6];
+  const V4d n22 = 0.25 * sum[7], n33 = sum[9], n44 = 0.25 * sum[11];
+  V4d a22 = n22 + damping, a32 = 0.5 * sum[8], a42 = 0.25 * sum[9];
+  V4d a33 = n33 + damping, a43 = 0.5 * sum[10];
+  V4d a44 = n44 + damping;
+  const V4d min_quadratic = min4(n22, min4(n33, n44));
+  const V4d min_diag = min4(min4(a00, a11), min_quadratic);
+  const V4d max_diag = max4(max4(a00, a11), max4(a22, max4(a33, a44)));
+  const V4d diag_product = a00 * a11 * n22 * n33 * n44;
+  V4i certified = (damping <= 1e-7 * min_quadratic) & (min_diag >= 1e-8 * max_diag) &
+                  (diag_product >= 1e-250) & (diag_product <= 1e250);
+  V4d b0[3], b1[3], b2[3], b3[3], b4[3];  // the right-hand sides, eliminated in place
+  for (int d = 0; d < 3; ++d)
+    b0[d] = rhs[0][d], b1[d] = rhs[1][d], b2[d] = rhs[2][d], b3[d] = rhs[3][d], b4[d] = rhs[4][d];
+  auto eliminate = [](V4d(&to)[3], V4d l, const V4d(&from)[3]) {
+    for (int d = 0; d < 3; ++d) to[d] -= l * from[d];
+  };
+  const V4d d0 = a00;
+  const V4d i0 = 1.0 / d0;
+  const V4d l10 = a10 * i0, l20 = a20 * i0, l30 = a30 * i0, l40 = a40 * i0;
+  a11 -= l10 * a10, a21 -= l20 * a10, a31 -= l30 * a10, a41 -= l40 * a10;
+  a22 -= l20 * a20, a32 -= l30 * a20, a42 -= l40 * a20;
+  a33 -= l30 * a30, a43 -= l40 * a30;
+  a44 -= l40 * a40;
+  eliminate(b1, l10, b0), eliminate(b2, l20, b0), eliminate(b3, l30, b0), eliminate(b4, l40, b0);
+  const V4d d1 = a11;
+  const V4d i1 = 1.0 / d1;
+  const V4d l21 = a21 * i1, l31 = a31 * i1, l41 = a41 * i1;
+  a22 -= l21 * a21, a32 -= l31 * a21, a42 -= l41 * a21;
+  a33 -= l31 * a31, a43 -= l41 * a31;
+  a44 -= l41 * a41;
+  eliminate(b2, l21, b1), eliminate(b3, l31, b1), eliminate(b4, l41, b1);
+  const V4d d2 = a22;
+  const V4d i2 = 1.0 / d2;
+  const V4d l32 = a32 * i2, l42 = a42 * i2;
+  a33 -= l32 * a32, a43 -= l42 * a32;
+  a44 -= l42 * a42;
+  eliminate(b3, l32, b2), eliminate(b4, l42, b2);
+  const V4d d3 = a33;
+  const V4d i3 = 1.0 / d3;
+  const V4d l43 = a43 * i3;
+  a44 -= l43 * a43;
+  eliminate(b4, l43, b3);
+  const V4d d4 = a44;
+  const V4d i4 = 1.0 / d4;
+  certified &= (d0 > 0) & (d1 > 0) & (d2 > 0) & (d3 > 0) & (d4 > 0) &
+               (d0 * d1 * d2 * d3 * d4 >= kDetFloor * diag_product);
+  V4d c[5][3];
+  for (int d = 0; d < 3; ++d) {
+    c[4][d] = i4 * b4[d];
+    c[3][d] = i3 * b3[d] - l43 * c[4][d];
+    c[2][d] = i2 * b2[d] - l32 * c[3][d] - l42 * c[4][d];
+    c[1][d] = i1 * b1[d] - l21 * c[2][d] - l31 * c[3][d] - l41 * c[4][d];
+    c[0][d] = i0 * b0[d] - l10 * c[1][d] - l20 * c[2][d] - l30 * c[3][d] - l40 * c[4][d];
+  }
+  // all_finite, lane by lane.
+  V4d zero = {0, 0, 0, 0};
+  for (const auto& row : c) zero += (row[0] - row[0]) + (row[1] - row[1]) + (row[2] - row[2]);
+  V4i valid = certified & (zero == 0);
+  if (!(certified[0] && certified[1] && certified[2] && certified[3])) [[unlikely]] {
+    for (int l = 0; l < kLanes; ++l)
+      if (!certified[l]) valid[l] = solve_lane(sum, rhs, radii[0], n, l, c) ? -1 : 0;
+  }
+
+  // half_points: s(u/2, v/2) - V + V, or the chord midpoint where the fit is not valid.
+  V4d h[5][3];
+  for (int d = 0; d < 3; ++d) {
+    h[0][d] = 0.5 * c[0][d], h[1][d] = 0.5 * c[1][d], h[2][d] = 0.125 * c[2][d];
+    h[3][d] = 0.25 * c[3][d], h[4][d] = 0.125 * c[4][d];
+  }
+  for (int d = 0; d < 3; ++d) {
+    const double(*w)[kLanes] = d == 0 ? b.x : d == 1 ? b.y : b.z;
+    double(*to)[kLanes] = d == 0 ? out.x : d == 1 ? out.y : out.z;
+    const V4d origin = load4(d == 0 ? b.ox : d == 1 ? b.oy : b.oz);
+    for (std::size_t i = 0; i < n; ++i) {
+      const V4d a = u[i], e = v[i];
+      const V4d fit =
+          a * h[0][d] + e * h[1][d] + (a * a) * h[2][d] + (a * e) * h[3][d] + (e * e) * h[4][d];
+      store4(to[i], origin + select(valid, fit, 0.5 * load4(w[i])));
+    }
+  }
+}
+
+[[gnu::flatten]] void fit_batch_baseline(const SmoothBatch& b, std::size_t n, BatchPoints& out) {
+  fit_batch_body(b, n, out);
+}
+
+using FitBatchFn = void (*)(const SmoothBatch&, std::size_t, BatchPoints&);
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+// The same kernel on AVX2's four-lane registers (AVX2 only: no FMA, which would change the
+// rounding). Chosen at run time, so the binary still runs on any x86-64.
+[[gnu::target("avx2"), gnu::flatten]] void fit_batch_avx2(const SmoothBatch& b, std::size_t n,
+                                                          BatchPoints& out) {
+  fit_batch_body(b, n, out);
+}
+bool cpu_has_avx2() {
+  return __builtin_cpu_supports("avx2");
+}
+#else
+FitBatchFn fit_batch_avx2 = nullptr;
+bool cpu_has_avx2() {
+  return false;
+}
+#endif
+
+std::atomic<bool> g_baseline_only{false};
+
+FitBatchFn fit_batch_kernel() {
+  static const bool avx2 = cpu_has_avx2();
+  return avx2 && !g_baseline_only.load(std::memory_order_relaxed) ? fit_batch_avx2
+                                                                  : fit_batch_baseline;
+}
+
+// Walks v's ring into the batch of its valence when v is smooth or a dart (whose whole ring
+// is fitted too) with a closed ring of kMinBatchValence..kMaxBatchValence points, and fits
+// the batch when it is full; false, with nothing changed, for every other vertex. A dart's
+// sharp spoke gets an estimate too: harmless, the sharp edge's point is the curve rule's.
+template <class Sink>
+bool batch_vertex(const Mesh& m, const Features& f, VertexId v, std::span<SmoothBatch> batches,
+                  FitBatchFn kernel, BatchPoints& points, Sink&& sink) {
+  if (f.kind(v) > VertexKind::Dart) return false;
+  const HalfedgeId start = m.halfedge(v);
+  if (!start.valid()) return false;
+  const Vec3 p = m.position(v);
+  double x[kMaxBatchValence], y[kMaxBatchValence], z[kMaxBatchValence];
+  HalfedgeId spoke[kMaxBatchValence];
+  std::size_t n = 0;
+  HalfedgeId h = start;
+  do {
+    if (n == kMaxBatchValence) return false;
+    const Vec3 d = m.position(m.to(h)) - p;
+    x[n] = d.x, y[n] = d.y, z[n] = d.z;
+    spoke[n] = h;
+    ++n;
+    h = m.ccw_rotated(h);
+  } while (h.valid() && h != start);
+  if (!h.valid() || n < kMinBatchValence) return false;
+  SmoothBatch& b = batches[n];
+  const int l = b.lanes++;
+  b.ox[l] = p.x, b.oy[l] = p.y, b.oz[l] = p.z;
+  for (std::size_t i = 0; i < n; ++i)
+    b.x[i][l] = x[i], b.y[i][l] = y[i], b.z[i][l] = z[i], b.spoke[i][l] = spoke[i];
+  if (b.lanes == kLanes) {
+    kernel(b, n, points);
+    for (std::size_t i = 0; i < n; ++i)
+      for (int k = 0; k < kLanes; ++k)
+        sink(b.spoke[i][k], Vec3(points.x[i][k], points.y[i][k], points.z[i][k]));
+    b.lanes = 0;
+  }
+  return true;
+}
+
+// Fits what is left in the batches: the unused lanes get copies of lane 0.
+template <class Sink>
+void flush_batches(std::span<SmoothBatch> batches, FitBatchFn kernel, BatchPoints& points,
+                   Sink&& sink) {
+  for (std::size_t n = kMinBatchValence; n < batches.size(); ++n) {
+    SmoothBatch& b = batches[n];
+    if (b.lanes == 0) continue;
+    for (int l = b.lanes; l < kLanes; ++l) {
+      b.ox[l] = b.ox[0], b.oy[l] = b.oy[0], b.oz[l] = b.oz[0];
+      for (std::size_t i = 0; i < n; ++i)
+        b.x[i][l] = b.x[i][0], b.y[i][l] = b.y[i][0], b.z[i][l] = b.z[i][0];
+    }
+    kernel(b, n, points);
+    for (std::size_t i = 0; i < n; ++i)
+      for (int k = 0; k < b.lanes; ++k)
+        sink(b.spoke[i][k], Vec3(points.x[i][k], points.y[i][k], points.z[i][k]));
+    b.lanes = 0;
+  }
+}
+
+// parallel_for_each_index's partition and cancellation, handing each task its range.
+template <class Fn>
+void parallel_for_each_range(std::size_t n, Fn&& fn) {
+  constexpr std::size_t kGrain = 4096;
+  if (n < kGrain) {
+    fn(std::size_t{0}, n);
+    return;
+  }
+  const std::atomic<bool>* cancel = detail::current_cancel_flag;
+  auto cancelled = [cancel] { return cancel && cancel->load(std::memory_order_relaxed); };
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, kGrain),
+                    [&](const tbb::blocked_range<std::size_t>& r) {
+                      if (cancelled()) return;
+                      fn(r.begin(), r.end());
+                    });
+  if (cancelled()) throw Error(ErrorCode::Cancelled, "cancelled", "cancelled");
+}
+
+}  // namespace
+
+void set_lsf_baseline_kernels(bool baseline_only) {
+  g_baseline_only.store(baseline_only, std::memory_order_relaxed);
+}
+
 void LsfStencil::edge_points(const Level& coarse, std::span<Vec3> out) const {
   const Mesh& m = coarse.mesh;
   const Features& f = coarse.features;
@@ -684,15 +1038,22 @@ void LsfStencil::edge_points(const Level& coarse, std::span<Vec3> out) const {
   // order). Every half-edge belongs to one vertex, so the writes never collide.
   // std::array, unlike Vec3, is left uninitialised: every slot read is written first.
   BigVector<std::array<double, 3>> twin_estimate(m.num_edges());
-  parallel_for_each_index(m.num_vertices(), [&](std::size_t v) {
-    vertex_estimates(m, f, VertexId(static_cast<std::uint32_t>(v)),
-                     [&](HalfedgeId s, const Vec3& point) {
-                       const EdgeId e = m.edge(s);
-                       if (m.halfedge(e) == s)
-                         out[e.idx] = point;
-                       else
-                         twin_estimate[e.idx] = {point.x, point.y, point.z};
-                     });
+  auto sink = [&](HalfedgeId s, const Vec3& point) {
+    const EdgeId e = m.edge(s);
+    if (m.halfedge(e) == s)
+      out[e.idx] = point;
+    else
+      twin_estimate[e.idx] = {point.x, point.y, point.z};
+  };
+  parallel_for_each_range(m.num_vertices(), [&](std::size_t begin, std::size_t end) {
+    std::array<SmoothBatch, kMaxBatchValence + 1> batches;
+    BatchPoints points;
+    const FitBatchFn kernel = fit_batch_kernel();
+    for (std::size_t i = begin; i < end; ++i) {
+      const VertexId v(static_cast<std::uint32_t>(i));
+      if (!batch_vertex(m, f, v, batches, kernel, points, sink)) vertex_estimates(m, f, v, sink);
+    }
+    flush_batches(batches, kernel, points, sink);
   });
   parallel_for_each_index(m.num_edges(), [&](std::size_t e) {
     const EdgeId edge(static_cast<std::uint32_t>(e));

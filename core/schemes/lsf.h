@@ -60,4 +60,9 @@ QuadricFit vertex_fit(const Mesh& mesh, const Features& features, VertexId v);
 //! half-parameter (linear at polyline ends), averaged over both endpoints.
 Vec3 lsf_curve_point(const Mesh& mesh, const Features& features, HalfedgeId h);
 
+//! Smooth and dart vertices are fitted four at a time; on x86-64 CPUs with AVX2 by a kernel
+//! built for it, else by the baseline one. Both give bit-identical results: true makes
+//! every later fit use the baseline kernel (for the tests that compare the two).
+void set_lsf_baseline_kernels(bool baseline_only);
+
 }  // namespace stlrefine

@@ -9,9 +9,9 @@
 // bounds the difference to std:: over the whole double range). Arguments outside the
 // range the fast path is built for (non-finite, zero, huge) go to std::.
 //
-// Each comes for one double and for a pair (V2d, GCC/Clang vector extensions: two lanes
-// of SSE2 on x86-64, plain scalar code elsewhere); both run the same operations, so a
-// lane gives exactly the scalar result.
+// Each comes for one double, for a pair (V2d, GCC/Clang vector extensions: two lanes of
+// SSE2 on x86-64, plain scalar code elsewhere) and for a quadruple (V4d: one AVX register,
+// or two SSE2 ones); all run the same operations, so a lane gives exactly the scalar result.
 //
 // Only exact mathematics goes in: Taylor coefficients 1/n! and (-1)^k/(2k+1), the
 // arctangents of j/8 from std::atan, and pi/2 split into pieces for the reduction.
@@ -23,14 +23,28 @@
 #include <limits>
 #include <numbers>
 
-#if defined(__SSE2__)
+#if defined(__AVX__)
+#include <immintrin.h>
+#elif defined(__SSE2__)
 #include <emmintrin.h>
+#endif
+
+// 32-byte vectors (V4d) in the signatures of internal inline functions: GCC warns that
+// their ABI differs with and without AVX, which cannot matter for functions never called
+// across translation units built with different flags.
+#if defined(__clang__)
+#pragma clang diagnostic ignored "-Wunknown-warning-option"
+#endif
+#if defined(__GNUC__)
+#pragma GCC diagnostic ignored "-Wpsabi"
 #endif
 
 namespace stlrefine::lsf_math {
 
 using V2d = double __attribute__((vector_size(16)));
 using V2i = std::int64_t __attribute__((vector_size(16)));  // lane masks and bits
+using V4d = double __attribute__((vector_size(32)));
+using V4i = std::int64_t __attribute__((vector_size(32)));
 
 namespace detail {
 
@@ -101,10 +115,19 @@ inline V2i bits(V2d x) {
 inline V2d from_bits(V2i b) {
   return reinterpret_cast<V2d>(b);
 }
+inline V4i bits(V4d x) {
+  return reinterpret_cast<V4i>(x);
+}
+inline V4d from_bits(V4i b) {
+  return reinterpret_cast<V4d>(b);
+}
 inline double select(bool m, double a, double b) {
   return m ? a : b;
 }
 inline V2d select(V2i m, V2d a, V2d b) {
+  return from_bits((bits(a) & m) | (bits(b) & ~m));
+}
+inline V4d select(V4i m, V4d a, V4d b) {
   return from_bits((bits(a) & m) | (bits(b) & ~m));
 }
 inline double abs(double x) {
@@ -113,11 +136,18 @@ inline double abs(double x) {
 inline V2d abs(V2d x) {
   return from_bits(bits(x) & ~kSignBit);
 }
+inline V4d abs(V4d x) {
+  return from_bits(bits(x) & ~kSignBit);
+}
 inline double atan_eighths(std::int64_t j) {
   return kAtanEighths[j & 15];
 }
 inline V2d atan_eighths(V2i j) {
   return V2d{kAtanEighths[j[0] & 15], kAtanEighths[j[1] & 15]};
+}
+inline V4d atan_eighths(V4i j) {
+  return V4d{kAtanEighths[j[0] & 15], kAtanEighths[j[1] & 15], kAtanEighths[j[2] & 15],
+             kAtanEighths[j[3] & 15]};
 }
 // All ones where the low bit of q is set.
 inline bool odd(std::int64_t q) {
@@ -126,12 +156,18 @@ inline bool odd(std::int64_t q) {
 inline V2i odd(V2i q) {
   return V2i{0, 0} - (q & 1);
 }
+inline V4i odd(V4i q) {
+  return V4i{0, 0, 0, 0} - (q & 1);
+}
 // The sign bit where bit 1 of q is set.
 inline std::int64_t sign_of_bit1(std::int64_t q) {
   return (0 - ((q >> 1) & 1)) & kSignBit;
 }
 inline V2i sign_of_bit1(V2i q) {
   return (V2i{0, 0} - ((q >> 1) & 1)) & kSignBit;
+}
+inline V4i sign_of_bit1(V4i q) {
+  return (V4i{0, 0, 0, 0} - ((q >> 1) & 1)) & kSignBit;
 }
 
 // The fast paths; `ok` is false (a lane of zeros) where the caller must use std::.
@@ -185,6 +221,15 @@ inline V2d atan2(V2d y, V2d x) {
   return V2d{atan2(y[0], x[0]), atan2(y[1], x[1])};
 }
 
+//! atan2 of four lanes, lane by lane exactly as the scalar version.
+inline V4d atan2(V4d y, V4d x) {
+  V4i ok;
+  const V4d a = detail::atan2_core(y, x, ok);
+  if (ok[0] && ok[1] && ok[2] && ok[3]) [[likely]]
+    return a;
+  return V4d{atan2(y[0], x[0]), atan2(y[1], x[1]), atan2(y[2], x[2]), atan2(y[3], x[3])};
+}
+
 //! sin(x) and cos(x), within a few units in the last place of std::sin / std::cos.
 inline void sincos(double x, double& s, double& c) {
   bool ok;
@@ -208,12 +253,35 @@ inline void sincos(V2d x, V2d& s, V2d& c) {
   }
 }
 
+//! sincos of four lanes, lane by lane exactly as the scalar version.
+inline void sincos(V4d x, V4d& s, V4d& c) {
+  V4i ok;
+  detail::sincos_core(x, s, c, ok);
+  if (ok[0] && ok[1] && ok[2] && ok[3]) [[likely]]
+    return;
+  for (int i = 0; i < 4; ++i) {
+    double si, ci;
+    sincos(x[i], si, ci);
+    s[i] = si, c[i] = ci;
+  }
+}
+
 //! Square roots of a pair (correctly rounded, as std::sqrt).
 inline V2d sqrt(V2d x) {
 #if defined(__SSE2__)
   return reinterpret_cast<V2d>(_mm_sqrt_pd(reinterpret_cast<__m128d>(x)));
 #else
   return V2d{std::sqrt(x[0]), std::sqrt(x[1])};
+#endif
+}
+
+//! Square roots of four lanes (correctly rounded, as std::sqrt).
+inline V4d sqrt(V4d x) {
+#if defined(__AVX__)
+  return reinterpret_cast<V4d>(_mm256_sqrt_pd(reinterpret_cast<__m256d>(x)));
+#else
+  const V2d lo = sqrt(V2d{x[0], x[1]}), hi = sqrt(V2d{x[2], x[3]});
+  return V4d{lo[0], lo[1], hi[0], hi[1]};
 #endif
 }
 

@@ -298,6 +298,7 @@ TEST(LsfFit, NearlyDegenerateCreaseSectorStaysOnTheSurface) {
 }  // namespace
 }  // namespace stlrefine
 
+#include <cstring>
 #include <limits>
 #include <random>
 
@@ -473,6 +474,111 @@ TEST(LsfFastMath, SincosIsWithin2p5em16OfStdEverywhere) {
   std::printf("[fast math] sincos: worst %.3g absolute, %.2f ulp where |result| >= 1e-3\n",
               worst_abs, worst_ulp);
 }
+
+TEST(LsfFastMath, QuadVersionsGiveTheScalarResultInEachLane) {
+  std::mt19937_64 rng(12);
+  std::uniform_real_distribution<double> unit(-4.0, 4.0);
+  for (int i = 0; i < 100000; ++i) {
+    // Every eighth quadruple has a lane the fast path leaves to std:: (zero, huge, NaN).
+    const double odd = i % 8 == 0 ? any_double(rng) : unit(rng);
+    const lsf_math::V4d y{unit(rng), unit(rng), odd, unit(rng)};
+    const lsf_math::V4d x{unit(rng), i % 16 == 0 ? 0.0 : unit(rng), unit(rng), unit(rng)};
+    const lsf_math::V4d a = lsf_math::atan2(y, x);
+    for (int k = 0; k < 4; ++k) {
+      const double scalar = lsf_math::atan2(y[k], x[k]);
+      ASSERT_TRUE(a[k] == scalar || (std::isnan(a[k]) && std::isnan(scalar)))
+          << y[k] << " " << x[k];
+    }
+    const lsf_math::V4d phi{unit(rng), unit(rng), unit(rng),
+                            i % 8 == 0 ? any_double(rng) : unit(rng)};
+    lsf_math::V4d s, c;
+    lsf_math::sincos(phi, s, c);
+    for (int k = 0; k < 4; ++k) {
+      double sk, ck;
+      lsf_math::sincos(phi[k], sk, ck);
+      ASSERT_TRUE(s[k] == sk || (std::isnan(s[k]) && std::isnan(sk))) << phi[k];
+      ASSERT_TRUE(c[k] == ck || (std::isnan(c[k]) && std::isnan(ck))) << phi[k];
+    }
+    const lsf_math::V4d q{std::abs(unit(rng)), std::abs(odd), std::abs(unit(rng)), 0.0};
+    const lsf_math::V4d root = lsf_math::sqrt(q);
+    for (int k = 0; k < 4; ++k) ASSERT_TRUE(root[k] == std::sqrt(q[k]) || std::isnan(q[k])) << q[k];
+  }
+}
+
+// The stencil fits smooth and dart vertices four at a time (one vertex per vector lane, on
+// AVX2 where the CPU has it); half_edge_estimates fits one vertex at a time. Both must give
+// the same edge points bit for bit, on rings of every valence (3 and 4 and above 12 take
+// the one-vertex path inside the stencil too), with darts, creases, corners, boundaries, a
+// mesh large enough to be split between tasks, and with either batch kernel.
+class LsfBatchedFits : public ::testing::TestWithParam<bool> {
+ protected:
+  void TearDown() override { set_lsf_baseline_kernels(false); }
+};
+
+TEST_P(LsfBatchedFits, EqualTheOneVertexPathBitForBit) {
+  set_lsf_baseline_kernels(GetParam());
+  IndexedSoup soup = icosphere_soup(3, 2.0);
+  const int valences[] = {3, 4, 7, 9, 12, 13, 16};
+  for (int i = 0; i < 7; ++i)
+    soup = merged(soup, translated(bipyramid_soup(valences[i], 0.8), {5.0 + 3.0 * i, 0, 0}));
+  soup = merged(soup, translated(grid_soup(7, 6), {0, 5, 0}));               // boundaries
+  soup = merged(soup, translated(cylinder_soup(11, 1.0, 2.0), {0, -6, 0}));  // creases
+  // A smooth vertex whose ring lies nearly along one line: the fast solve cannot certify
+  // its fit, so that lane of its batch goes to the general path.
+  IndexedSoup bow_tie;
+  bow_tie.positions.push_back({0, 0, 0.1});
+  for (double a :
+       {0.0, 0.01, 0.02, std::numbers::pi, std::numbers::pi + 0.01, std::numbers::pi + 0.02})
+    bow_tie.positions.push_back({std::cos(a), std::sin(a), 0.1 * std::cos(3 * a)});
+  for (std::uint32_t i = 0; i < 6; ++i) bow_tie.triangles.push_back({0, 1 + i, 1 + (i + 1) % 6});
+  soup = merged(soup, translated(bow_tie, {0, 10, 0}));
+  // Irregular angles and lengths, so no ring is symmetric.
+  std::mt19937_64 rng(99);
+  std::uniform_real_distribution<double> jitter(-0.04, 0.04);
+  for (Vec3& p : soup.positions) p += Vec3(jitter(rng), jitter(rng), jitter(rng));
+  const Mesh mesh = to_mesh(soup);
+  // No crease detection: the apexes of the bipyramids keep their smooth rings. Sharp are
+  // the boundaries and a polyline of four edges heading along x over the sphere: darts at
+  // its ends, creases inside.
+  BigVector<std::uint8_t> sharp(mesh.num_edges(), 0);
+  VertexId at(0);
+  for (int step = 0; step < 4; ++step) {
+    HalfedgeId best;
+    double best_x = -1e300;
+    for (HalfedgeId h : outgoing(mesh, at)) {
+      const double x = mesh.position(mesh.to(h)).x - mesh.position(at).x;
+      if (x > best_x) best_x = x, best = h;
+    }
+    sharp[mesh.edge(best).idx] = 1;
+    at = mesh.to(best);
+  }
+  Level level{Mesh(mesh), Features(mesh, std::move(sharp))};
+  ASSERT_EQ(level.features.count(VertexKind::Dart), 2u);
+  const LsfStencil stencil;
+  for (int l = 0; l < 3; ++l) {
+    const Mesh& m = level.mesh;
+    std::vector<Vec3> points(m.num_edges());
+    stencil.edge_points(level, points);
+    BigVector<Vec3> estimate(m.num_halfedges());
+    for (std::uint32_t v = 0; v < m.num_vertices(); ++v)
+      LsfStencil::half_edge_estimates(m, level.features, VertexId(v), estimate);
+    std::size_t compared = 0;
+    for (std::uint32_t e = 0; e < m.num_edges(); ++e) {
+      if (level.features.is_sharp(EdgeId(e))) continue;
+      const HalfedgeId h = m.halfedge(EdgeId(e));
+      const Vec3 expected = 0.5 * (estimate[h.idx] + estimate[m.twin(h).idx]);
+      ASSERT_EQ(std::memcmp(&points[e], &expected, sizeof expected), 0)
+          << "level " << l << " edge " << e << ": " << points[e].x << " " << expected.x;
+      ++compared;
+    }
+    EXPECT_GT(compared, m.num_edges() * 9 / 10);
+    if (l < 2) level = refine_level("lsf", level);
+  }
+  EXPECT_GT(level.mesh.num_vertices(), 2u * 4096);  // split between parallel tasks
+}
+
+INSTANTIATE_TEST_SUITE_P(Kernels, LsfBatchedFits, ::testing::Values(false, true),
+                         [](const auto& info) { return info.param ? "Baseline" : "Best"; });
 
 }  // namespace
 }  // namespace stlrefine
