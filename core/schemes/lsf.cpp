@@ -956,25 +956,25 @@ bool batch_vertex(const Mesh& m, const Features& f, VertexId v, std::span<Smooth
   if (f.kind(v) > VertexKind::Dart) return false;
   const HalfedgeId start = m.halfedge(v);
   if (!start.valid()) return false;
-  const Vec3 p = m.position(v);
-  double x[kMaxBatchValence], y[kMaxBatchValence], z[kMaxBatchValence];
+  // The spokes first (a chain of dependent loads), then their far ends' positions (loads
+  // independent of each other), straight into the batch's lane.
   HalfedgeId spoke[kMaxBatchValence];
   std::size_t n = 0;
   HalfedgeId h = start;
   do {
     if (n == kMaxBatchValence) return false;
-    const Vec3 d = m.position(m.to(h)) - p;
-    x[n] = d.x, y[n] = d.y, z[n] = d.z;
-    spoke[n] = h;
-    ++n;
+    spoke[n++] = h;
     h = m.ccw_rotated(h);
   } while (h.valid() && h != start);
   if (!h.valid() || n < kMinBatchValence) return false;
   SmoothBatch& b = batches[n];
   const int l = b.lanes++;
+  const Vec3 p = m.position(v);
   b.ox[l] = p.x, b.oy[l] = p.y, b.oz[l] = p.z;
-  for (std::size_t i = 0; i < n; ++i)
-    b.x[i][l] = x[i], b.y[i][l] = y[i], b.z[i][l] = z[i], b.spoke[i][l] = spoke[i];
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 d = m.position(m.to(spoke[i])) - p;
+    b.x[i][l] = d.x, b.y[i][l] = d.y, b.z[i][l] = d.z, b.spoke[i][l] = spoke[i];
+  }
   if (b.lanes == kLanes) {
     kernel(b, n, points);
     for (std::size_t i = 0; i < n; ++i)
