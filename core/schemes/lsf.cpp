@@ -707,7 +707,10 @@ struct SmoothBatch {
   alignas(32) double x[kMaxBatchValence][kLanes];         // ring offsets P_i - V
   alignas(32) double y[kMaxBatchValence][kLanes];
   alignas(32) double z[kMaxBatchValence][kLanes];
-  HalfedgeId spoke[kMaxBatchValence][kLanes];  // the outgoing half-edge to P_i
+  // Where P_i's estimate goes (see LsfStencil::edge_points): the edge of the spoke to P_i
+  // and whether the spoke is the lower-numbered of its two half-edges.
+  std::uint32_t edge[kMaxBatchValence][kLanes];
+  bool lower[kMaxBatchValence][kLanes];
 };
 
 // The fitted surface at half of each spoke's parameter (or the chord midpoint), per lane.
@@ -948,47 +951,55 @@ FitBatchFn fit_batch_kernel() {
 
 // Walks v's ring into the batch of its valence when v is smooth or a dart (whose whole ring
 // is fitted too) with a closed ring of kMinBatchValence..kMaxBatchValence points, and fits
-// the batch when it is full; false, with nothing changed, for every other vertex. A dart's
-// sharp spoke gets an estimate too: harmless, the sharp edge's point is the curve rule's.
-template <class Sink>
+// the batch when it is full, passing each estimate to store(edge, lower, point); false, with
+// nothing changed, for every other vertex. A dart's sharp spoke gets an estimate too:
+// harmless, the sharp edge's point is the curve rule's.
+template <class Store>
 bool batch_vertex(const Mesh& m, const Features& f, VertexId v, std::span<SmoothBatch> batches,
-                  FitBatchFn kernel, BatchPoints& points, Sink&& sink) {
+                  FitBatchFn kernel, BatchPoints& points, Store&& store) {
   if (f.kind(v) > VertexKind::Dart) return false;
   const HalfedgeId start = m.halfedge(v);
   if (!start.valid()) return false;
   // The spokes first (a chain of dependent loads), then their far ends' positions (loads
   // independent of each other), straight into the batch's lane.
-  HalfedgeId spoke[kMaxBatchValence];
+  // twin(spoke[i + 1]) = prev(spoke[i]), and the ring is closed: twin(spoke[i]) is
+  // prev_spoke[i - 1] (cyclically), with no load.
+  HalfedgeId spoke[kMaxBatchValence], prev_spoke[kMaxBatchValence];
   std::size_t n = 0;
   HalfedgeId h = start;
   do {
     if (n == kMaxBatchValence) return false;
-    spoke[n++] = h;
-    h = m.ccw_rotated(h);
+    spoke[n] = h;
+    prev_spoke[n] = Mesh::prev(h);
+    h = m.twin(prev_spoke[n++]);  // ccw_rotated
   } while (h.valid() && h != start);
   if (!h.valid() || n < kMinBatchValence) return false;
   SmoothBatch& b = batches[n];
   const int l = b.lanes++;
   const Vec3 p = m.position(v);
   b.ox[l] = p.x, b.oy[l] = p.y, b.oz[l] = p.z;
+  HalfedgeId twin = prev_spoke[n - 1];
   for (std::size_t i = 0; i < n; ++i) {
-    const Vec3 d = m.position(m.to(spoke[i])) - p;
-    b.x[i][l] = d.x, b.y[i][l] = d.y, b.z[i][l] = d.z, b.spoke[i][l] = spoke[i];
+    const Vec3 d = m.position(m.from(twin)) - p;  // to(spoke[i])
+    b.x[i][l] = d.x, b.y[i][l] = d.y, b.z[i][l] = d.z;
+    b.edge[i][l] = m.edge(spoke[i]).idx, b.lower[i][l] = spoke[i].idx < twin.idx;
+    twin = prev_spoke[i];
   }
   if (b.lanes == kLanes) {
     kernel(b, n, points);
     for (std::size_t i = 0; i < n; ++i)
       for (int k = 0; k < kLanes; ++k)
-        sink(b.spoke[i][k], Vec3(points.x[i][k], points.y[i][k], points.z[i][k]));
+        store(EdgeId(b.edge[i][k]), b.lower[i][k],
+              Vec3(points.x[i][k], points.y[i][k], points.z[i][k]));
     b.lanes = 0;
   }
   return true;
 }
 
 // Fits what is left in the batches: the unused lanes get copies of lane 0.
-template <class Sink>
+template <class Store>
 void flush_batches(std::span<SmoothBatch> batches, FitBatchFn kernel, BatchPoints& points,
-                   Sink&& sink) {
+                   Store&& store) {
   for (std::size_t n = kMinBatchValence; n < batches.size(); ++n) {
     SmoothBatch& b = batches[n];
     if (b.lanes == 0) continue;
@@ -1000,7 +1011,8 @@ void flush_batches(std::span<SmoothBatch> batches, FitBatchFn kernel, BatchPoint
     kernel(b, n, points);
     for (std::size_t i = 0; i < n; ++i)
       for (int k = 0; k < b.lanes; ++k)
-        sink(b.spoke[i][k], Vec3(points.x[i][k], points.y[i][k], points.z[i][k]));
+        store(EdgeId(b.edge[i][k]), b.lower[i][k],
+              Vec3(points.x[i][k], points.y[i][k], points.z[i][k]));
     b.lanes = 0;
   }
 }
@@ -1032,18 +1044,21 @@ void set_lsf_baseline_kernels(bool baseline_only) {
 void LsfStencil::edge_points(const Level& coarse, std::span<Vec3> out) const {
   const Mesh& m = coarse.mesh;
   const Features& f = coarse.features;
-  // Each smooth edge gets one estimate from each endpoint: the one along the edge's own
-  // half-edge goes straight into `out`, the other into `twin_estimate` (one slot per edge,
-  // not per half-edge: half the memory, and the averaging pass below reads both arrays in
-  // order). Every half-edge belongs to one vertex, so the writes never collide.
+  // Each smooth edge gets one estimate from each endpoint: the one along the edge's
+  // lower-numbered half-edge goes straight into `out`, the other into `twin_estimate` (one
+  // slot per edge, not per half-edge: half the memory, and the averaging pass below reads
+  // both arrays in order; it adds the two in either order, which floating-point addition
+  // allows). Every half-edge belongs to one vertex, so the writes never collide.
   // std::array, unlike Vec3, is left uninitialised: every slot read is written first.
   BigVector<std::array<double, 3>> twin_estimate(m.num_edges());
-  auto sink = [&](HalfedgeId s, const Vec3& point) {
-    const EdgeId e = m.edge(s);
-    if (m.halfedge(e) == s)
+  auto store = [&](EdgeId e, bool lower, const Vec3& point) {
+    if (lower)
       out[e.idx] = point;
     else
       twin_estimate[e.idx] = {point.x, point.y, point.z};
+  };
+  auto sink = [&](HalfedgeId s, const Vec3& point) {
+    store(m.edge(s), s.idx < m.twin(s).idx, point);
   };
   parallel_for_each_range(m.num_vertices(), [&](std::size_t begin, std::size_t end) {
     std::array<SmoothBatch, kMaxBatchValence + 1> batches;
@@ -1051,9 +1066,9 @@ void LsfStencil::edge_points(const Level& coarse, std::span<Vec3> out) const {
     const FitBatchFn kernel = fit_batch_kernel();
     for (std::size_t i = begin; i < end; ++i) {
       const VertexId v(static_cast<std::uint32_t>(i));
-      if (!batch_vertex(m, f, v, batches, kernel, points, sink)) vertex_estimates(m, f, v, sink);
+      if (!batch_vertex(m, f, v, batches, kernel, points, store)) vertex_estimates(m, f, v, sink);
     }
-    flush_batches(batches, kernel, points, sink);
+    flush_batches(batches, kernel, points, store);
   });
   parallel_for_each_index(m.num_edges(), [&](std::size_t e) {
     const EdgeId edge(static_cast<std::uint32_t>(e));
