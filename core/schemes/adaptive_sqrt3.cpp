@@ -37,9 +37,10 @@ He prev(He h) {
 }
 
 enum TriFlag : std::uint8_t {
-  kRefined = 1,  // split (1-to-3, or cut at a sharp edge's trisection points)
-  kFlip = 2,     // made by a flip: exists once the triangles on both sides are refined
-  kQueued = 4,   // in the driver's queue
+  kRefined = 1,        // split (1-to-3, or cut at a sharp edge's trisection points)
+  kFlip = 2,           // made by a flip: exists once the triangles on both sides are refined
+  kQueued = 4,         // in the driver's queue
+  kPiecesChecked = 8,  // refined, and its pieces (edges not flipped yet) were measured
 };
 
 // A triangle of the uniform hierarchy at its level. Corner order, neighbours and children
@@ -91,6 +92,15 @@ double point_triangle_distance(const Vec3& p, const Vec3& a, const Vec3& b, cons
   if (!(std::abs(denom) > 0)) return std::min({distance(p, a), distance(p, b), distance(p, c)});
   return distance(p, a + (vb / denom) * ab + (vc / denom) * ac);
 }
+
+// The criterion measures the surface two levels finer; the levels after those add a tail.
+// Per double step the deviation from the flat shrinks at least by the largest eigenvalue
+// of the double step's subdivision matrix below the affine 1, 1/3, 1/3: 0.180019 at valence
+// 6, 1/9 at the others, 11/81 on curves (Labsik-Greiner; spec 3.2-3.4, bench/RESULTS.md
+// "## sqrt3"; sqrt3-unified with alpha 1: 0.160 at valence 6). The whole deviation is then
+// at most 1 / (1 - 0.180019) = 1.22 times the measured one in the asymptotic regime; on
+// coarse irregular meshes it was measured, not proven (tests: bunny_low, sphere_fn16).
+constexpr double kTail = 1.0 / (1.0 - 0.180019);
 
 Error internal(const std::string& what) {
   return Error(ErrorCode::Internal, "adaptive_sqrt3", "adaptive sqrt3: " + what);
@@ -234,8 +244,12 @@ class AdaptiveSqrt3::Hierarchy {
   // --- the driver
 
   bool wants_refinement(std::uint32_t t);
-  void new_points(std::uint32_t t, std::vector<std::uint32_t>& out);
-  double deviation(std::uint32_t t);
+  void cover(std::uint32_t t, std::vector<std::uint32_t>& out);
+  double height_over(const std::array<Vec3, 3>& flat, std::uint8_t sharp,
+                     std::vector<std::uint32_t> fine, int l, double limit, bool folds);
+  double deviation(std::uint32_t t, double limit);
+  double piece_deviation(He h, double limit);
+  bool refine_across_pieces_over_tolerance();
   void refine(std::uint32_t t);
   void ensure_exists(std::uint32_t t) {
     if (level(t) == 0) return;
@@ -630,53 +644,149 @@ bool AdaptiveSqrt3::Hierarchy::wants_refinement(std::uint32_t t) {
       if (scale > 0 && dot(n, m) < cos_limit * scale) return true;
     }
   }
-  return criteria_.tol > 0 && deviation(t) > criteria_.tol;
+  return criteria_.tol > 0 && deviation(t, criteria_.tol / kTail) > criteria_.tol / kTail;
 }
 
-void AdaptiveSqrt3::Hierarchy::new_points(std::uint32_t t, std::vector<std::uint32_t>& out) {
-  const He s = trisects(level(t)) ? sharp_of(t) : He{};
-  if (!s.valid()) {
-    out.push_back(face_point(t));
-    return;
-  }
-  const auto [m1, m2] = trisection(s);
-  out.push_back(m1);
-  out.push_back(m2);
-}
-
-double AdaptiveSqrt3::Hierarchy::deviation(std::uint32_t t) {
-  // The points the next two steps add over t: its own (face point or trisection points)
-  // and those of the six level l+1 triangles that straddle its edges. One step is not
-  // enough: a face point sees no curvature along the triangle's edges (on a saddle it lies
-  // in the triangle's plane); after two steps every edge is trisected.
-  const int l = level(t);
-  std::vector<std::uint32_t> first, second;
-  new_points(t, first);
-  std::vector<std::uint32_t> flats{t};
+void AdaptiveSqrt3::Hierarchy::cover(std::uint32_t t, std::vector<std::uint32_t>& out) {
+  // The level l + 1 triangles over t: its children, and across every edge that is flipped
+  // the child of the other side (the two make the flipped quad).
   for (std::uint8_t k = 0; k < 3; ++k) {
     const He h{t, k};
-    new_points(child(h), second);
-    const He tw = twin(h);
-    if (!tw.valid() || sharp(h)) continue;  // across a crease is another patch
-    flats.push_back(tw.t);
-    new_points(child(tw), second);
+    out.push_back(child(h));
+    if (makes_flip_child(h)) out.push_back(child(twin(h)));
   }
-  // Distance to the flat level-l surface around t: t and its neighbours in the same patch.
-  std::vector<std::array<Vec3, 3>> flat;
-  for (std::uint32_t f : flats) {
-    const std::array<std::uint32_t, 3> v = tris_[f].v;
-    flat.push_back({position(v[0], l), position(v[1], l), position(v[2], l)});
-  }
-  double worst = 0;
-  auto measure = [&](std::uint32_t v, int at) {
-    const Vec3 p = position(v, at);
-    double d = std::numeric_limits<double>::max();
-    for (const auto& f : flat) d = std::min(d, point_triangle_distance(p, f[0], f[1], f[2]));
-    worst = std::max(worst, d);
+}
+
+// Largest distance from `flat` of the piecewise-linear surface of level l + 2 over it, or
+// a value above `limit` as soon as one is found. `fine` holds the level l + 1 triangles
+// over `flat`; the level l + 2 triangles over those are clipped to the prism over `flat`
+// and measured at the corners of what is left (the distance to a triangle is convex, so its
+// largest over a polygon is at a corner). Across a sharp edge (bit k of `sharp`: edge k)
+// there is no neighbour: the finer triangles never cross it, and what bulges beyond it (a
+// crease or boundary curve bending in the plane) is this triangle's, so the prism is not cut
+// there. With `folds`, a finer triangle over `flat` facing away from it counts as too far.
+double AdaptiveSqrt3::Hierarchy::height_over(const std::array<Vec3, 3>& flat, std::uint8_t sharp,
+                                             std::vector<std::uint32_t> fine, int l, double limit,
+                                             bool folds) {
+  constexpr double kInfinity = std::numeric_limits<double>::infinity();
+  const Vec3 n = cross(flat[1] - flat[0], flat[2] - flat[0]);
+  const double n2 = dot(n, n);
+  if (!(n2 > 0)) return kInfinity;  // degenerate: refine it
+  const double inv = 1.0 / std::sqrt(n2);
+  std::vector<std::uint32_t> finer;
+  for (std::uint32_t c : fine) cover(c, finer);
+  std::sort(finer.begin(), finer.end());
+  finer.erase(std::unique(finer.begin(), finer.end()), finer.end());
+  std::array<Vec3, 3> wall;  // inward normals of the prism's sides
+  for (int k = 0; k < 3; ++k) wall[k] = cross(n, flat[(k + 1) % 3] - flat[k]);
+  auto distance_to_flat = [&](const Vec3& p, bool inside) {
+    return inside ? std::abs(dot(p - flat[0], n)) * inv
+                  : point_triangle_distance(p, flat[0], flat[1], flat[2]);
   };
-  for (std::uint32_t v : first) measure(v, l + 1);
-  for (std::uint32_t v : second) measure(v, l + 2);
+  double worst = 0;
+  for (std::uint32_t f : finer) {
+    const std::array<std::uint32_t, 3> v = tris_[f].v;
+    const std::array<Vec3, 3> p{position(v[0], l + 2), position(v[1], l + 2),
+                                position(v[2], l + 2)};
+    // Side of every wall for every corner; the common case is a triangle inside the prism.
+    std::array<std::array<double, 3>, 3> side{};
+    bool cut = false;
+    for (int i = 0; i < 3; ++i)
+      for (int k = 0; k < 3; ++k) {
+        side[i][k] = dot(p[i] - flat[k], wall[k]);
+        if (side[i][k] < 0 && !((sharp >> k) & 1)) cut = true;
+      }
+    if (!cut) {
+      for (int i = 0; i < 3; ++i) {
+        bool in = true;
+        for (int k = 0; k < 3; ++k) in = in && side[i][k] >= 0;
+        worst = std::max(worst, distance_to_flat(p[i], in));
+      }
+    } else {  // Sutherland-Hodgman against the non-sharp sides
+      std::array<Vec3, 9> poly{p[0], p[1], p[2]}, clipped;
+      std::size_t count = 3;
+      for (int k = 0; k < 3 && count > 0; ++k) {
+        if ((sharp >> k) & 1) continue;
+        std::size_t m = 0;
+        for (std::size_t i = 0; i < count; ++i) {
+          const Vec3& a = poly[i];
+          const Vec3& b = poly[(i + 1) % count];
+          const double da = dot(a - flat[k], wall[k]), db = dot(b - flat[k], wall[k]);
+          if (da >= 0) clipped[m++] = a;
+          if ((da >= 0) != (db >= 0)) clipped[m++] = a + (da / (da - db)) * (b - a);
+        }
+        poly = clipped;
+        count = m;
+      }
+      if (count == 0) continue;
+      for (std::size_t i = 0; i < count; ++i)
+        worst = std::max(worst, distance_to_flat(poly[i], false));
+    }
+    if (folds && dot(cross(p[1] - p[0], p[2] - p[0]), n) <= 0) return kInfinity;
+    if (worst > limit) return worst;
+  }
   return worst;
+}
+
+double AdaptiveSqrt3::Hierarchy::deviation(std::uint32_t t, double limit) {
+  // How far the surface of two levels finer lies from t. Two levels, because one adds only
+  // the face point, which sees no curvature along t's edges; after two every edge is
+  // trisected. The finer *surface*, not only its new points: on irregular meshes the new
+  // points of two steps can all lie away from t's edges, while the limit surface is often
+  // farthest from t at the middle of an edge (measured on bunny_low: the points within tol,
+  // the uniform level at the cap 1.65 tol away there; see bench/RESULTS.md "## sqrt3").
+  const int l = level(t);
+  const std::array<std::uint32_t, 3> v = tris_[t].v;
+  std::vector<std::uint32_t> fine;
+  cover(t, fine);
+  return height_over({position(v[0], l), position(v[1], l), position(v[2], l)}, tris_[t].sharp,
+                     std::move(fine), l, limit, false);
+}
+
+double AdaptiveSqrt3::Hierarchy::piece_deviation(He h, double limit) {
+  // The piece (from, to, apex) of a refined triangle whose edge h is not flipped yet, because
+  // the triangle across is not refined. It lies over the flipped quad of h. Its sharp edges,
+  // as result() marks them: in a trisecting level the two next to the cut sharp edge s are
+  // thirds of it. Where a finer triangle over it folds over (the apex can lie outside the
+  // quad on thin triangles: OpenSCAD's polar fans), points of the finer surface can lie
+  // outside the prism of every output face; measured 1.01 tol on sphere_fn16.
+  const int l = level(h.t);
+  const He s = trisects(l) ? sharp_of(h.t) : He{};
+  std::uint8_t sharp_bits = 0;
+  if (s.valid() && h == prev(s)) sharp_bits |= 2;
+  if (s.valid() && h == next(s)) sharp_bits |= 4;
+  std::vector<std::uint32_t> fine{child(h), child(twin(h))};
+  return height_over({position(from(h), l), position(to(h), l), position(apex(h), l + 1)},
+                     sharp_bits, std::move(fine), l, limit, true);
+}
+
+bool AdaptiveSqrt3::Hierarchy::refine_across_pieces_over_tolerance() {
+  // A piece is an output face too: where one is too far from the surface, refine the
+  // triangle across, which flips the edge and replaces the piece by finer triangles. A
+  // piece, once measured, keeps its measure: the triangle across can only become refined.
+  std::vector<std::uint32_t> across;
+  const auto count = static_cast<std::uint32_t>(tris_.size());
+  for (std::uint32_t t = 0; t < count; ++t) {
+    if (!refined(t) || flag(t, kPiecesChecked)) continue;
+    tris_[t].flags |= kPiecesChecked;
+    for (std::uint8_t k = 0; k < 3; ++k) {
+      const He h{t, k};
+      if (!makes_flip_child(h)) continue;
+      const He tw = twin(h);
+      if (refined(tw.t)) continue;
+      throw_if_cancelled();
+      const double limit = criteria_.tol / kTail;
+      if (piece_deviation(h, limit) > limit) across.push_back(tw.t);
+    }
+  }
+  for (std::uint32_t t : across) {
+    if (refined(t)) continue;
+    const std::size_t before = refined_count_;
+    refine(t);
+    ++stats_.refined_by_criterion;
+    stats_.refined_by_closure += refined_count_ - before - 1;
+  }
+  return !across.empty();
 }
 
 void AdaptiveSqrt3::Hierarchy::refine(std::uint32_t t) {
@@ -742,7 +852,10 @@ void AdaptiveSqrt3::Hierarchy::run(std::uint64_t max_faces, const std::atomic<bo
   for (;;) {
     int l = 0;
     while (l < static_cast<int>(queue_.size()) && queue_[l].empty()) ++l;
-    if (l == static_cast<int>(queue_.size())) break;
+    if (l == static_cast<int>(queue_.size())) {
+      if (criteria_.tol > 0 && refine_across_pieces_over_tolerance()) continue;
+      break;
+    }
     if (l > announced) {
       announced = l;
       if (level_started) level_started(l);

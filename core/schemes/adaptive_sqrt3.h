@@ -32,10 +32,15 @@ struct Sqrt3AdaptiveCriteria {
   //! neighbour of the same level across a non-sharp edge (Labsik-Greiner section 6 use 20
   //! and 10).
   double angle_deg = 0;
-  //! Model units (mm): a new point of the next two steps over the triangle lies farther
-  //! than this from the flat surface of its level there (the triangle and its neighbours
-  //! across non-sharp edges). Two steps, because one adds only the face point, which sees
-  //! no curvature along the triangle's edges; after two every edge is trisected.
+  //! Model units (mm): the surface two levels finer lies farther than tol / 1.22 from the
+  //! triangle somewhere over it (in its prism; across a sharp edge, beyond it too). 1.22 =
+  //! 1 / (1 - 0.180) bounds what the later levels add: per double step the deviation
+  //! shrinks at least by the double step's largest eigenvalue below 1/3 (0.180 at valence
+  //! 6). Two levels, because one adds only the face point, which sees no curvature along
+  //! the triangle's edges; after two every edge is trisected. The pieces of a refined
+  //! triangle whose edges are not flipped yet are output faces too: where one is over (or
+  //! the finer surface folds over it), the triangle across is refined. The promise, checked
+  //! on irregular meshes: every output face within tol of the uniform level at the cap.
   double tol = 0;
   //! Triangles of this level are not refined, [1, 8].
   int max_level = 4;
