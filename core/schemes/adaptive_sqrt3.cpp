@@ -690,12 +690,18 @@ double AdaptiveSqrt3::Hierarchy::height_over(const std::array<Vec3, 3>& flat, st
                                 position(v[2], l + 2)};
     // Side of every wall for every corner; the common case is a triangle inside the prism.
     std::array<std::array<double, 3>, 3> side{};
-    bool cut = false;
-    for (int i = 0; i < 3; ++i)
-      for (int k = 0; k < 3; ++k) {
+    bool cut = false, beyond = false;
+    for (int k = 0; k < 3; ++k) {
+      int out = 0;
+      for (int i = 0; i < 3; ++i) {
         side[i][k] = dot(p[i] - flat[k], wall[k]);
-        if (side[i][k] < 0 && !((sharp >> k) & 1)) cut = true;
+        out += side[i][k] < 0;
       }
+      if ((sharp >> k) & 1) continue;
+      cut |= out > 0;
+      beyond |= out == 3;
+    }
+    if (beyond) continue;  // wholly outside the prism
     if (!cut) {
       for (int i = 0; i < 3; ++i) {
         bool in = true;
@@ -719,8 +725,9 @@ double AdaptiveSqrt3::Hierarchy::height_over(const std::array<Vec3, 3>& flat, st
         count = m;
       }
       if (count == 0) continue;
+      // Inside every side that was cut; without sharp sides, inside the prism.
       for (std::size_t i = 0; i < count; ++i)
-        worst = std::max(worst, distance_to_flat(poly[i], false));
+        worst = std::max(worst, distance_to_flat(poly[i], sharp == 0));
     }
     if (folds && dot(cross(p[1] - p[0], p[2] - p[0]), n) <= 0) return kInfinity;
     if (worst > limit) return worst;
