@@ -2,8 +2,14 @@
 # stlrefine set-up for a fresh Debian 12 machine: installs the Debian packages that are
 # missing, builds (Release, -Wall -Wextra) into build/, then
 #   scripts/setup.sh demo   starts stlrefined on 127.0.0.1:8080 and refines examples/fandisk.stl
-#   scripts/setup.sh test   runs every test (ctest)
+#   scripts/setup.sh test   runs every test (ctest), then the sanitizer suite and the fuzzers
+#                           (what CI runs, via .ci/run: the asan and fuzz steps below)
 #   scripts/setup.sh build  only builds
+#   scripts/setup.sh asan   only the sanitizer suite: the `asan` CMake preset (clang 14,
+#                           ASan + UBSan) builds into build-asan/ and runs every test there
+#   scripts/setup.sh fuzz   only the fuzzers: the `fuzz` preset builds into build-fuzz/, then
+#                           fuzz/run.sh runs each harness FUZZ_SECONDS (default 60) seconds
+#                           from its seeds; any crash, leak, timeout or out-of-memory fails
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -13,7 +19,8 @@ jobs=$(nproc 2>/dev/null || echo 2)
 
 packages=(build-essential cmake pkg-config curl ca-certificates
   libcgal-dev libeigen3-dev libcpp-httplib-dev nlohmann-json3-dev libcli11-dev libtbb-dev
-  libgtest-dev libgmock-dev libbenchmark-dev libopenmesh-dev libzip-dev)
+  libgtest-dev libgmock-dev libbenchmark-dev libopenmesh-dev libzip-dev
+  clang-14 libclang-rt-14-dev)
 # The web page (web/) needs node and npm at build time (npm ci fetches three.js), and its
 # browser test (tests/web/) chromium. Checked by command, not by package: nodejs from
 # elsewhere (NodeSource) bundles npm and conflicts with Debian's npm package.
@@ -40,6 +47,21 @@ build() {
   cmake --build "$build_dir" -j"$jobs"
 }
 
+# The whole test suite again, built by clang 14 with AddressSanitizer (leaks included) and
+# UndefinedBehaviorSanitizer: the first report fails its test (CMakePresets.json).
+asan() {
+  cmake --preset asan
+  cmake --build --preset asan -j"$jobs"
+  ctest --preset asan -j"$jobs"
+}
+
+# The libFuzzer harnesses (fuzz/README.md), each FUZZ_SECONDS from its seed corpus.
+fuzz() {
+  cmake --preset fuzz
+  cmake --build --preset fuzz -j"$jobs"
+  fuzz/run.sh --seconds "${FUZZ_SECONDS:-60}"
+}
+
 demo() {
   local port=8080 log="$build_dir/stlrefined.log"
   if curl -fsS "http://127.0.0.1:$port/healthz" >/dev/null 2>&1; then
@@ -64,11 +86,27 @@ demo() {
   echo "Stop: kill \$(cat $build_dir/stlrefined.pid)"
 }
 
-install_missing
-build
+# Runs one step and says how long it took (CI's budget is 90 minutes on 2 cores).
+timed() {
+  local start=$SECONDS
+  "$@"
+  echo "setup.sh: '$*' took $((SECONDS - start)) s"
+}
+
 case "$mode" in
-  demo) demo ;;
-  test) ctest --test-dir "$build_dir" --output-on-failure -j"$jobs" ;;
-  build) ;;
-  *) echo "usage: $0 [demo|test|build]" >&2; exit 2 ;;
+  demo | test | build | asan | fuzz) ;;
+  *) echo "usage: $0 [demo|test|build|asan|fuzz]" >&2; exit 2 ;;
+esac
+install_missing
+case "$mode" in
+  demo) build; demo ;;
+  test)
+    timed build
+    timed ctest --test-dir "$build_dir" --output-on-failure -j"$jobs"
+    timed asan
+    timed fuzz
+    ;;
+  build) timed build ;;
+  asan) timed asan ;;
+  fuzz) timed fuzz ;;
 esac
