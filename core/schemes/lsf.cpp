@@ -701,7 +701,7 @@ constexpr int kLanes = 4;
 constexpr std::size_t kMinBatchValence = 5;  // below five points the general solve decides
 constexpr std::size_t kMaxBatchValence = 12;
 
-struct SmoothBatch {
+struct FitBatch {
   int lanes = 0;
   alignas(32) double ox[kLanes], oy[kLanes], oz[kLanes];  // the vertices V
   alignas(32) double x[kMaxBatchValence][kLanes];         // ring offsets P_i - V
@@ -772,15 +772,17 @@ template <int K, class Terms>
   return lsf_math::detail::select(a < b, b, a);
 }
 
-// The kernel, compiled once per instruction set below. Lanes from b.lanes to kLanes must
-// hold some valid ring (a copy of lane 0).
-[[gnu::always_inline]] inline void fit_batch_body(const SmoothBatch& b, std::size_t n,
+// The kernel, compiled once per instruction set below: n points per lane, a closed ring
+// (angles scaled to 2 pi) or an open crease sector (scaled to pi). Lanes from b.lanes to
+// kLanes must hold some valid sample (a copy of lane 0).
+[[gnu::always_inline]] inline void fit_batch_body(const FitBatch& b, std::size_t n, bool closed,
                                                   BatchPoints& out) {
   using lsf_math::detail::select;
-  // ring_parameters(closed, 2 pi): gap angles, their sum, the scaled polar angles.
+  // ring_parameters(closed, 2 pi) or (open, pi): gap angles, their sum, the polar angles.
+  const std::size_t gaps = closed ? n : n - 1;
   V4d theta[kMaxBatchValence];
   V4d angle_sum = {0, 0, 0, 0};
-  for (std::size_t i = 0; i < n; ++i) {
+  for (std::size_t i = 0; i < gaps; ++i) {
     const std::size_t j = i + 1 == n ? 0 : i + 1;
     const V4d ax = load4(b.x[i]), ay = load4(b.y[i]), az = load4(b.z[i]);
     const V4d bx = load4(b.x[j]), by = load4(b.y[j]), bz = load4(b.z[j]);
@@ -788,9 +790,10 @@ template <int K, class Terms>
     const V4d cross_len = lsf_math::sqrt(cx * cx + cy * cy + cz * cz);
     theta[i] = lsf_math::atan2(cross_len, ax * bx + ay * by + az * bz);
   }
-  for (std::size_t i = 0; i < n; ++i) angle_sum += theta[i];
+  for (std::size_t i = 0; i < gaps; ++i) angle_sum += theta[i];
   const V4d one = {1, 1, 1, 1};
-  const V4d scale = select(angle_sum > 0, (2.0 * std::numbers::pi) / angle_sum, one);
+  const double total = closed ? 2.0 * std::numbers::pi : std::numbers::pi;
+  const V4d scale = select(angle_sum > 0, total / angle_sum, one);
   V4d u[kMaxBatchValence], v[kMaxBatchValence], r[kMaxBatchValence];
   V4d phi = {0, 0, 0, 0};
   for (std::size_t i = 0; i < n; ++i) {
@@ -799,7 +802,7 @@ template <int K, class Terms>
     V4d sin_phi, cos_phi;
     lsf_math::sincos(phi, sin_phi, cos_phi);
     u[i] = radius * cos_phi, v[i] = radius * sin_phi, r[i] = radius;
-    phi += scale * theta[i];
+    if (i < gaps) phi += scale * theta[i];
   }
 
   // normal_equations: S^T S in three groups of four moments, S^T q by coordinate.
@@ -844,8 +847,10 @@ template <int K, class Terms>
   const V4d min_diag = min4(min4(a00, a11), min_quadratic);
   const V4d max_diag = max4(max4(a00, a11), max4(a22, max4(a33, a44)));
   const V4d diag_product = a00 * a11 * n22 * n33 * n44;
+  // (solve_fit tries the fast path from five points on.)
   V4i certified = (damping <= 1e-7 * min_quadratic) & (min_diag >= 1e-8 * max_diag) &
-                  (diag_product >= 1e-250) & (diag_product <= 1e250);
+                  (diag_product >= 1e-250) & (diag_product <= 1e250) &
+                  (n >= 5 ? V4i{-1, -1, -1, -1} : V4i{0, 0, 0, 0});
   V4d b0[3], b1[3], b2[3], b3[3], b4[3];  // the right-hand sides, eliminated in place
   for (int d = 0; d < 3; ++d)
     b0[d] = rhs[0][d], b1[d] = rhs[1][d], b2[d] = rhs[2][d], b3[d] = rhs[3][d], b4[d] = rhs[4][d];
@@ -918,18 +923,19 @@ template <int K, class Terms>
   }
 }
 
-[[gnu::flatten]] void fit_batch_baseline(const SmoothBatch& b, std::size_t n, BatchPoints& out) {
-  fit_batch_body(b, n, out);
+[[gnu::flatten]] void fit_batch_baseline(const FitBatch& b, std::size_t n, bool closed,
+                                         BatchPoints& out) {
+  fit_batch_body(b, n, closed, out);
 }
 
-using FitBatchFn = void (*)(const SmoothBatch&, std::size_t, BatchPoints&);
+using FitBatchFn = void (*)(const FitBatch&, std::size_t, bool, BatchPoints&);
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 // The same kernel on AVX2's four-lane registers (AVX2 only: no FMA, which would change the
 // rounding). Chosen at run time, so the binary still runs on any x86-64.
-[[gnu::target("avx2"), gnu::flatten]] void fit_batch_avx2(const SmoothBatch& b, std::size_t n,
-                                                          BatchPoints& out) {
-  fit_batch_body(b, n, out);
+[[gnu::target("avx2"), gnu::flatten]] void fit_batch_avx2(const FitBatch& b, std::size_t n,
+                                                          bool closed, BatchPoints& out) {
+  fit_batch_body(b, n, closed, out);
 }
 bool cpu_has_avx2() {
   return __builtin_cpu_supports("avx2");
@@ -949,15 +955,49 @@ FitBatchFn fit_batch_kernel() {
                                                                   : fit_batch_baseline;
 }
 
+// The batches of one task: whole rings of smooth and dart vertices by valence, one-sided
+// sectors of crease vertices by size. fit() runs a full batch through the kernel and passes
+// each estimate to store(edge, lower, point): every point of a ring, the inner points of a
+// sector (its two ends are the sharp spokes, whose edges take the curve rule).
+struct Batches {
+  std::array<FitBatch, kMaxBatchValence + 1> ring, sector;
+  BatchPoints points;
+  FitBatchFn kernel = fit_batch_kernel();
+
+  template <class Store>
+  void fit(FitBatch& b, std::size_t n, bool closed, int lanes, Store&& store) {
+    kernel(b, n, closed, points);
+    for (std::size_t i = closed ? 0 : 1; i < (closed ? n : n - 1); ++i)
+      for (int k = 0; k < lanes; ++k)
+        store(EdgeId(b.edge[i][k]), b.lower[i][k],
+              Vec3(points.x[i][k], points.y[i][k], points.z[i][k]));
+    b.lanes = 0;
+  }
+  // Fits what is left: the unused lanes get copies of lane 0.
+  template <class Store>
+  void flush(Store&& store) {
+    for (bool closed : {true, false}) {
+      auto& batches = closed ? ring : sector;
+      for (std::size_t n = 0; n < batches.size(); ++n) {
+        FitBatch& b = batches[n];
+        if (b.lanes == 0) continue;
+        for (int l = b.lanes; l < kLanes; ++l) {
+          b.ox[l] = b.ox[0], b.oy[l] = b.oy[0], b.oz[l] = b.oz[0];
+          for (std::size_t i = 0; i < n; ++i)
+            b.x[i][l] = b.x[i][0], b.y[i][l] = b.y[i][0], b.z[i][l] = b.z[i][0];
+        }
+        fit(b, n, closed, b.lanes, store);
+      }
+    }
+  }
+};
+
 // Walks v's ring into the batch of its valence when v is smooth or a dart (whose whole ring
 // is fitted too) with a closed ring of kMinBatchValence..kMaxBatchValence points, and fits
-// the batch when it is full, passing each estimate to store(edge, lower, point); false, with
-// nothing changed, for every other vertex. A dart's sharp spoke gets an estimate too:
-// harmless, the sharp edge's point is the curve rule's.
+// the batch when it is full; false, with nothing changed, for every other vertex. A dart's
+// sharp spoke gets an estimate too: harmless, the sharp edge's point is the curve rule's.
 template <class Store>
-bool batch_vertex(const Mesh& m, const Features& f, VertexId v, std::span<SmoothBatch> batches,
-                  FitBatchFn kernel, BatchPoints& points, Store&& store) {
-  if (f.kind(v) > VertexKind::Dart) return false;
+bool batch_smooth_vertex(const Mesh& m, VertexId v, Batches& batches, Store&& store) {
   const HalfedgeId start = m.halfedge(v);
   if (!start.valid()) return false;
   // The spokes first (a chain of dependent loads), then their far ends' positions (loads
@@ -974,7 +1014,7 @@ bool batch_vertex(const Mesh& m, const Features& f, VertexId v, std::span<Smooth
     h = m.twin(prev_spoke[n++]);  // ccw_rotated
   } while (h.valid() && h != start);
   if (!h.valid() || n < kMinBatchValence) return false;
-  SmoothBatch& b = batches[n];
+  FitBatch& b = batches.ring[n];
   const int l = b.lanes++;
   const Vec3 p = m.position(v);
   b.ox[l] = p.x, b.oy[l] = p.y, b.oz[l] = p.z;
@@ -985,36 +1025,73 @@ bool batch_vertex(const Mesh& m, const Features& f, VertexId v, std::span<Smooth
     b.edge[i][l] = m.edge(spoke[i]).idx, b.lower[i][l] = spoke[i].idx < twin.idx;
     twin = prev_spoke[i];
   }
-  if (b.lanes == kLanes) {
-    kernel(b, n, points);
-    for (std::size_t i = 0; i < n; ++i)
-      for (int k = 0; k < kLanes; ++k)
-        store(EdgeId(b.edge[i][k]), b.lower[i][k],
-              Vec3(points.x[i][k], points.y[i][k], points.z[i][k]));
-    b.lanes = 0;
-  }
+  if (b.lanes == kLanes) batches.fit(b, n, true, kLanes, store);
   return true;
 }
 
-// Fits what is left in the batches: the unused lanes get copies of lane 0.
+// A crease vertex's sectors, as for_each_sector_fit cuts them (the ring from its first
+// sharp spoke, closed by a copy of that spoke's point; on a boundary the fan from its
+// boundary spoke, closed by the far end of the incoming boundary edge; each sector from one
+// sharp spoke to the next, both included), into the sector batches by size; false, with
+// nothing changed, when a ring or sector is too large (the caller fits the vertex alone).
 template <class Store>
-void flush_batches(std::span<SmoothBatch> batches, FitBatchFn kernel, BatchPoints& points,
-                   Store&& store) {
-  for (std::size_t n = kMinBatchValence; n < batches.size(); ++n) {
-    SmoothBatch& b = batches[n];
-    if (b.lanes == 0) continue;
-    for (int l = b.lanes; l < kLanes; ++l) {
-      b.ox[l] = b.ox[0], b.oy[l] = b.oy[0], b.oz[l] = b.oz[0];
-      for (std::size_t i = 0; i < n; ++i)
-        b.x[i][l] = b.x[i][0], b.y[i][l] = b.y[i][0], b.z[i][l] = b.z[i][0];
-    }
-    kernel(b, n, points);
-    for (std::size_t i = 0; i < n; ++i)
-      for (int k = 0; k < b.lanes; ++k)
-        store(EdgeId(b.edge[i][k]), b.lower[i][k],
-              Vec3(points.x[i][k], points.y[i][k], points.z[i][k]));
-    b.lanes = 0;
+bool batch_crease_vertex(const Mesh& m, const Features& f, VertexId v, Batches& batches,
+                         Store&& store) {
+  constexpr std::size_t kMaxRing = 2 * kMaxBatchValence;
+  const HalfedgeId start = m.halfedge(v);
+  if (!start.valid()) return false;
+  HalfedgeId spoke[kMaxRing], prev_spoke[kMaxRing];
+  std::size_t n = 0;
+  HalfedgeId h = start;
+  do {
+    if (n == kMaxRing) return false;
+    spoke[n] = h;
+    prev_spoke[n] = Mesh::prev(h);
+    h = m.twin(prev_spoke[n++]);
+  } while (h.valid() && h != start);
+  const bool closed = h.valid();
+  // The ring in for_each_sector_fit's order: point k is spoke (first + k) mod n, point n
+  // closes it. Its sharp points cut it into sectors.
+  bool sharp[kMaxRing + 1];
+  for (std::size_t i = 0; i < n; ++i) sharp[i] = f.is_sharp(m.edge(spoke[i]));
+  std::size_t first = 0;
+  if (closed) {
+    while (first < n && !sharp[first]) ++first;
+    if (first == n) return false;
   }
+  auto at = [&](std::size_t k) { return k == n ? (closed ? first : n) : (first + k) % n; };
+  std::size_t cut[kMaxRing + 1], cuts = 0;  // ring points where sectors begin and end
+  for (std::size_t k = 0; k <= n; ++k) {
+    if (k == 0 || k == n || sharp[at(k)]) cut[cuts++] = k;
+    if (cuts >= 2 && cut[cuts - 1] - cut[cuts - 2] + 1 > kMaxBatchValence) return false;
+  }
+  const Vec3 p = m.position(v);
+  // Ring point k: its offset from p and, for a spoke with a twin, where its estimate goes.
+  auto offset = [&](std::size_t k) {
+    const std::size_t j = at(k);
+    if (j == n) return m.position(m.from(prev_spoke[n - 1])) - p;  // closes an open fan
+    if (!closed && j == 0) return m.position(m.to(spoke[0])) - p;  // the boundary spoke
+    return m.position(m.from(prev_spoke[j == 0 ? n - 1 : j - 1])) - p;
+  };
+  for (std::size_t c = 1; c < cuts; ++c) {
+    const std::size_t begin = cut[c - 1], size = cut[c] - begin + 1;
+    if (size < 3) continue;  // no inner point: nothing to estimate
+    FitBatch& b = batches.sector[size];
+    const int l = b.lanes++;
+    b.ox[l] = p.x, b.oy[l] = p.y, b.oz[l] = p.z;
+    for (std::size_t i = 0; i < size; ++i) {
+      const Vec3 d = offset(begin + i);
+      b.x[i][l] = d.x, b.y[i][l] = d.y, b.z[i][l] = d.z;
+      if (i == 0 || i + 1 == size) continue;
+      // An inner point is a smooth spoke j >= 1 of an open fan or any of a closed ring: its
+      // twin is prev(spoke[j - 1]).
+      const std::size_t j = at(begin + i);
+      const HalfedgeId twin = prev_spoke[j == 0 ? n - 1 : j - 1];
+      b.edge[i][l] = m.edge(spoke[j]).idx, b.lower[i][l] = spoke[j].idx < twin.idx;
+    }
+    if (b.lanes == kLanes) batches.fit(b, size, false, kLanes, store);
+  }
+  return true;
 }
 
 // parallel_for_each_index's partition and cancellation, handing each task its range.
@@ -1061,14 +1138,17 @@ void LsfStencil::edge_points(const Level& coarse, std::span<Vec3> out) const {
     store(m.edge(s), s.idx < m.twin(s).idx, point);
   };
   parallel_for_each_range(m.num_vertices(), [&](std::size_t begin, std::size_t end) {
-    std::array<SmoothBatch, kMaxBatchValence + 1> batches;
-    BatchPoints points;
-    const FitBatchFn kernel = fit_batch_kernel();
+    Batches batches;
     for (std::size_t i = begin; i < end; ++i) {
       const VertexId v(static_cast<std::uint32_t>(i));
-      if (!batch_vertex(m, f, v, batches, kernel, points, store)) vertex_estimates(m, f, v, sink);
+      const VertexKind kind = f.kind(v);
+      const bool batched = kind <= VertexKind::Dart ? batch_smooth_vertex(m, v, batches, store)
+                           : kind == VertexKind::Crease
+                               ? batch_crease_vertex(m, f, v, batches, store)
+                               : false;
+      if (!batched) vertex_estimates(m, f, v, sink);
     }
-    flush_batches(batches, kernel, points, store);
+    batches.flush(store);
   });
   parallel_for_each_index(m.num_edges(), [&](std::size_t e) {
     const EdgeId edge(static_cast<std::uint32_t>(e));

@@ -515,6 +515,32 @@ class LsfBatchedFits : public ::testing::TestWithParam<bool> {
   void TearDown() override { set_lsf_baseline_kernels(false); }
 };
 
+// Edge points of `level` and the next two levels by the stencil against the one-vertex
+// path, bit for bit; the last level has at least `min_vertices` vertices.
+void expect_batched_equal_one_vertex(Level level, std::size_t min_vertices) {
+  const LsfStencil stencil;
+  for (int l = 0; l < 3; ++l) {
+    const Mesh& m = level.mesh;
+    std::vector<Vec3> points(m.num_edges());
+    stencil.edge_points(level, points);
+    BigVector<Vec3> estimate(m.num_halfedges());
+    for (std::uint32_t v = 0; v < m.num_vertices(); ++v)
+      LsfStencil::half_edge_estimates(m, level.features, VertexId(v), estimate);
+    std::size_t compared = 0;
+    for (std::uint32_t e = 0; e < m.num_edges(); ++e) {
+      if (level.features.is_sharp(EdgeId(e))) continue;
+      const HalfedgeId h = m.halfedge(EdgeId(e));
+      const Vec3 expected = 0.5 * (estimate[h.idx] + estimate[m.twin(h).idx]);
+      ASSERT_EQ(std::memcmp(&points[e], &expected, sizeof expected), 0)
+          << "level " << l << " edge " << e << ": " << points[e].x << " " << expected.x;
+      ++compared;
+    }
+    EXPECT_GT(compared, m.num_edges() / 2);
+    if (l < 2) level = refine_level("lsf", level);
+  }
+  EXPECT_GE(level.mesh.num_vertices(), min_vertices);
+}
+
 TEST_P(LsfBatchedFits, EqualTheOneVertexPathBitForBit) {
   set_lsf_baseline_kernels(GetParam());
   IndexedSoup soup = icosphere_soup(3, 2.0);
@@ -554,27 +580,22 @@ TEST_P(LsfBatchedFits, EqualTheOneVertexPathBitForBit) {
   }
   Level level{Mesh(mesh), Features(mesh, std::move(sharp))};
   ASSERT_EQ(level.features.count(VertexKind::Dart), 2u);
-  const LsfStencil stencil;
-  for (int l = 0; l < 3; ++l) {
-    const Mesh& m = level.mesh;
-    std::vector<Vec3> points(m.num_edges());
-    stencil.edge_points(level, points);
-    BigVector<Vec3> estimate(m.num_halfedges());
-    for (std::uint32_t v = 0; v < m.num_vertices(); ++v)
-      LsfStencil::half_edge_estimates(m, level.features, VertexId(v), estimate);
-    std::size_t compared = 0;
-    for (std::uint32_t e = 0; e < m.num_edges(); ++e) {
-      if (level.features.is_sharp(EdgeId(e))) continue;
-      const HalfedgeId h = m.halfedge(EdgeId(e));
-      const Vec3 expected = 0.5 * (estimate[h.idx] + estimate[m.twin(h).idx]);
-      ASSERT_EQ(std::memcmp(&points[e], &expected, sizeof expected), 0)
-          << "level " << l << " edge " << e << ": " << points[e].x << " " << expected.x;
-      ++compared;
-    }
-    EXPECT_GT(compared, m.num_edges() * 9 / 10);
-    if (l < 2) level = refine_level("lsf", level);
-  }
-  EXPECT_GT(level.mesh.num_vertices(), 2u * 4096);  // split between parallel tasks
+  expect_batched_equal_one_vertex(std::move(level), 2 * 4096);  // split between tasks
+}
+
+// The same with detected creases (crease vertices' sectors are batched too) and corners: a
+// cube and two capped cylinders (the 7-sided one's side edges are sharp too), jittered.
+TEST_P(LsfBatchedFits, EqualTheOneVertexPathBitForBitAtCreases) {
+  set_lsf_baseline_kernels(GetParam());
+  IndexedSoup soup = merged(cube_soup(2.0), translated(cylinder_soup(13, 1.5, 2.5), {5, 0, 0}));
+  soup = merged(soup, translated(cylinder_soup(7, 1.0, 1.0), {0, 5, 0}));
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> jitter(-0.01, 0.01);
+  for (Vec3& p : soup.positions) p += Vec3(jitter(rng), jitter(rng), jitter(rng));
+  Level level = level_of(soup);
+  ASSERT_GT(level.features.count(VertexKind::Crease), 20u);
+  ASSERT_GT(level.features.count(VertexKind::Corner), 0u);
+  expect_batched_equal_one_vertex(std::move(level), 0);
 }
 
 INSTANTIATE_TEST_SUITE_P(Kernels, LsfBatchedFits, ::testing::Values(false, true),
