@@ -16,9 +16,8 @@
 //     sampled from the same surfaces, refined by the original butterfly (8-point rule
 //     everywhere, the scheme PU modify), butterfly-g1, and our default butterfly (Zorin's
 //     modified one). Near the extraordinary vertex: faces turned over (normal against the
-//     surface's), pairs of faces that intersect (CGAL's exact predicates), the winding of
-//     the vertex's fan around it and the spread of its face normals (a tangent plane
-//     exists only if that goes to 0).
+//     surface's), pairs of faces that intersect (CGAL's exact predicates), and the spread
+//     of the vertex's face normals (a tangent plane exists only if that goes to 0).
 //
 // Markdown on stdout; --svg writes the plot. Hand-run, never a test (bench/RESULTS.md,
 // section "Spectral (Prautzsch-Umlauf)").
@@ -83,8 +82,8 @@ double jitter_value(std::uint32_t v, int c) {
 // In the plane every vertex but the centre moves by `twist` r (cos 2t, sin 2t) (polar
 // coordinates r, t: a frequency-2 distortion, z -> z + twist z^2/|z|) and then by up to
 // `jitter` times the lattice's shortest edge (2 sin(pi/n), at most 1: the edge between two
-// spokes' first points) in each coordinate, so the net stays a valid net at every valence. Then it is lifted onto the
-// surface. The outer ring is the boundary; nothing else is sharp.
+// spokes' first points) in each coordinate, so the net stays a valid net at every valence. Then it
+// is lifted onto the surface. The outer ring is the boundary; nothing else is sharp.
 Level make_net(int valence, int rings, const std::function<double(double, double)>& z,
                double jitter, double twist) {
   analysis::PolarNet net = analysis::make_polar_net(valence, rings);
@@ -176,7 +175,6 @@ struct Folding {
   int flipped = 0;       // normal . surface normal <= 0 (all our surfaces face +z)
   int intersecting = 0;  // faces in at least one intersecting pair
   long pairs = 0;        // intersecting pairs (no shared vertex)
-  double winding = 0;    // the centre's fan around the centre in the xy projection, turns
   double spread = 0;     // largest angle between a fan face normal and the fan's normal, deg
 };
 
@@ -216,7 +214,6 @@ Folding folding(const Mesh& m, int patch_rings) {
   std::vector<Vec3> normals;
   for_each_outgoing(m, kCentre, [&](HalfedgeId h) {
     const Vec3 a = m.position(m.to(h)) - c, b = m.position(m.from(Mesh::prev(h))) - c;
-    out.winding += std::atan2(a.x * b.y - a.y * b.x, a.x * b.x + a.y * b.y) / (2 * kPi);
     normals.push_back(normalized(cross(a, b)));
     normal += normals.back();
   });
@@ -325,8 +322,9 @@ int main(int argc, char** argv) {
       for (int n : opt.curvature_valences) {
         sb::Chart chart;
         chart.title =
+            std::string("curvature: ") +
             (s.name.rfind("parabolic", 0) == 0 ? "parabolic cylinder" : "hyperbolic paraboloid") +
-            std::string(", n = ") + std::to_string(n);
+            ", n = " + std::to_string(n);
         chart.y_label = "|K| at the vertex (quadratic fit)";
         chart.log_y = true;
         std::vector<std::vector<Curvature>> rows(algos.size());
@@ -384,11 +382,13 @@ int main(int argc, char** argv) {
         << opt.patch_rings
         << " rings of the vertex at each level. `flip` = faces whose normal points "
            "down (every surface here faces +z), `x` = faces in an intersecting pair "
-           "(no shared vertex; CGAL exact predicates), `wind` = turns of the vertex's fan "
-           "around it seen from above, `spread` = largest angle between a fan face and "
+           "(no shared vertex; CGAL exact predicates), `spread` = largest angle between a fan face "
+           "and "
            "the fan's mean normal (degrees; a tangent plane needs it to go to 0). The "
            "host's fold guard is off (the schemes as published); the guard column is "
-           "what `stlrefine refine` does at the last level.\n\n";
+           "what `stlrefine refine` does at the last level (with the number of edge points the "
+           "guard "
+           "moved anywhere in the net).\n\n";
     struct Net {
       std::string name;
       std::function<double(double, double)> z;
@@ -399,13 +399,14 @@ int main(int argc, char** argv) {
     for (const Net& net : nets) {
       std::cout << "**" << net.name << "**\n\n| n | scheme | level 0 flip/x | ";
       for (int l = 1; l <= opt.levels; ++l) std::cout << "L" << l << " flip/x | ";
-      std::cout << "wind L" << opt.levels << " | spread L1..L" << opt.levels
-                << " (deg) | guard: flip/x, moved |\n|---|---|---|";
+      std::cout << "spread L1..L" << opt.levels
+                << " (deg) | guard: flip/x, edges moved (whole net) |\n|---|---|---|";
       for (int l = 1; l <= opt.levels; ++l) std::cout << "---|";
-      std::cout << "---|---|---|\n";
+      std::cout << "---|---|\n";
       for (int n : opt.butterfly_valences) {
         sb::Chart chart;
-        chart.title = net.name.substr(0, net.name.find(' ')) + ", n = " + std::to_string(n);
+        chart.title = "folding: " + net.name.substr(0, net.name.find(' ')) +
+                      " paraboloid, n = " + std::to_string(n);
         chart.y_label = "fan normal spread at the vertex (deg)";
         for (std::size_t a = 0; a < algos.size(); ++a) {
           const auto scheme = by_name(algos[a]);
@@ -424,7 +425,6 @@ int main(int argc, char** argv) {
           std::cout << "| " << n << " | " << algos[a] << " |";
           for (const Folding& f : rows)
             std::cout << " " << f.flipped << "/" << f.intersecting << " |";
-          std::cout << " " << fmt("%.2f", rows.back().winding) << " |";
           std::string spread;
           for (int l = 1; l <= opt.levels; ++l)
             spread += (l > 1 ? " " : "") + fmt("%.1f", rows[l].spread);
