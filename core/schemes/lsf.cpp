@@ -772,6 +772,108 @@ template <int K, class Terms>
   return lsf_math::detail::select(a < b, b, a);
 }
 
+// general_solve for fewer than five points (no conditioning test; spec 5 gap 1 damping), on
+// every lane at once: Ldlt5's pivoted factorisation and solve with the same operations in
+// the same order, as long as the four lanes choose the same pivots and none of them is zero
+// (Ldlt5's special cases). Returns false, with nothing written, otherwise: the caller then
+// solves lane by lane.
+[[gnu::always_inline]] inline bool general_solve_small(const V4d (&sum)[12], const V4d (&rhs)[5][3],
+                                                       V4d damping, V4d (&c)[5][3], V4i& valid) {
+  using lsf_math::detail::select;
+  // NormalEquations::matrix() plus the damping, lower part, a[col][row].
+  V4d a[5][5];
+  const V4d zero = {0, 0, 0, 0};
+  for (auto& col : a)
+    for (V4d& x : col) x = zero;
+  a[0][0] = sum[0], a[0][1] = sum[1], a[0][2] = 0.5 * sum[3], a[0][3] = sum[4];
+  a[0][4] = 0.5 * sum[5];
+  a[1][1] = sum[2], a[1][2] = 0.5 * sum[4], a[1][3] = sum[5], a[1][4] = 0.5 * sum[6];
+  a[2][2] = 0.25 * sum[7], a[2][3] = 0.5 * sum[8], a[2][4] = 0.25 * sum[9];
+  a[3][3] = sum[9], a[3][4] = 0.5 * sum[10];
+  a[4][4] = 0.25 * sum[11];
+  for (int k = 2; k < 5; ++k) a[k][k] += damping;
+  auto at = [&](int r, int col) -> V4d& { return a[col][r]; };
+  int perm[5];
+  V4i positive = {-1, -1, -1, -1};
+  for (int k = 0; k < 5; ++k) {
+    V4i p = {k, k, k, k};
+    V4d biggest = lsf_math::detail::abs(at(k, k));
+    for (int i = k + 1; i < 5; ++i) {
+      const V4d candidate = lsf_math::detail::abs(at(i, i));
+      const V4i larger = candidate > biggest;
+      biggest = select(larger, candidate, biggest);
+      p = (p & ~larger) | (V4i{i, i, i, i} & larger);
+    }
+    if (!(p[0] == p[1] && p[0] == p[2] && p[0] == p[3])) return false;
+    const int q = static_cast<int>(p[0]);
+    perm[k] = q;
+    if (q != k) {
+      for (int j = 0; j < k; ++j) std::swap(at(k, j), at(q, j));
+      for (int i = q + 1; i < 5; ++i) std::swap(at(i, k), at(i, q));
+      std::swap(at(k, k), at(q, q));
+      for (int i = k + 1; i < q; ++i) std::swap(at(i, k), at(q, i));
+    }
+    if (k > 0) {
+      V4d temp[5];
+      for (int j = 0; j < k; ++j) temp[j] = at(j, j) * at(k, j);
+      V4d t = at(k, 0) * temp[0];
+      for (int j = 1; j < k; ++j) t += at(k, j) * temp[j];
+      at(k, k) -= t;
+      for (int i = k + 1; i < 5; ++i) {
+        V4d sum_i = zero;
+        for (int j = 0; j < k; ++j) sum_i += at(i, j) * temp[j];
+        at(i, k) -= sum_i;
+      }
+    }
+    const V4d akk = at(k, k);
+    const V4i pivot_valid = lsf_math::detail::abs(akk) > 0;
+    if (!(pivot_valid[0] && pivot_valid[1] && pivot_valid[2] && pivot_valid[3])) return false;
+    for (int i = k + 1; i < 5; ++i) at(i, k) /= akk;
+    positive &= ~(akk < 0);
+  }
+  // Ldlt5::solve on the three right-hand sides.
+  V4d x[5][3];
+  for (int k = 0; k < 5; ++k)
+    for (int j = 0; j < 3; ++j) x[k][j] = rhs[k][j];
+  for (int k = 0; k < 5; ++k)
+    if (perm[k] != k)
+      for (int j = 0; j < 3; ++j) std::swap(x[k][j], x[perm[k]][j]);
+  for (int i = 0; i < 3; ++i)
+    for (int r = i + 1; r < 4; ++r)
+      for (int j = 0; j < 3; ++j) x[r][j] -= x[i][j] * at(r, i);
+  for (int j = 0; j < 3; ++j) {
+    V4d t = zero;
+    for (int k = 0; k < 4; ++k) t += at(4, k) * x[k][j];
+    x[4][j] -= t;
+  }
+  for (int i = 0; i < 5; ++i) {
+    const V4d d = at(i, i);
+    const V4i usable = lsf_math::detail::abs(d) > std::numeric_limits<double>::min();
+    for (int j = 0; j < 3; ++j) x[i][j] = select(usable, x[i][j] / d, zero);
+  }
+  for (int i = 3; i >= 0; --i) {
+    for (int j = 0; j < 3; ++j) {
+      V4d t = zero;
+      for (int r = i + 1; r < 5; ++r) t += at(r, i) * x[r][j];
+      x[i][j] -= t;
+    }
+  }
+  for (int k = 4; k >= 0; --k)
+    if (perm[k] != k)
+      for (int j = 0; j < 3; ++j) std::swap(x[k][j], x[perm[k]][j]);
+  // Refused: a negative pivot, or a tiny one (rank-deficient linear part); then all_finite.
+  V4d min_pivot = at(0, 0), max_pivot = at(0, 0);
+  for (int i = 1; i < 5; ++i)
+    min_pivot = min4(min_pivot, at(i, i)), max_pivot = max4(max_pivot, at(i, i));
+  V4d finite = zero;
+  for (int k = 0; k < 5; ++k) {
+    for (int j = 0; j < 3; ++j) c[k][j] = x[k][j];
+    finite += (x[k][0] - x[k][0]) + (x[k][1] - x[k][1]) + (x[k][2] - x[k][2]);
+  }
+  valid = positive & ~(min_pivot <= 1e-14 * max_pivot) & (finite == 0);
+  return true;
+}
+
 // The kernel, compiled once per instruction set below: n points per lane, a closed ring
 // (angles scaled to 2 pi) or an open crease sector (scaled to pi). Lanes from b.lanes to
 // kLanes must hold some valid sample (a copy of lane 0).
@@ -899,9 +1001,13 @@ template <int K, class Terms>
   V4d zero = {0, 0, 0, 0};
   for (const auto& row : c) zero += (row[0] - row[0]) + (row[1] - row[1]) + (row[2] - row[2]);
   V4i valid = certified & (zero == 0);
-  if (!(certified[0] && certified[1] && certified[2] && certified[3])) [[unlikely]] {
-    for (int l = 0; l < kLanes; ++l)
-      if (!certified[l]) valid[l] = solve_lane(sum, rhs, radii[0], n, l, c) ? -1 : 0;
+  if (!(certified[0] && certified[1] && certified[2] && certified[3])) {
+    // Below five points every lane takes the general path (crease sectors of four points
+    // are common), else only the rare lane the certificate refused.
+    if (n >= 5 || !general_solve_small(sum, rhs, damping, c, valid)) {
+      for (int l = 0; l < kLanes; ++l)
+        if (!certified[l]) valid[l] = solve_lane(sum, rhs, radii[0], n, l, c) ? -1 : 0;
+    }
   }
 
   // half_points: s(u/2, v/2) - V + V, or the chord midpoint where the fit is not valid.
