@@ -877,8 +877,11 @@ template <int K, class Terms>
 // The kernel, compiled once per instruction set below: n points per lane, a closed ring
 // (angles scaled to 2 pi) or an open crease sector (scaled to pi). Lanes from b.lanes to
 // kLanes must hold some valid sample (a copy of lane 0).
-[[gnu::always_inline]] inline void fit_batch_body(const FitBatch& b, std::size_t n, bool closed,
+// kN > 0: compiled for n = kN (the loops unroll fully); 0: any n.
+template <std::size_t kN>
+[[gnu::always_inline]] inline void fit_batch_body(const FitBatch& b, std::size_t n_any, bool closed,
                                                   BatchPoints& out) {
+  const std::size_t n = kN > 0 ? kN : n_any;
   using lsf_math::detail::select;
   // ring_parameters(closed, 2 pi) or (open, pi): gap angles, their sum, the polar angles.
   const std::size_t gaps = closed ? n : n - 1;
@@ -1031,7 +1034,20 @@ template <int K, class Terms>
 
 [[gnu::flatten]] void fit_batch_baseline(const FitBatch& b, std::size_t n, bool closed,
                                          BatchPoints& out) {
-  fit_batch_body(b, n, closed, out);
+  switch (n) {  // the common sizes: rings of 5-7, sectors of 3-5
+    case 3:
+      return fit_batch_body<3>(b, n, closed, out);
+    case 4:
+      return fit_batch_body<4>(b, n, closed, out);
+    case 5:
+      return fit_batch_body<5>(b, n, closed, out);
+    case 6:
+      return fit_batch_body<6>(b, n, closed, out);
+    case 7:
+      return fit_batch_body<7>(b, n, closed, out);
+    default:
+      return fit_batch_body<0>(b, n, closed, out);
+  }
 }
 
 using FitBatchFn = void (*)(const FitBatch&, std::size_t, bool, BatchPoints&);
@@ -1041,7 +1057,20 @@ using FitBatchFn = void (*)(const FitBatch&, std::size_t, bool, BatchPoints&);
 // rounding). Chosen at run time, so the binary still runs on any x86-64.
 [[gnu::target("avx2"), gnu::flatten]] void fit_batch_avx2(const FitBatch& b, std::size_t n,
                                                           bool closed, BatchPoints& out) {
-  fit_batch_body(b, n, closed, out);
+  switch (n) {  // the common sizes: rings of 5-7, sectors of 3-5
+    case 3:
+      return fit_batch_body<3>(b, n, closed, out);
+    case 4:
+      return fit_batch_body<4>(b, n, closed, out);
+    case 5:
+      return fit_batch_body<5>(b, n, closed, out);
+    case 6:
+      return fit_batch_body<6>(b, n, closed, out);
+    case 7:
+      return fit_batch_body<7>(b, n, closed, out);
+    default:
+      return fit_batch_body<0>(b, n, closed, out);
+  }
 }
 bool cpu_has_avx2() {
   return __builtin_cpu_supports("avx2");
