@@ -19,12 +19,19 @@ double LabsikGreinerStencil::extraordinary_weight(int n, int i) {
   return (1.0 / 3.0 + (2.0 / std::numbers::sqrt3) * std::cos(t) + second) / n;
 }
 
-LabsikGreinerStencil::LabsikGreinerStencil() : weights_(kCachedValences) {
-  for (int n = 3; n < kCachedValences; ++n) {
-    weights_[n].resize(n);
-    for (int i = 0; i < n; ++i) weights_[n][i] = extraordinary_weight(n, i);
-  }
+const std::vector<std::vector<double>>& LabsikGreinerStencil::cached_weights() {
+  static const std::vector<std::vector<double>> weights = [] {
+    std::vector<std::vector<double>> w(kCachedValences);
+    for (int n = 3; n < kCachedValences; ++n) {
+      w[n].resize(n);
+      for (int i = 0; i < n; ++i) w[n][i] = extraordinary_weight(n, i);
+    }
+    return w;
+  }();
+  return weights;
 }
+
+LabsikGreinerStencil::LabsikGreinerStencil() : weights_(cached_weights()) {}
 
 namespace {
 

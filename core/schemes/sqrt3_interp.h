@@ -41,7 +41,11 @@ class LabsikGreinerStencil final : public Sqrt3Stencil {
   Vec3 face_point_from(const Sqrt3Step& step, FaceId face,
                        const std::array<int, 3>& extraordinary) const;
   static constexpr int kCachedValences = 64;  // larger valences are computed on the fly
-  std::vector<std::vector<double>> weights_;
+  //! Weights of valences 3 .. kCachedValences - 1, built once per process and shared by
+  //! every stencil (a scheme is made several times per request; building the table took
+  //! 1.3 M instructions, more than refining a small mesh).
+  static const std::vector<std::vector<double>>& cached_weights();
+  const std::vector<std::vector<double>>& weights_;
 };
 
 }  // namespace stlrefine

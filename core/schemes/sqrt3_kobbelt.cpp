@@ -14,9 +14,16 @@ double KobbeltRelaxation::beta(int n) {
   return (4.0 - 2.0 * std::cos(2.0 * std::numbers::pi / n)) / 9.0;
 }
 
-KobbeltRelaxation::KobbeltRelaxation() : beta_(kCachedValences, 0.0) {
-  for (int n = 1; n < kCachedValences; ++n) beta_[n] = beta(n);
+const std::vector<double>& KobbeltRelaxation::cached_beta() {
+  static const std::vector<double> table = [] {
+    std::vector<double> b(kCachedValences, 0.0);
+    for (int n = 1; n < kCachedValences; ++n) b[n] = beta(n);
+    return b;
+  }();
+  return table;
 }
+
+KobbeltRelaxation::KobbeltRelaxation() : beta_(cached_beta()) {}
 
 Vec3 KobbeltRelaxation::displacement(const Sqrt3Step& step, VertexId v) const {
   const Mesh& m = step.mesh;

@@ -23,7 +23,10 @@ class KobbeltRelaxation {
 
  private:
   static constexpr int kCachedValences = 64;  // larger valences are computed on the fly
-  std::vector<double> beta_;
+  //! beta_n for n < kCachedValences, built once per process and shared (the scheme is
+  //! made several times per request).
+  static const std::vector<double>& cached_beta();
+  const std::vector<double>& beta_;
 };
 
 //! Delta of curve vertex p between its curve neighbours (the curve part of the rule above).
