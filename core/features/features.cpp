@@ -106,12 +106,20 @@ Features detect_features(const Mesh& mesh, const FeatureParams& params) {
   // angle > theta  <=>  n1.n2 < cos(theta) |n1| |n2|: no normalisation, no atan2.
   const double cos_limit = std::cos(params.crease_angle_deg * std::numbers::pi / 180.0);
   const bool disabled = params.crease_angle_deg >= 180.0;
+  // Each face's normal once (an inner face has three edges, so the per-edge test would
+  // compute it three times); the same values, so the same flags.
+  BigVector<Vec3> normal(disabled ? 0 : mesh.num_faces());
+  if (!disabled)
+    parallel_for_each_index(mesh.num_faces(), [&](std::size_t f) {
+      normal[f] = mesh.face_normal(FaceId(static_cast<std::uint32_t>(f)));
+    });
   parallel_for_each_index(mesh.num_edges(), [&](std::size_t e) {
     const HalfedgeId h = mesh.halfedge(EdgeId(static_cast<std::uint32_t>(e)));
     const HalfedgeId t = mesh.twin(h);
     sharp[e] = 0;
     if (!t.valid() || disabled) return;
-    const Vec3 n1 = mesh.face_normal(Mesh::face(h)), n2 = mesh.face_normal(Mesh::face(t));
+    const Vec3& n1 = normal[Mesh::face(h).idx];
+    const Vec3& n2 = normal[Mesh::face(t).idx];
     const double scale = std::sqrt(dot(n1, n1) * dot(n2, n2));
     sharp[e] = scale > 0 && dot(n1, n2) < cos_limit * scale;
   });
