@@ -63,9 +63,12 @@ class OursRefine final : public Job {
   OursRefine(const fs::path& path, RefineParams params) : params_(std::move(params)) {
     IngestResult ingest = build_mesh(weld(read_stl_file(path)));
     input_ = std::move(ingest.mesh);
+    in_faces_ = input_.num_faces();
   }
-  void run() override { result_ = refine(input_, params_); }
-  std::uint64_t in_faces() const override { return input_.num_faces(); }
+  // The input is moved in, as the service does (api/pipeline.cpp) and as the peers refine
+  // their converted mesh in place: copying it is not part of refining (each run is a new job).
+  void run() override { result_ = refine(std::move(input_), params_); }
+  std::uint64_t in_faces() const override { return in_faces_; }
   std::uint64_t out_faces() const override { return result_.mesh.num_faces(); }
   std::uint64_t out_vertices() const override { return result_.mesh.num_vertices(); }
   std::string note() const override { return describe_report(result_.report); }
@@ -73,6 +76,7 @@ class OursRefine final : public Job {
  private:
   RefineParams params_;
   Mesh input_;
+  std::uint64_t in_faces_ = 0;
   RefineResult result_;
 };
 
@@ -89,7 +93,7 @@ class OursPipeline final : public Job {
     IngestResult ingest = build_mesh(welded);
     welded = IndexedSoup{};
     in_faces_ = ingest.mesh.num_faces();
-    RefineResult result = refine(ingest.mesh, params_);
+    RefineResult result = refine(std::move(ingest.mesh), params_);
     ingest = IngestResult{};
     out_faces_ = result.mesh.num_faces();
     out_vertices_ = result.mesh.num_vertices();
