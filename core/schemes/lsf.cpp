@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <memory>
 #include <numbers>
 #include <utility>
 #include <vector>
@@ -1261,8 +1262,13 @@ void LsfStencil::edge_points(const Level& coarse, std::span<Vec3> out) const {
   // slot per edge, not per half-edge: half the memory, and the averaging pass below reads
   // both arrays in order; it adds the two in either order, which floating-point addition
   // allows). Every half-edge belongs to one vertex, so the writes never collide.
-  // std::array, unlike Vec3, is left uninitialised: every slot read is written first.
-  BigVector<std::array<double, 3>> twin_estimate(m.num_edges());
+  // std::array, unlike Vec3, is left uninitialised: every slot read is written first. A
+  // plain heap block, not a BigVector: glibc hands the same pages back at the next level or
+  // refinement instead of mapping (and the kernel zeroing) fresh ones each time, about 5%
+  // of an armadillo refinement; huge pages are still asked for when it is large.
+  const std::unique_ptr<std::array<double, 3>[]> twin_estimate(
+      new std::array<double, 3>[m.num_edges()]);
+  advise_huge_pages(twin_estimate.get(), m.num_edges() * sizeof(std::array<double, 3>));
   auto store = [&](EdgeId e, bool lower, const Vec3& point) {
     if (lower)
       out[e.idx] = point;
