@@ -708,10 +708,18 @@ struct FitBatch {
   alignas(32) double x[kMaxBatchValence][kLanes];         // ring offsets P_i - V
   alignas(32) double y[kMaxBatchValence][kLanes];
   alignas(32) double z[kMaxBatchValence][kLanes];
-  // Where P_i's estimate goes (see LsfStencil::edge_points): the edge of the spoke to P_i
-  // and whether the spoke is the lower-numbered of its two half-edges.
-  std::uint32_t edge[kMaxBatchValence][kLanes];
-  bool lower[kMaxBatchValence][kLanes];
+  Vec3* dest[kMaxBatchValence][kLanes];  // where P_i's estimate goes (EstimateSlots)
+};
+
+// Where the estimates go (see LsfStencil::edge_points): the edge's slot of one array for the
+// estimate along its lower-numbered half-edge, of the other for the other one. Chosen by
+// index, not by a branch: which half-edge is lower is a coin toss the predictor loses.
+struct EstimateSlots {
+  Vec3* lower;
+  Vec3* upper;
+  Vec3* at(EdgeId e, bool along_lower) const {
+    return (along_lower ? lower : upper) + std::size_t{e.idx};
+  }
 };
 
 // The fitted surface at half of each spoke's parameter (or the chord midpoint), per lane.
@@ -1092,26 +1100,23 @@ FitBatchFn fit_batch_kernel() {
 }
 
 // The batches of one task: whole rings of smooth and dart vertices by valence, one-sided
-// sectors of crease vertices by size. fit() runs a full batch through the kernel and passes
-// each estimate to store(edge, lower, point): every point of a ring, the inner points of a
-// sector (its two ends are the sharp spokes, whose edges take the curve rule).
+// sectors of crease vertices by size. fit() runs a full batch through the kernel and writes
+// each estimate to its slot: every point of a ring, the inner points of a sector (its two
+// ends are the sharp spokes, whose edges take the curve rule).
 struct Batches {
   std::array<FitBatch, kMaxBatchValence + 1> ring, sector;
   BatchPoints points;
   FitBatchFn kernel = fit_batch_kernel();
 
-  template <class Store>
-  void fit(FitBatch& b, std::size_t n, bool closed, int lanes, Store&& store) {
+  void fit(FitBatch& b, std::size_t n, bool closed, int lanes) {
     kernel(b, n, closed, points);
     for (std::size_t i = closed ? 0 : 1; i < (closed ? n : n - 1); ++i)
       for (int k = 0; k < lanes; ++k)
-        store(EdgeId(b.edge[i][k]), b.lower[i][k],
-              Vec3(points.x[i][k], points.y[i][k], points.z[i][k]));
+        *b.dest[i][k] = Vec3(points.x[i][k], points.y[i][k], points.z[i][k]);
     b.lanes = 0;
   }
   // Fits what is left: the unused lanes get copies of lane 0.
-  template <class Store>
-  void flush(Store&& store) {
+  void flush() {
     for (bool closed : {true, false}) {
       auto& batches = closed ? ring : sector;
       for (std::size_t n = 0; n < batches.size(); ++n) {
@@ -1122,7 +1127,7 @@ struct Batches {
           for (std::size_t i = 0; i < n; ++i)
             b.x[i][l] = b.x[i][0], b.y[i][l] = b.y[i][0], b.z[i][l] = b.z[i][0];
         }
-        fit(b, n, closed, b.lanes, store);
+        fit(b, n, closed, b.lanes);
       }
     }
   }
@@ -1132,8 +1137,7 @@ struct Batches {
 // is fitted too) with a closed ring of kMinBatchValence..kMaxBatchValence points, and fits
 // the batch when it is full; false, with nothing changed, for every other vertex. A dart's
 // sharp spoke gets an estimate too: harmless, the sharp edge's point is the curve rule's.
-template <class Store>
-bool batch_smooth_vertex(const Mesh& m, VertexId v, Batches& batches, Store&& store) {
+bool batch_smooth_vertex(const Mesh& m, VertexId v, const EstimateSlots& slots, Batches& batches) {
   const HalfedgeId start = m.halfedge(v);
   if (!start.valid()) return false;
   // The spokes first (a chain of dependent loads), then their far ends' positions (loads
@@ -1158,10 +1162,10 @@ bool batch_smooth_vertex(const Mesh& m, VertexId v, Batches& batches, Store&& st
   for (std::size_t i = 0; i < n; ++i) {
     const Vec3 d = m.position(m.from(twin)) - p;  // to(spoke[i])
     b.x[i][l] = d.x, b.y[i][l] = d.y, b.z[i][l] = d.z;
-    b.edge[i][l] = m.edge(spoke[i]).idx, b.lower[i][l] = spoke[i].idx < twin.idx;
+    b.dest[i][l] = slots.at(m.edge(spoke[i]), spoke[i].idx < twin.idx);
     twin = prev_spoke[i];
   }
-  if (b.lanes == kLanes) batches.fit(b, n, true, kLanes, store);
+  if (b.lanes == kLanes) batches.fit(b, n, true, kLanes);
   return true;
 }
 
@@ -1170,9 +1174,8 @@ bool batch_smooth_vertex(const Mesh& m, VertexId v, Batches& batches, Store&& st
 // boundary spoke, closed by the far end of the incoming boundary edge; each sector from one
 // sharp spoke to the next, both included), into the sector batches by size; false, with
 // nothing changed, when a ring or sector is too large (the caller fits the vertex alone).
-template <class Store>
-bool batch_crease_vertex(const Mesh& m, const Features& f, VertexId v, Batches& batches,
-                         Store&& store) {
+bool batch_crease_vertex(const Mesh& m, const Features& f, VertexId v, const EstimateSlots& slots,
+                         Batches& batches) {
   constexpr std::size_t kMaxRing = 2 * kMaxBatchValence;
   const HalfedgeId start = m.halfedge(v);
   if (!start.valid()) return false;
@@ -1223,9 +1226,9 @@ bool batch_crease_vertex(const Mesh& m, const Features& f, VertexId v, Batches& 
       // twin is prev(spoke[j - 1]).
       const std::size_t j = at(begin + i);
       const HalfedgeId twin = prev_spoke[j == 0 ? n - 1 : j - 1];
-      b.edge[i][l] = m.edge(spoke[j]).idx, b.lower[i][l] = spoke[j].idx < twin.idx;
+      b.dest[i][l] = slots.at(m.edge(spoke[j]), spoke[j].idx < twin.idx);
     }
-    if (b.lanes == kLanes) batches.fit(b, size, false, kLanes, store);
+    if (b.lanes == kLanes) batches.fit(b, size, false, kLanes);
   }
   return true;
 }
@@ -1262,34 +1265,35 @@ void LsfStencil::edge_points(const Level& coarse, std::span<Vec3> out) const {
   // slot per edge, not per half-edge: half the memory, and the averaging pass below reads
   // both arrays in order; it adds the two in either order, which floating-point addition
   // allows). Every half-edge belongs to one vertex, so the writes never collide.
-  // std::array, unlike Vec3, is left uninitialised: every slot read is written first. A
-  // plain heap block, not a BigVector: glibc hands the same pages back at the next level or
-  // refinement instead of mapping (and the kernel zeroing) fresh ones each time, about 5%
-  // of an armadillo refinement; huge pages are still asked for when it is large.
-  const std::unique_ptr<std::array<double, 3>[]> twin_estimate(
-      new std::array<double, 3>[m.num_edges()]);
-  advise_huge_pages(twin_estimate.get(), m.num_edges() * sizeof(std::array<double, 3>));
-  auto store = [&](EdgeId e, bool lower, const Vec3& point) {
-    if (lower)
-      out[e.idx] = point;
-    else
-      twin_estimate[e.idx] = {point.x, point.y, point.z};
-  };
+  // Raw storage, left uninitialised (every slot read is written first), from the plain heap,
+  // not a BigVector: glibc hands the same pages back at the next level or refinement
+  // instead of mapping (and the kernel zeroing) fresh ones each time, about 5% of an
+  // armadillo refinement; huge pages are still asked for when it is large.
+  struct RawVec3s {
+    Vec3* data;
+    std::size_t size;
+    explicit RawVec3s(std::size_t n) : data(std::allocator<Vec3>().allocate(n)), size(n) {}
+    ~RawVec3s() { std::allocator<Vec3>().deallocate(data, size); }
+    RawVec3s(const RawVec3s&) = delete;
+    RawVec3s& operator=(const RawVec3s&) = delete;
+  } twin_estimate(m.num_edges());
+  advise_huge_pages(twin_estimate.data, m.num_edges() * sizeof(Vec3));
+  const EstimateSlots slots{out.data(), twin_estimate.data};
   auto sink = [&](HalfedgeId s, const Vec3& point) {
-    store(m.edge(s), s.idx < m.twin(s).idx, point);
+    *slots.at(m.edge(s), s.idx < m.twin(s).idx) = point;
   };
   parallel_for_each_range(m.num_vertices(), [&](std::size_t begin, std::size_t end) {
     Batches batches;
     for (std::size_t i = begin; i < end; ++i) {
       const VertexId v(static_cast<std::uint32_t>(i));
       const VertexKind kind = f.kind(v);
-      const bool batched = kind <= VertexKind::Dart ? batch_smooth_vertex(m, v, batches, store)
+      const bool batched = kind <= VertexKind::Dart ? batch_smooth_vertex(m, v, slots, batches)
                            : kind == VertexKind::Crease
-                               ? batch_crease_vertex(m, f, v, batches, store)
+                               ? batch_crease_vertex(m, f, v, slots, batches)
                                : false;
       if (!batched) vertex_estimates(m, f, v, sink);
     }
-    batches.flush(store);
+    batches.flush();
   });
   parallel_for_each_index(m.num_edges(), [&](std::size_t e) {
     const EdgeId edge(static_cast<std::uint32_t>(e));
@@ -1297,8 +1301,7 @@ void LsfStencil::edge_points(const Level& coarse, std::span<Vec3> out) const {
       out[e] = lsf_curve_point(m, f, m.halfedge(edge));
       return;
     }
-    const auto& [x, y, z] = twin_estimate[e];
-    out[e] = 0.5 * (out[e] + Vec3(x, y, z));
+    out[e] = 0.5 * (out[e] + twin_estimate.data[e]);
   });
 }
 
