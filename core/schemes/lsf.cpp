@@ -722,20 +722,10 @@ struct EstimateSlots {
   }
 };
 
-// The fitted surface at half of each spoke's parameter (or the chord midpoint), per lane.
-struct BatchPoints {
-  alignas(32) double x[kMaxBatchValence][kLanes];
-  alignas(32) double y[kMaxBatchValence][kLanes];
-  alignas(32) double z[kMaxBatchValence][kLanes];
-};
-
 [[gnu::always_inline]] inline V4d load4(const double* p) {
   V4d v;
   std::memcpy(&v, p, sizeof v);
   return v;
-}
-[[gnu::always_inline]] inline void store4(double* p, V4d v) {
-  std::memcpy(p, &v, sizeof v);
 }
 
 // Lane l of a solve the fast path could not certify: solve_fit on that lane's sums. Out of
@@ -888,8 +878,8 @@ template <int K, class Terms>
 // kLanes must hold some valid sample (a copy of lane 0).
 // kN > 0: compiled for n = kN (the loops unroll fully); 0: any n.
 template <std::size_t kN>
-[[gnu::always_inline]] inline void fit_batch_body(const FitBatch& b, std::size_t n_any, bool closed,
-                                                  BatchPoints& out) {
+[[gnu::always_inline]] inline void fit_batch_body(const FitBatch& b, std::size_t n_any,
+                                                  bool closed) {
   const std::size_t n = kN > 0 ? kN : n_any;
   using lsf_math::detail::select;
   // ring_parameters(closed, 2 pi) or (open, pi): gap angles, their sum, the polar angles.
@@ -913,8 +903,9 @@ template <std::size_t kN>
   for (std::size_t i = 0; i < n; ++i) {
     const V4d px = load4(b.x[i]), py = load4(b.y[i]), pz = load4(b.z[i]);
     const V4d radius = lsf_math::sqrt(px * px + py * py + pz * pz);
-    V4d sin_phi, cos_phi;
-    lsf_math::sincos(phi, sin_phi, cos_phi);
+    // The first point's angle is 0, whose sincos is exactly (+0, 1).
+    V4d sin_phi = {0, 0, 0, 0}, cos_phi = {1, 1, 1, 1};
+    if (i > 0) lsf_math::sincos(phi, sin_phi, cos_phi);
     u[i] = radius * cos_phi, v[i] = radius * sin_phi, r[i] = radius;
     if (i < gaps) phi += scale * theta[i];
   }
@@ -1028,57 +1019,58 @@ template <std::size_t kN>
     h[0][d] = 0.5 * c[0][d], h[1][d] = 0.5 * c[1][d], h[2][d] = 0.125 * c[2][d];
     h[3][d] = 0.25 * c[3][d], h[4][d] = 0.125 * c[4][d];
   }
-  for (int d = 0; d < 3; ++d) {
-    const double(*w)[kLanes] = d == 0 ? b.x : d == 1 ? b.y : b.z;
-    double(*to)[kLanes] = d == 0 ? out.x : d == 1 ? out.y : out.z;
-    const V4d origin = load4(d == 0 ? b.ox : d == 1 ? b.oy : b.oz);
-    for (std::size_t i = 0; i < n; ++i) {
-      const V4d a = u[i], e = v[i];
-      const V4d fit =
-          a * h[0][d] + e * h[1][d] + (a * a) * h[2][d] + (a * e) * h[3][d] + (e * e) * h[4][d];
-      store4(to[i], origin + select(valid, fit, 0.5 * load4(w[i])));
+  // Written straight to their destinations: every point of a ring, the inner points of a
+  // sector (its two ends are the sharp spokes, whose edges take the curve rule).
+  const V4d origin[3] = {load4(b.ox), load4(b.oy), load4(b.oz)};
+  for (std::size_t i = closed ? 0 : 1; i < (closed ? n : n - 1); ++i) {
+    const V4d a = u[i], e = v[i], a2 = a * a, ae = a * e, e2 = e * e;
+    const V4d chord[3] = {load4(b.x[i]), load4(b.y[i]), load4(b.z[i])};
+    V4d q[3];
+    for (int d = 0; d < 3; ++d) {
+      const V4d fit = a * h[0][d] + e * h[1][d] + a2 * h[2][d] + ae * h[3][d] + e2 * h[4][d];
+      q[d] = origin[d] + select(valid, fit, 0.5 * chord[d]);
     }
+    for (int l = 0; l < b.lanes; ++l) *b.dest[i][l] = Vec3(q[0][l], q[1][l], q[2][l]);
   }
 }
 
-[[gnu::flatten]] void fit_batch_baseline(const FitBatch& b, std::size_t n, bool closed,
-                                         BatchPoints& out) {
+[[gnu::flatten]] void fit_batch_baseline(const FitBatch& b, std::size_t n, bool closed) {
   switch (n) {  // the common sizes: rings of 5-7, sectors of 3-5
     case 3:
-      return fit_batch_body<3>(b, n, closed, out);
+      return fit_batch_body<3>(b, n, closed);
     case 4:
-      return fit_batch_body<4>(b, n, closed, out);
+      return fit_batch_body<4>(b, n, closed);
     case 5:
-      return fit_batch_body<5>(b, n, closed, out);
+      return fit_batch_body<5>(b, n, closed);
     case 6:
-      return fit_batch_body<6>(b, n, closed, out);
+      return fit_batch_body<6>(b, n, closed);
     case 7:
-      return fit_batch_body<7>(b, n, closed, out);
+      return fit_batch_body<7>(b, n, closed);
     default:
-      return fit_batch_body<0>(b, n, closed, out);
+      return fit_batch_body<0>(b, n, closed);
   }
 }
 
-using FitBatchFn = void (*)(const FitBatch&, std::size_t, bool, BatchPoints&);
+using FitBatchFn = void (*)(const FitBatch&, std::size_t, bool);
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 // The same kernel on AVX2's four-lane registers (AVX2 only: no FMA, which would change the
 // rounding). Chosen at run time, so the binary still runs on any x86-64.
 [[gnu::target("avx2"), gnu::flatten]] void fit_batch_avx2(const FitBatch& b, std::size_t n,
-                                                          bool closed, BatchPoints& out) {
+                                                          bool closed) {
   switch (n) {  // the common sizes: rings of 5-7, sectors of 3-5
     case 3:
-      return fit_batch_body<3>(b, n, closed, out);
+      return fit_batch_body<3>(b, n, closed);
     case 4:
-      return fit_batch_body<4>(b, n, closed, out);
+      return fit_batch_body<4>(b, n, closed);
     case 5:
-      return fit_batch_body<5>(b, n, closed, out);
+      return fit_batch_body<5>(b, n, closed);
     case 6:
-      return fit_batch_body<6>(b, n, closed, out);
+      return fit_batch_body<6>(b, n, closed);
     case 7:
-      return fit_batch_body<7>(b, n, closed, out);
+      return fit_batch_body<7>(b, n, closed);
     default:
-      return fit_batch_body<0>(b, n, closed, out);
+      return fit_batch_body<0>(b, n, closed);
   }
 }
 bool cpu_has_avx2() {
@@ -1100,19 +1092,14 @@ FitBatchFn fit_batch_kernel() {
 }
 
 // The batches of one task: whole rings of smooth and dart vertices by valence, one-sided
-// sectors of crease vertices by size. fit() runs a full batch through the kernel and writes
-// each estimate to its slot: every point of a ring, the inner points of a sector (its two
-// ends are the sharp spokes, whose edges take the curve rule).
+// sectors of crease vertices by size. fit() runs a full batch through the kernel, which
+// writes each estimate to its slot.
 struct Batches {
   std::array<FitBatch, kMaxBatchValence + 1> ring, sector;
-  BatchPoints points;
   FitBatchFn kernel = fit_batch_kernel();
 
-  void fit(FitBatch& b, std::size_t n, bool closed, int lanes) {
-    kernel(b, n, closed, points);
-    for (std::size_t i = closed ? 0 : 1; i < (closed ? n : n - 1); ++i)
-      for (int k = 0; k < lanes; ++k)
-        *b.dest[i][k] = Vec3(points.x[i][k], points.y[i][k], points.z[i][k]);
+  void fit(FitBatch& b, std::size_t n, bool closed) {
+    kernel(b, n, closed);
     b.lanes = 0;
   }
   // Fits what is left: the unused lanes get copies of lane 0.
@@ -1127,7 +1114,7 @@ struct Batches {
           for (std::size_t i = 0; i < n; ++i)
             b.x[i][l] = b.x[i][0], b.y[i][l] = b.y[i][0], b.z[i][l] = b.z[i][0];
         }
-        fit(b, n, closed, b.lanes);
+        fit(b, n, closed);
       }
     }
   }
@@ -1165,7 +1152,7 @@ bool batch_smooth_vertex(const Mesh& m, VertexId v, const EstimateSlots& slots, 
     b.dest[i][l] = slots.at(m.edge(spoke[i]), spoke[i].idx < twin.idx);
     twin = prev_spoke[i];
   }
-  if (b.lanes == kLanes) batches.fit(b, n, true, kLanes);
+  if (b.lanes == kLanes) batches.fit(b, n, true);
   return true;
 }
 
@@ -1228,7 +1215,7 @@ bool batch_crease_vertex(const Mesh& m, const Features& f, VertexId v, const Est
       const HalfedgeId twin = prev_spoke[j == 0 ? n - 1 : j - 1];
       b.dest[i][l] = slots.at(m.edge(spoke[j]), spoke[j].idx < twin.idx);
     }
-    if (b.lanes == kLanes) batches.fit(b, size, false, kLanes);
+    if (b.lanes == kLanes) batches.fit(b, size, false);
   }
   return true;
 }
