@@ -25,6 +25,7 @@
 #include "core/io/stl.h"
 #include "core/mesh/build_mesh.h"
 #include "core/refine.h"
+#include "core/schemes/lsf.h"
 #include "core/schemes/split4_host.h"
 
 namespace {
@@ -60,7 +61,7 @@ int main(int argc, char** argv) {
   std::vector<std::string> schemes = {"butterfly", "lsf"};
   int levels = 2, threads = 1, reps = 5, rounds = 3;
   double adaptive_tol = 0;
-  bool no_hash = false, stencil_only = false, use_min = false;
+  bool no_hash = false, stencil_only = false, use_min = false, baseline_kernels = false;
   app.add_option("input", input, "STL file")->required();
   app.add_option("--schemes", schemes, "schemes to time");
   app.add_option("--levels", levels, "uniform levels (the cap in the adaptive mode)");
@@ -72,9 +73,12 @@ int main(int argc, char** argv) {
   app.add_flag("--min", use_min,
                "report the fastest run instead of the minimum of the round medians (a "
                "loaded machine only ever slows a run down)");
+  app.add_flag("--baseline-kernels", baseline_kernels,
+               "LSF's batch fits on the portable SSE2 kernel even where the CPU has AVX2");
   app.add_flag("--stencil-only", stencil_only,
                "time the split4 stencil's points() on levels 0..levels-1 only (uniform)");
   CLI11_PARSE(app, argc, argv);
+  stlrefine::set_lsf_baseline_kernels(baseline_kernels);
 
   const stlrefine::IngestResult ingest =
       stlrefine::build_mesh(stlrefine::weld(stlrefine::read_stl_file(input)));
