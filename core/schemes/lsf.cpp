@@ -1034,7 +1034,8 @@ template <std::size_t kN>
   }
 }
 
-[[gnu::flatten]] void fit_batch_baseline(const FitBatch& b, std::size_t n, bool closed) {
+// The sizes unrolled, written once; each kernel below inlines it (flatten) for its target.
+inline void fit_batch_sized(const FitBatch& b, std::size_t n, bool closed) {
   switch (n) {  // the common sizes: rings of 5-7, sectors of 3-5
     case 3:
       return fit_batch_body<3>(b, n, closed);
@@ -1051,6 +1052,10 @@ template <std::size_t kN>
   }
 }
 
+[[gnu::flatten]] void fit_batch_baseline(const FitBatch& b, std::size_t n, bool closed) {
+  fit_batch_sized(b, n, closed);
+}
+
 using FitBatchFn = void (*)(const FitBatch&, std::size_t, bool);
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
@@ -1058,20 +1063,7 @@ using FitBatchFn = void (*)(const FitBatch&, std::size_t, bool);
 // rounding). Chosen at run time, so the binary still runs on any x86-64.
 [[gnu::target("avx2"), gnu::flatten]] void fit_batch_avx2(const FitBatch& b, std::size_t n,
                                                           bool closed) {
-  switch (n) {  // the common sizes: rings of 5-7, sectors of 3-5
-    case 3:
-      return fit_batch_body<3>(b, n, closed);
-    case 4:
-      return fit_batch_body<4>(b, n, closed);
-    case 5:
-      return fit_batch_body<5>(b, n, closed);
-    case 6:
-      return fit_batch_body<6>(b, n, closed);
-    case 7:
-      return fit_batch_body<7>(b, n, closed);
-    default:
-      return fit_batch_body<0>(b, n, closed);
-  }
+  fit_batch_sized(b, n, closed);
 }
 bool cpu_has_avx2() {
   return __builtin_cpu_supports("avx2");
