@@ -45,13 +45,6 @@ namespace fs = std::filesystem;
 constexpr std::uint64_t kMaxBodyMib = 64;
 constexpr const char* kGoodTarget = "/v1/refine?scheme=butterfly&levels=2";
 
-std::string read_file(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 double ms_since(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }

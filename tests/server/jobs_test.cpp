@@ -18,6 +18,7 @@
 #include <thread>
 
 #include "api/params.h"
+#include "in_process_daemon.h"
 #include "server/daemon.h"
 #include "test_stl.h"
 
@@ -34,40 +35,6 @@ fs::path fresh_dir(const std::string& name) {
   fs::remove_all(dir);
   return dir;
 }
-
-// A daemon running on its own thread for one test.
-class RunningDaemon {
- public:
-  explicit RunningDaemon(DaemonConfig config) {
-    std::signal(SIGPIPE, SIG_IGN);
-    daemon_ = std::make_unique<Daemon>(std::move(config));
-    port_ = daemon_->bind("127.0.0.1", 0);
-    thread_ = std::thread([this] { daemon_->run(); });
-    httplib::Client c = client();
-    for (int i = 0; i < 200; ++i) {
-      if (auto r = c.Get("/healthz"); r && r->status == 200) break;
-      std::this_thread::sleep_for(10ms);
-    }
-  }
-  ~RunningDaemon() { stop(); }
-  void stop() {
-    if (!daemon_) return;
-    daemon_->stop();
-    thread_.join();
-    daemon_.reset();
-  }
-  httplib::Client client() const {
-    httplib::Client c("127.0.0.1", port_);
-    c.set_read_timeout(30, 0);
-    return c;
-  }
-  Daemon& daemon() { return *daemon_; }
-
- private:
-  std::unique_ptr<Daemon> daemon_;
-  std::thread thread_;
-  int port_ = 0;
-};
 
 DaemonConfig jobs_config(const fs::path& dir) {
   DaemonConfig config;
@@ -108,7 +75,7 @@ Json wait_for_state(httplib::Client& c, const std::string& location,
 
 TEST(Jobs, SubmitPollAndDownloadGiveTheSynchronousBytes) {
   const fs::path dir = fresh_dir("submit");
-  RunningDaemon d(jobs_config(dir));
+  test::InProcessDaemon d(jobs_config(dir));
   httplib::Client c = d.client();
   const std::string query = "scheme=butterfly&levels=2&slice=0.25&slice_format=json";
   auto sync = post(c, "/v1/refine?scheme=butterfly&levels=2", octahedron());
@@ -156,7 +123,7 @@ TEST(Jobs, SubmitPollAndDownloadGiveTheSynchronousBytes) {
 
 TEST(Jobs, QueuedJobsAnswer409AndCancelAndTheQueueIsBounded) {
   const fs::path dir = fresh_dir("queue");
-  RunningDaemon d(jobs_config(dir));
+  test::InProcessDaemon d(jobs_config(dir));
   httplib::Client c = d.client();
   // Hold every compute slot so jobs stay queued.
   auto a = d.daemon().compute_slots().try_acquire();
@@ -212,7 +179,7 @@ TEST(Jobs, RunningJobIsCancelledWithinASecond) {
   const fs::path dir = fresh_dir("cancel");
   DaemonConfig config = jobs_config(dir);
   config.max_faces = 20'000'000;
-  RunningDaemon d(config);
+  test::InProcessDaemon d(config);
   httplib::Client c = d.client();
   std::ifstream in(fs::path(STLREFINE_EXAMPLES_DIR) / "fandisk.stl", std::ios::binary);
   const std::string fandisk((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
@@ -243,7 +210,7 @@ TEST(Jobs, FinishedJobsSurviveARestartAndInterruptedOnesAreReportedFailed) {
   const fs::path dir = fresh_dir("restart");
   std::string location, stl;
   {
-    RunningDaemon d(jobs_config(dir));
+    test::InProcessDaemon d(jobs_config(dir));
     httplib::Client c = d.client();
     auto r = post(c, "/v1/jobs?scheme=butterfly&levels=1", octahedron());
     ASSERT_TRUE(r);
@@ -256,7 +223,7 @@ TEST(Jobs, FinishedJobsSurviveARestartAndInterruptedOnesAreReportedFailed) {
   fs::create_directories(dir / lost);
   std::ofstream(dir / lost / "job.json")
       << R"({"id":")" << lost << R"(","state":"running","scheme":"lsf","created_ms":1})";
-  RunningDaemon d(jobs_config(dir));
+  test::InProcessDaemon d(jobs_config(dir));
   httplib::Client c = d.client();
   auto again = c.Get((location + "/result.stl").c_str());
   ASSERT_TRUE(again);
@@ -275,7 +242,7 @@ TEST(Jobs, ReplicasSharingADataDirectoryAnswerForEachOthersJobs) {
   config_a.jobs.instance = "replica-a";
   config_b.jobs.instance = "replica-b";
   config_a.max_faces = 20'000'000;
-  RunningDaemon a(config_a), b(config_b);
+  test::InProcessDaemon a(config_a), b(config_b);
   httplib::Client ca = a.client(), cb = b.client();
   auto r = post(ca, "/v1/jobs?scheme=butterfly&levels=1", octahedron());
   ASSERT_TRUE(r);
@@ -306,7 +273,7 @@ TEST(Jobs, ExpiredResultsAnswer410AndUnknownIds404) {
   const fs::path dir = fresh_dir("expire");
   DaemonConfig config = jobs_config(dir);
   config.jobs.retention = 1s;
-  RunningDaemon d(config);
+  test::InProcessDaemon d(config);
   httplib::Client c = d.client();
   auto r = post(c, "/v1/jobs?scheme=butterfly&levels=1", octahedron());
   ASSERT_TRUE(r);
@@ -333,7 +300,7 @@ TEST(Jobs, ShutdownFailsQueuedJobsWithAReason) {
   const fs::path dir = fresh_dir("shutdown");
   std::string location;
   {
-    RunningDaemon d(jobs_config(dir));
+    test::InProcessDaemon d(jobs_config(dir));
     httplib::Client c = d.client();
     auto a = d.daemon().compute_slots().try_acquire();
     auto b = d.daemon().compute_slots().try_acquire();
@@ -356,7 +323,7 @@ TEST(Jobs, ShutdownFailsQueuedJobsWithAReason) {
 TEST(Server, EveryAnswerHasARequestIdAndMetricsCountRoutes) {
   DaemonConfig config;
   config.compute_slots = 1;
-  RunningDaemon d(config);
+  test::InProcessDaemon d(config);
   httplib::Client c = d.client();
   auto h = c.Get("/healthz", {{"X-Request-Id", "my-trace-42"}});
   ASSERT_TRUE(h);
@@ -392,7 +359,7 @@ TEST(Server, ApiKeysAreRequiredExceptForProbes) {
   DaemonConfig config;
   config.compute_slots = 1;
   config.api_keys = {"0123456789abcdef-key-one", "fedcba9876543210-key-two"};
-  RunningDaemon d(config);
+  test::InProcessDaemon d(config);
   httplib::Client c = d.client();
   auto none = post(c, "/v1/refine?levels=1", octahedron());
   ASSERT_TRUE(none);
@@ -456,7 +423,7 @@ TEST(OpenApi, DocumentsExactlyTheServedRoutesAndParameters) {
 TEST(OpenApi, IsServed) {
   DaemonConfig config;
   config.compute_slots = 1;
-  RunningDaemon d(config);
+  test::InProcessDaemon d(config);
   httplib::Client c = d.client();
   auto r = c.Get("/v1/openapi.json");
   ASSERT_TRUE(r);

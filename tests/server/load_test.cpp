@@ -40,13 +40,6 @@ namespace fs = std::filesystem;
 constexpr long long kBudget = 256ll << 20;
 constexpr std::uint64_t kFandiskFaces = 12946;
 
-std::string read_file(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 std::function<bool(const RawResponse&)> refined_faces(std::uint64_t faces) {
   return [faces](const RawResponse& r) {
     return r.body.size() == 84 + 50 * faces && r.header("content-type") == "model/stl";

@@ -32,12 +32,7 @@ std::span<const std::uint8_t> bytes_of(const std::string& s) {
   return {reinterpret_cast<const std::uint8_t*>(s.data()), s.size()};
 }
 
-std::string read_file(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+using test::read_file;
 
 const std::string& fandisk() {
   static const std::string bytes = read_file(fs::path(STLREFINE_EXAMPLES_DIR) / "fandisk.stl");

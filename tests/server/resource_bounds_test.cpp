@@ -25,6 +25,7 @@
 
 #include "api/memory_model.h"
 #include "api/params.h"
+#include "in_process_daemon.h"
 #include "server/daemon.h"
 #include "subprocess.h"
 #include "test_stl.h"
@@ -38,48 +39,12 @@ using Json = nlohmann::json;
 
 constexpr std::uint64_t kMiB = std::uint64_t{1} << 20;
 
-std::string read_file(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+using test::read_file;
 
 const std::string& fandisk() {
   static const std::string bytes = read_file(fs::path(STLREFINE_EXAMPLES_DIR) / "fandisk.stl");
   return bytes;
 }
-
-// A daemon running on its own thread for one test.
-class RunningDaemon {
- public:
-  explicit RunningDaemon(DaemonConfig config) {
-    std::signal(SIGPIPE, SIG_IGN);
-    daemon_ = std::make_unique<Daemon>(std::move(config));
-    port_ = daemon_->bind("127.0.0.1", 0);
-    thread_ = std::thread([this] { daemon_->run(); });
-    httplib::Client c = client();
-    for (int i = 0; i < 200; ++i) {
-      if (auto r = c.Get("/healthz"); r && r->status == 200) break;
-      std::this_thread::sleep_for(10ms);
-    }
-  }
-  ~RunningDaemon() {
-    daemon_->stop();
-    thread_.join();
-  }
-  httplib::Client client() const {
-    httplib::Client c("127.0.0.1", port_);
-    c.set_read_timeout(60, 0);
-    return c;
-  }
-  Daemon& daemon() { return *daemon_; }
-
- private:
-  std::unique_ptr<Daemon> daemon_;
-  std::thread thread_;
-  int port_ = 0;
-};
 
 fs::path fresh_dir(const std::string& name) {
   const fs::path dir =
@@ -148,7 +113,7 @@ Json wait_for_job(httplib::Client& c, const std::string& location,
 
 TEST(MemoryBudgetRoute, ARequestThatCanNeverFitIs422NamingTheParameter) {
   const fs::path dir = fresh_dir("never");
-  RunningDaemon d(config_with(256 * kMiB, dir));
+  test::InProcessDaemon d(config_with(256 * kMiB, dir));
   const std::uint64_t capacity = d.daemon().memory_budget().capacity();
   ASSERT_EQ(capacity, 256 * kMiB - kDaemonReserve);
   ASSERT_GT(predicted_refine("levels=4"), capacity);
@@ -190,7 +155,7 @@ TEST(MemoryBudgetRoute, ARequestThatCanNeverFitIs422NamingTheParameter) {
 }
 
 TEST(MemoryBudgetRoute, ARequestThatFitsOnlyAloneGets503WithRetryAfter) {
-  RunningDaemon d(config_with(512 * kMiB));
+  test::InProcessDaemon d(config_with(512 * kMiB));
   MemoryBudget& budget = d.daemon().memory_budget();
   const std::uint64_t needed = predicted_refine("levels=2");
   ASSERT_LT(needed, budget.capacity());
@@ -220,7 +185,7 @@ TEST(MemoryBudgetRoute, ARequestThatFitsOnlyAloneGets503WithRetryAfter) {
 
 TEST(MemoryBudgetRoute, AJobWaitsForMemoryAndThenRuns) {
   const fs::path dir = fresh_dir("wait");
-  RunningDaemon d(config_with(512 * kMiB, dir));
+  test::InProcessDaemon d(config_with(512 * kMiB, dir));
   MemoryBudget& budget = d.daemon().memory_budget();
   httplib::Client c = d.client();
   // Room for the upload, not for the job.
@@ -246,7 +211,7 @@ TEST(MemoryBudgetRoute, AJobWaitsForMemoryAndThenRuns) {
 
 TEST(MemoryBudgetRoute, AJobUploadIsReservedToo) {
   const fs::path dir = fresh_dir("upload");
-  RunningDaemon d(config_with(256 * kMiB, dir));
+  test::InProcessDaemon d(config_with(256 * kMiB, dir));
   MemoryBudget& budget = d.daemon().memory_budget();
   httplib::Client c = d.client();
   {
@@ -268,7 +233,7 @@ TEST(MemoryBudgetRoute, AJobUploadIsReservedToo) {
 TEST(RequestDeadline, CancelsASynchronousRequestWith504) {
   DaemonConfig config = config_with(4096 * kMiB);
   config.request_deadline = 1ms;  // far below the seconds fandisk at 4 levels takes
-  RunningDaemon d(config);
+  test::InProcessDaemon d(config);
   httplib::Client c = d.client();
   const Json j = problem_of(post(c, "/v1/refine?levels=4", fandisk()), 504, "deadline-exceeded");
   EXPECT_EQ(j.value("reason", ""), "deadline_exceeded");
@@ -285,7 +250,7 @@ TEST(RequestDeadline, AJobEndsFailedWithDeadlineExceeded) {
   const fs::path dir = fresh_dir("deadline");
   DaemonConfig config = config_with(4096 * kMiB, dir);
   config.request_deadline = 1ms;
-  RunningDaemon d(config);
+  test::InProcessDaemon d(config);
   httplib::Client c = d.client();
   auto r = post(c, "/v1/jobs?levels=4", fandisk());
   ASSERT_TRUE(r);
@@ -305,7 +270,7 @@ TEST(RequestDeadline, AJobEndsFailedWithDeadlineExceeded) {
 TEST(RequestDeadline, WorkWithinTheDeadlineIsUntouched) {
   DaemonConfig config = config_with(4096 * kMiB);
   config.request_deadline = 600s;
-  RunningDaemon d(config);
+  test::InProcessDaemon d(config);
   httplib::Client c = d.client();
   auto r = post(c, "/v1/refine?levels=1", fandisk());
   ASSERT_TRUE(r);

@@ -3,6 +3,7 @@
 #include "test_stl.h"
 
 #include <cstring>
+#include <fstream>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -74,6 +75,13 @@ bool corners_preserved(const std::vector<Triangle>& input, const std::vector<Tri
     for (const Corner& c : t)
       if (!have.count(bits(c))) return false;
   return true;
+}
+
+std::string read_file(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
 }
 
 }  // namespace stlrefine::test

@@ -6,6 +6,7 @@
 
 #include <array>
 #include <cstdint>
+#include <filesystem>
 #include <optional>
 #include <span>
 #include <string>
@@ -27,6 +28,9 @@ std::string ascii_stl(const std::vector<Triangle>& triangles);
 //! The facets of a binary STL. \throw std::runtime_error unless size == 84 + 50 n.
 std::vector<Triangle> read_binary_stl(std::span<const char> bytes);
 std::vector<Triangle> read_binary_stl(const std::string& bytes);
+
+//! The bytes of a file as they are (empty when it cannot be read).
+std::string read_file(const std::filesystem::path& path);
 
 //! True when every corner of `input` occurs bit-identically among the corners of `output`.
 bool corners_preserved(const std::vector<Triangle>& input, const std::vector<Triangle>& output);
