@@ -32,15 +32,16 @@ class CancelScope {
   const std::atomic<bool>* previous_;
 };
 
-//! Runs fn(i) for i in [0, n) on the TBB pool (the caller's task arena decides how many
-//! threads). Small ranges run inline: spawning costs more than it saves.
+//! Runs fn(begin, end) over consecutive chunks covering [0, n) on the TBB pool (the
+//! caller's task arena decides how many threads), for loops that set up per-chunk state.
+//! Small ranges run inline as one chunk: spawning costs more than it saves.
 //! Under a CancelScope a raised flag skips the remaining chunks and throws
 //! Error(Cancelled) here, in the calling thread.
 template <class Fn>
-void parallel_for_each_index(std::size_t n, Fn&& fn) {
+void parallel_for_each_range(std::size_t n, Fn&& fn) {
   constexpr std::size_t kGrain = 4096;
   if (n < kGrain) {
-    for (std::size_t i = 0; i < n; ++i) fn(i);
+    fn(std::size_t{0}, n);
     return;
   }
   const std::atomic<bool>* cancel = detail::current_cancel_flag;
@@ -48,9 +49,17 @@ void parallel_for_each_index(std::size_t n, Fn&& fn) {
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, kGrain),
                     [&](const tbb::blocked_range<std::size_t>& r) {
                       if (cancelled()) return;
-                      for (std::size_t i = r.begin(); i != r.end(); ++i) fn(i);
+                      fn(r.begin(), r.end());
                     });
   if (cancelled()) throw Error(ErrorCode::Cancelled, "cancelled", "cancelled");
+}
+
+//! Runs fn(i) for i in [0, n), chunked and cancelled as parallel_for_each_range.
+template <class Fn>
+void parallel_for_each_index(std::size_t n, Fn&& fn) {
+  parallel_for_each_range(n, [&](std::size_t begin, std::size_t end) {
+    for (std::size_t i = begin; i != end; ++i) fn(i);
+  });
 }
 
 }  // namespace stlrefine

@@ -1212,24 +1212,6 @@ bool batch_crease_vertex(const Mesh& m, const Features& f, VertexId v, const Est
   return true;
 }
 
-// parallel_for_each_index's partition and cancellation, handing each task its range.
-template <class Fn>
-void parallel_for_each_range(std::size_t n, Fn&& fn) {
-  constexpr std::size_t kGrain = 4096;
-  if (n < kGrain) {
-    fn(std::size_t{0}, n);
-    return;
-  }
-  const std::atomic<bool>* cancel = detail::current_cancel_flag;
-  auto cancelled = [cancel] { return cancel && cancel->load(std::memory_order_relaxed); };
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, kGrain),
-                    [&](const tbb::blocked_range<std::size_t>& r) {
-                      if (cancelled()) return;
-                      fn(r.begin(), r.end());
-                    });
-  if (cancelled()) throw Error(ErrorCode::Cancelled, "cancelled", "cancelled");
-}
-
 }  // namespace
 
 void set_lsf_baseline_kernels(bool baseline_only) {
