@@ -10,6 +10,8 @@
 #include <new>
 #include <vector>
 
+#include "core/mesh/array_pool.h"
+
 namespace stlrefine {
 
 //! Asks for transparent huge pages on the 2 MiB-aligned interior of [p, p + bytes). A hint:
@@ -24,7 +26,9 @@ inline void advise_huge_pages(const void* p, std::size_t bytes) {
 
 //! Allocator for the mesh's large arrays. Refinement is bound by first-touch page faults
 //! (each level allocates hundreds of MB afresh); asking for transparent huge pages cuts
-//! the faults 512-fold and more than doubles throughput on the benchmark machine.
+//! the faults 512-fold and more than doubles throughput on the benchmark machine. Arrays
+//! of 2 MiB and more get huge pages of their own; from 32 KiB up they come from the
+//! array pool's huge pages, which the process keeps (see array_pool.h).
 //! Elements are default-initialised, not value-initialised, so resize() does not zero
 //! memory that is about to be overwritten.
 template <class T>
@@ -39,7 +43,10 @@ struct HugePageAllocator {
   T* allocate(std::size_t n) {
     if (n > static_cast<std::size_t>(-1) / sizeof(T)) throw std::bad_array_new_length();
     const std::size_t bytes = n * sizeof(T);
-    if (bytes < kHugePage) return static_cast<T*>(::operator new(bytes));
+    if (bytes < kHugePage) {
+      if (void* pooled = array_pool::allocate(bytes)) return static_cast<T*>(pooled);
+      return static_cast<T*>(::operator new(bytes));
+    }
     const std::size_t rounded = (bytes + kHugePage - 1) / kHugePage * kHugePage;
     void* p = std::aligned_alloc(kHugePage, rounded);
     if (!p) throw std::bad_alloc();
@@ -47,10 +54,11 @@ struct HugePageAllocator {
     return static_cast<T*>(p);
   }
   void deallocate(T* p, std::size_t n) noexcept {
-    if (n * sizeof(T) < kHugePage)
-      ::operator delete(p);
-    else
+    const std::size_t bytes = n * sizeof(T);
+    if (bytes >= kHugePage)
       std::free(p);
+    else if (!array_pool::deallocate(p, bytes))
+      ::operator delete(p);
   }
   template <class U, class... Args>
   void construct(U* p, Args&&... args) {
