@@ -25,12 +25,13 @@
 namespace stlrefine::array_pool {
 namespace {
 
-// Size classes: 32 KiB times 1, 1.5, 2, 3, 4, ... up to a whole slab. Every class is a
-// multiple of 16 KiB, so blocks carved one after another from a 2 MiB-aligned slab are
-// 16 KiB-aligned, and a slab's tail that fits no request is < 32 KiB.
+// Size classes: 4, 8, 12, 16, 24, 32, 48, ... KiB up to a whole slab. Every class is a
+// multiple of 4 KiB, so blocks carved one after another from a 2 MiB-aligned slab are
+// page-aligned, and a slab's tail that fits no request is < 4 KiB.
 constexpr std::size_t kKiB = 1024;
-constexpr std::array<std::size_t, 13> kClassBytes{
-    32 * kKiB,  48 * kKiB,  64 * kKiB,  96 * kKiB,   128 * kKiB,  192 * kKiB, 256 * kKiB,
+constexpr std::array<std::size_t, 18> kClassBytes{
+    4 * kKiB,   8 * kKiB,   12 * kKiB,  16 * kKiB,   24 * kKiB,   32 * kKiB,
+    48 * kKiB,  64 * kKiB,  96 * kKiB,  128 * kKiB,  192 * kKiB,  256 * kKiB,
     384 * kKiB, 512 * kKiB, 768 * kKiB, 1024 * kKiB, 1536 * kKiB, 2048 * kKiB};
 static_assert(kClassBytes.front() == kMinBytes && kClassBytes.back() == kSlabBytes);
 

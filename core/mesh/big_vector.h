@@ -27,7 +27,7 @@ inline void advise_huge_pages(const void* p, std::size_t bytes) {
 //! Allocator for the mesh's large arrays. Refinement is bound by first-touch page faults
 //! (each level allocates hundreds of MB afresh); asking for transparent huge pages cuts
 //! the faults 512-fold and more than doubles throughput on the benchmark machine. Arrays
-//! of 2 MiB and more get huge pages of their own; from 32 KiB up they come from the
+//! of 2 MiB and more get huge pages of their own; from 4 KiB up they come from the
 //! array pool's huge pages, which the process keeps (see array_pool.h).
 //! Elements are default-initialised, not value-initialised, so resize() does not zero
 //! memory that is about to be overwritten.
