@@ -14,6 +14,7 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -57,9 +58,8 @@ struct Options {
   double idle = 0.85;
   int idle_wait = 180;
   fs::path tmp_dir = "/tmp/stlrefine_bench";
-  fs::path warmup_mesh;  //!< written into tmp_dir at start
-  //! Also warm up on this mesh (after the octahedron): the octahedron's edges are all sharp
-  //! at 35°, so it leaves our smooth-vertex code paths cold (empty: octahedron only).
+  std::vector<fs::path> warmup_meshes;  //!< written into tmp_dir at start
+  //! Also warm up on this mesh (relative to mesh_dir), after the built-in ones.
   std::string warmup_extra;
 };
 
@@ -256,30 +256,59 @@ fs::path resolve_input(const Options& opt, const std::string& name, std::string&
   return target;
 }
 
-//! A closed octahedron (8 facets) as binary STL: every job runs on it once, untimed, before
-//! its measured run, so thread pools, code pages and lazy symbols are not timed.
-fs::path write_warmup_mesh(const fs::path& dir) {
-  fs::create_directories(dir);
-  const fs::path path = dir / "warmup_octahedron.stl";
-  const float v[6][3] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
-  const int f[8][3] = {{0, 2, 4}, {2, 1, 4}, {1, 3, 4}, {3, 0, 4},
-                       {2, 0, 5}, {1, 2, 5}, {3, 1, 5}, {0, 3, 5}};
+//! Writes triangles as binary STL (normals zero: every reader recomputes them).
+void write_binary_stl(const fs::path& path, const std::vector<std::array<float, 3>>& vertices,
+                      const std::vector<std::array<int, 3>>& faces) {
   std::string bytes(80, ' ');
   bytes.replace(0, 22, "stlrefine_bench warmup");
   const auto put = [&](const void* data, std::size_t n) {
     bytes.append(static_cast<const char*>(data), n);
   };
-  const std::uint32_t count = 8;
+  const auto count = std::uint32_t(faces.size());
   put(&count, 4);
-  for (const auto& face : f) {
+  for (const auto& face : faces) {
     const float normal[3] = {0, 0, 0};
     put(normal, sizeof(normal));
-    for (const int corner : face) put(v[corner], sizeof(v[corner]));
+    for (const int corner : face) put(vertices[std::size_t(corner)].data(), 12);
     const std::uint16_t attributes = 0;
     put(&attributes, 2);
   }
   std::ofstream(path, std::ios::binary).write(bytes.data(), std::streamsize(bytes.size()));
-  return path;
+}
+
+//! The warm-up meshes: every job runs on each once, untimed, before its measured run, so
+//! thread pools, code pages, lazy symbols and the allocator's first memory are not timed.
+//! A closed octahedron (8 facets, every edge sharp at 35°: our crease paths) and a smooth
+//! torus (576 facets, dihedral angles 15° and 30°: our smooth-vertex paths, and arrays
+//! large enough for the array pool's first slab). The same for ours and the peers.
+std::vector<fs::path> write_warmup_meshes(const fs::path& dir) {
+  fs::create_directories(dir);
+  const fs::path octahedron = dir / "warmup_octahedron.stl";
+  write_binary_stl(
+      octahedron, {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}},
+      {{0, 2, 4}, {2, 1, 4}, {1, 3, 4}, {3, 0, 4}, {2, 0, 5}, {1, 2, 5}, {3, 1, 5}, {0, 3, 5}});
+  constexpr int kAround = 24, kTube = 12;
+  constexpr double kMajor = 2.0, kMinor = 0.7;
+  std::vector<std::array<float, 3>> vertices;
+  for (int i = 0; i < kAround; ++i) {
+    for (int j = 0; j < kTube; ++j) {
+      const double theta = 2 * M_PI * i / kAround, phi = 2 * M_PI * j / kTube;
+      const double ring = kMajor + kMinor * std::cos(phi);
+      vertices.push_back({float(ring * std::cos(theta)), float(ring * std::sin(theta)),
+                          float(kMinor * std::sin(phi))});
+    }
+  }
+  const auto at = [](int i, int j) { return (i % kAround) * kTube + j % kTube; };
+  std::vector<std::array<int, 3>> faces;  // counter-clockwise seen from outside
+  for (int i = 0; i < kAround; ++i) {
+    for (int j = 0; j < kTube; ++j) {
+      faces.push_back({at(i, j), at(i + 1, j), at(i + 1, j + 1)});
+      faces.push_back({at(i, j), at(i + 1, j + 1), at(i, j + 1)});
+    }
+  }
+  const fs::path torus = dir / "warmup_torus.stl";
+  write_binary_stl(torus, vertices, faces);
+  return {octahedron, torus};
 }
 
 //! Reads the whole file once so every reader below starts from a warm page cache.
@@ -450,16 +479,14 @@ Outcome measure_case(const Options& opt, const Maker& maker, const fs::path& pat
   wait_until_idle(opt);
   const Outcome outcome = run_in_child(
       [&] {
-        JobFactory warm_up = maker(opt.warmup_mesh);
-        if (!opt.warmup_extra.empty()) {
-          warm_up = [first = maker(opt.warmup_mesh),
-                     extra = maker(opt.mesh_dir / opt.warmup_extra)] {
-            std::vector<std::unique_ptr<Job>> jobs;
-            jobs.push_back(first());
-            jobs.push_back(extra());
-            return std::unique_ptr<Job>(std::make_unique<WarmUpSequence>(std::move(jobs)));
-          };
-        }
+        std::vector<JobFactory> warm_ups;
+        for (const fs::path& mesh : opt.warmup_meshes) warm_ups.push_back(maker(mesh));
+        if (!opt.warmup_extra.empty()) warm_ups.push_back(maker(opt.mesh_dir / opt.warmup_extra));
+        const JobFactory warm_up = [warm_ups] {
+          std::vector<std::unique_ptr<Job>> jobs;
+          for (const JobFactory& make : warm_ups) jobs.push_back(make());
+          return std::unique_ptr<Job>(std::make_unique<WarmUpSequence>(std::move(jobs)));
+        };
         return measure_job(maker(path), warm_up, prefault, opt.min_time, opt.max_runs);
       },
       opt.timeout);
@@ -778,7 +805,7 @@ void print_summary(std::ostream& out, const std::vector<InputResult>& inputs, co
 
 int run(Options opt, const std::string& command_line) {
   std::ostream& out = std::cout;
-  opt.warmup_mesh = write_warmup_mesh(opt.tmp_dir);
+  opt.warmup_meshes = write_warmup_meshes(opt.tmp_dir);
   out << "# stlrefine_bench\n\n";
   out << "Command: `" << command_line << "`\n\n";
   out << machine_markdown();
@@ -898,7 +925,7 @@ int main(int argc, char** argv) {
   app.add_option("--tmp-dir", tmp_dir, "Where .gz inputs are unpacked")->capture_default_str();
   app.add_option("--warmup-extra", opt.warmup_extra,
                  "Also warm up every job on this mesh (relative to mesh_dir), after the "
-                 "built-in octahedron, untimed");
+                 "built-in octahedron and torus, untimed");
   CLI11_PARSE(app, argc, argv);
   opt.mesh_dir = mesh_dir;
   opt.tmp_dir = tmp_dir;

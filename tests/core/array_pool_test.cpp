@@ -20,6 +20,14 @@
 
 #include "core/mesh/big_vector.h"
 
+#if defined(__SANITIZE_ADDRESS__)
+#define POOL_TEST_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define POOL_TEST_ASAN 1
+#endif
+#endif
+
 namespace stlrefine {
 namespace {
 
@@ -163,6 +171,19 @@ TEST(ArrayPool, ThreadsTakingAndReturningBlocksNeverShareOne) {
   for (auto& t : threads) t.join();
   for (int t = 0; t < kThreads; ++t) EXPECT_TRUE(ok[t]) << "thread " << t;
 }
+
+#ifdef POOL_TEST_ASAN
+// The sanitizer build must still see overruns and use-after-free in pooled arrays.
+TEST(ArrayPoolDeathTest, UnderAsanBytesPastTheRequestAndReturnedBlocksAreOffLimits) {
+  auto* p = static_cast<char*>(array_pool::allocate(10'000));  // a 12 KiB block
+  ASSERT_NE(p, nullptr);
+  volatile char* v = p;
+  v[9'999] = 1;
+  EXPECT_DEATH(v[10'000] = 1, "use-after-poison");
+  ASSERT_TRUE(array_pool::deallocate(p, 10'000));
+  EXPECT_DEATH(v[0] = 1, "use-after-poison");
+}
+#endif
 
 }  // namespace
 }  // namespace stlrefine
