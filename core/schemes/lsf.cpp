@@ -16,15 +16,8 @@
 #include "core/schemes/crease_rules.h"
 #include "core/schemes/lsf_fast_math.h"
 
-// 32-byte vectors (V4d) in the signatures of internal inline functions: GCC warns that
-// their ABI differs with and without AVX, which cannot matter for functions never called
-// across translation units built with different flags.
-#if defined(__clang__)
-#pragma clang diagnostic ignored "-Wunknown-warning-option"
-#endif
-#if defined(__GNUC__)
-#pragma GCC diagnostic ignored "-Wpsabi"
-#endif
+// -Wpsabi (32-byte vectors in internal signatures) is silenced by lsf_fast_math.h for its
+// includers.
 
 namespace stlrefine {
 
