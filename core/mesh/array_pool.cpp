@@ -41,18 +41,14 @@ int class_of(std::size_t bytes) {
 
 // ASan: a block is addressable only while handed out, and only its requested bytes, so the
 // sanitizer build still catches overruns and use-after-free in pooled arrays.
-void poison(void* p, std::size_t bytes) {
+void set_addressable(void* p, std::size_t bytes, bool addressable) {
 #ifdef STLREFINE_ASAN
-  ASAN_POISON_MEMORY_REGION(p, bytes);
+  if (addressable)
+    ASAN_UNPOISON_MEMORY_REGION(p, bytes);
+  else
+    ASAN_POISON_MEMORY_REGION(p, bytes);
 #else
-  (void)p, (void)bytes;
-#endif
-}
-void unpoison(void* p, std::size_t bytes) {
-#ifdef STLREFINE_ASAN
-  ASAN_UNPOISON_MEMORY_REGION(p, bytes);
-#else
-  (void)p, (void)bytes;
+  (void)p, (void)bytes, (void)addressable;
 #endif
 }
 
@@ -111,7 +107,7 @@ struct Pool {
       if (!reserve_for_slabs(slabs.size() + 1)) return nullptr;
       std::byte* slab = map_slab();
       if (!slab) return nullptr;
-      poison(slab, kSlabBytes);
+      set_addressable(slab, kSlabBytes, false);
       retire_current();
       slabs.insert(std::upper_bound(slabs.begin(), slabs.end(), std::uintptr_t(slab)),
                    std::uintptr_t(slab));
@@ -152,7 +148,7 @@ void* allocate(std::size_t bytes) noexcept {
   }
   ++p.stats.blocks_in_use;
   p.stats.bytes_in_use += kClassBytes[c];
-  unpoison(block, bytes);
+  set_addressable(block, bytes, true);
   return block;
 }
 
@@ -163,7 +159,7 @@ bool deallocate(void* block, std::size_t bytes) noexcept {
   std::lock_guard lock(p.mutex);
   if (!std::binary_search(p.slabs.begin(), p.slabs.end(), base)) return false;
   const auto c = std::size_t(class_of(bytes));
-  poison(block, kClassBytes[c]);
+  set_addressable(block, kClassBytes[c], false);
   p.free_blocks[c].push_back(block);  // capacity reserved when the slab was added
   --p.stats.blocks_in_use;
   p.stats.bytes_in_use -= kClassBytes[c];

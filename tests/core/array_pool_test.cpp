@@ -11,11 +11,9 @@
 #include <algorithm>
 #include <cstdint>
 #include <cstdlib>
-#include <cstring>
 #include <numeric>
 #include <random>
 #include <thread>
-#include <utility>
 #include <vector>
 
 #include "core/mesh/big_vector.h"
