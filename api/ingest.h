@@ -24,8 +24,9 @@ struct Ingested {
 };
 
 //! bytes -> read_stl -> weld -> build_mesh.
-//! \throw Error(MalformedStl) with byte offset or line; Error(NotTriangleMesh);
-//! Error(InvalidParameter) for a bad tolerance.
+//! \throw Error(MalformedStl) with byte offset or line; Error(NotTriangleMesh), with field
+//! "weld_tolerance" (reason "weld_collapsed") when the tolerance merged two corners of every
+//! triangle of a file that has a proper one; Error(InvalidParameter) for a bad tolerance.
 Ingested ingest_stl(std::span<const std::uint8_t> bytes, double weld_tolerance,
                     const StlReadOptions& options = {});
 

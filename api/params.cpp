@@ -212,6 +212,8 @@ SliceRequest parse_slice_params(const RawParams& params, const RequestLimits& li
       request.weld_tolerance = parse_weld_tolerance(value);
     }
   }
+  // Every layer is written, empty or not: its record counts against the point budget.
+  p.points_per_layer = slicer::empty_layer_points(request.slice.format);
   // The ranges live in the slicer (SliceParams::validate), which names the same fields.
   p.validate();
   return request;
@@ -288,6 +290,7 @@ RefineRequest parse_refine_params(const RawParams& params, const RequestLimits& 
                     "slice_format needs slice (the layer height in mm)");
     request.slice->params.threads = p.threads;
     request.slice->params.max_points = limits.max_slice_points;
+    request.slice->params.points_per_layer = slicer::empty_layer_points(request.slice->format);
     try {
       request.slice->params.validate();
     } catch (const Error& e) {

@@ -2,8 +2,13 @@
 // Copyright (c) 2026 stlrefine authors
 #include "server/metrics.h"
 
+#include <algorithm>
 #include <cstdio>
+#include <iterator>
 #include <sstream>
+#include <string_view>
+
+#include "core/schemes/scheme.h"
 
 namespace stlrefine::server {
 
@@ -22,7 +27,7 @@ std::string number(double v) {
   return text;
 }
 
-// Label values are our own route names, schemes and outcomes; escape anyway.
+// Label values come from fixed sets (see the metric_* functions); escape anyway.
 std::string label(const std::string& v) {
   std::string out;
   for (char c : v) {
@@ -36,14 +41,28 @@ std::string label(const std::string& v) {
   return out;
 }
 
+constexpr std::string_view kFixedRoutes[] = {"/",         "/healthz",         "/readyz",
+                                             "/metrics",  "/v1/openapi.json", "/v1/refine",
+                                             "/v1/slice", "/v1/info",         "/v1/jobs"};
+// What route_label returns besides the fixed routes.
+constexpr std::string_view kRouteTemplates[] = {"/v1/jobs/{id}", "/v1/jobs/{id}/{file}",
+                                                "/assets/{file}", "other"};
+
+template <class Range>
+bool one_of(const Range& range, std::string_view value) {
+  return std::find(std::begin(range), std::end(range), value) != std::end(range);
+}
+
+// A route label as passed in, or the label of a raw path: never a new value.
+std::string bounded_route(const std::string& route) {
+  if (one_of(kRouteTemplates, route)) return route;
+  return route_label(route);
+}
+
 }  // namespace
 
 std::string route_label(const std::string& path) {
-  static const char* const fixed[] = {"/",         "/healthz",         "/readyz",
-                                      "/metrics",  "/v1/openapi.json", "/v1/refine",
-                                      "/v1/slice", "/v1/info",         "/v1/jobs"};
-  for (const char* f : fixed)
-    if (path == f) return path;
+  if (one_of(kFixedRoutes, path)) return path;
   const std::string prefix = "/v1/jobs/";
   if (path.rfind(prefix, 0) == 0) {
     const std::string rest = path.substr(prefix.size());
@@ -53,18 +72,38 @@ std::string route_label(const std::string& path) {
   return "other";
 }
 
+std::string metric_method(const std::string& method) {
+  static constexpr std::string_view kMethods[] = {"GET", "HEAD", "POST", "DELETE", "OPTIONS"};
+  return one_of(kMethods, method) ? method : "other";
+}
+
+std::string metric_status(int status) {
+  return status >= 100 && status <= 599 ? std::to_string(status) : "other";
+}
+
+std::string metric_scheme(const std::string& scheme) {
+  return one_of(scheme_names(), scheme) ? scheme : "other";
+}
+
+std::string metric_outcome(const std::string& outcome) {
+  static constexpr std::string_view kOutcomes[] = {"queued", "running", "done", "failed",
+                                                   "cancelled"};
+  return one_of(kOutcomes, outcome) ? outcome : "other";
+}
+
 void Metrics::request(const std::string& route, const std::string& method, int status,
                       double seconds) {
+  const std::string route_value = bounded_route(route);
   std::lock_guard lock(mutex_);
-  ++requests_[{route, method, status}];
-  Histogram& h = request_seconds_[route];
+  ++requests_[{route_value, metric_method(method), metric_status(status)}];
+  Histogram& h = request_seconds_[route_value];
   observe(h.le, h.count, h.sum, kBuckets, seconds);
 }
 
 void Metrics::refinement(const std::string& scheme, const std::string& outcome, double seconds,
                          std::uint64_t faces_in, std::uint64_t faces_out) {
   std::lock_guard lock(mutex_);
-  Histogram& h = refine_[{scheme, outcome}];
+  Histogram& h = refine_[{metric_scheme(scheme), metric_outcome(outcome)}];
   observe(h.le, h.count, h.sum, kBuckets, seconds);
   faces_in_ += faces_in;
   faces_out_ += faces_out;
@@ -78,7 +117,7 @@ std::string Metrics::render(const Gauges& g) const {
   for (const auto& [key, n] : requests_) {
     const auto& [route, method, status] = key;
     out << "stlrefine_http_requests_total{route=\"" << label(route) << "\",method=\""
-        << label(method) << "\",status=\"" << status << "\"} " << n << "\n";
+        << label(method) << "\",status=\"" << label(status) << "\"} " << n << "\n";
   }
   auto histogram = [&](const std::string& name, const std::string& labels, const Histogram& h) {
     for (std::size_t i = 0; i < kBuckets.size(); ++i)

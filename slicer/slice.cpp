@@ -68,6 +68,7 @@ void SliceParams::validate() const {
   for (double h : heights) require_finite("heights", h, -kMaxAbsZ, kMaxAbsZ, " mm");
   require_in_range<std::size_t>("max_layers", max_layers, 1, 1'000'000);
   require_in_range<std::uint64_t>("max_points", max_points, 1, std::uint64_t{1} << 40);
+  require_in_range<std::uint64_t>("points_per_layer", points_per_layer, 0, std::uint64_t{1} << 20);
   require_in_range("threads", threads, 0, 256);
 }
 
@@ -94,10 +95,22 @@ SlicePlan plan_layers(const Mesh& mesh, const SliceParams& params) {
                  what + "; the limit is max_layers = " + std::to_string(params.max_layers))
         .with_field("max_layers");
   };
+  // Every layer is written, empty or not: n layers alone may be more output than allowed.
+  const auto check_layer_cost = [&](std::size_t n, const char* lever) {
+    if (params.points_per_layer == 0 || n * params.points_per_layer <= params.max_points) return;
+    throw Error(ErrorCode::BudgetExceeded, "point_budget",
+                std::to_string(n) + " layers cost " + std::to_string(n * params.points_per_layer) +
+                    " points before any contour (an empty layer is written as " +
+                    std::to_string(params.points_per_layer) +
+                    " points' worth of output in this format); the limit is max_points = " +
+                    std::to_string(params.max_points) + ": use " + lever)
+        .with_field("max_points");
+  };
 
   if (!params.heights.empty()) {
     if (params.heights.size() > params.max_layers)
       throw too_many(std::to_string(params.heights.size()) + " heights were given");
+    check_layer_cost(params.heights.size(), "fewer heights");
     plan.heights = params.heights;
     std::sort(plan.heights.begin(), plan.heights.end());
     const auto dup = std::adjacent_find(plan.heights.begin(), plan.heights.end());
@@ -128,6 +141,7 @@ SlicePlan plan_layers(const Mesh& mesh, const SliceParams& params) {
   while (n > 0 && layer_z(n - 1) > hi) --n;
   while (layer_z(n) <= hi) ++n;
   if (n > params.max_layers) throw too_many(describe(std::to_string(n)));
+  check_layer_cost(n, "a larger layer_height or a narrower z range (z_min, z_max)");
   plan.heights.resize(n);
   for (std::size_t k = 0; k < n; ++k) plan.heights[k] = layer_z(k);
   return plan;
@@ -352,11 +366,14 @@ SliceStats run(const Mesh& mesh, const SliceParams& params, const SlicePlan& pla
       crossings_part.local() += end[f] - first[f];
     });
     stats.crossings = crossings_part.combine(std::plus<>());
-    if (stats.crossings > params.max_points) {
-      throw Error(
-          ErrorCode::BudgetExceeded, "point_budget",
-          std::to_string(n_layers) + " layers would give " + std::to_string(stats.crossings) +
-              " contour points; the limit is max_points = " + std::to_string(params.max_points))
+    const std::uint64_t layer_cost = std::uint64_t{n_layers} * params.points_per_layer;
+    if (stats.crossings + layer_cost > params.max_points) {
+      std::string what = std::to_string(n_layers) + " layers would give " +
+                         std::to_string(stats.crossings) + " contour points";
+      if (layer_cost > 0)
+        what += " and cost " + std::to_string(layer_cost) + " more as layer records";
+      throw Error(ErrorCode::BudgetExceeded, "point_budget",
+                  what + "; the limit is max_points = " + std::to_string(params.max_points))
           .with_field("max_points");
     }
     if (started) started();

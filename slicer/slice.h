@@ -34,9 +34,15 @@ struct SliceParams {
   std::vector<double> heights;
   //! Refuse plans with more layers than this, before any work; [1, 1'000'000].
   std::size_t max_layers = 1'000'000;
-  //! Refuse before the contour pass when the output would exceed this many points (one per
-  //! triangle crossing a plane, counted exactly in a cheap pre-pass); [1, 2^40].
+  //! Refuse before the contour pass when the output would exceed this many points: one per
+  //! triangle crossing a plane (counted exactly in a cheap pre-pass), plus
+  //! `points_per_layer` for every layer, empty or not; [1, 2^40].
   std::uint64_t max_points = 200'000'000;
+  //! What one layer costs against max_points whatever it holds: an empty layer's record in
+  //! the output format, in that format's shortest points (slicer::empty_layer_points), so
+  //! that planes through nothing are not free. 0 = layers are free (slice() into memory);
+  //! write_slices charges at least its writer's cost. [0, 2^20].
+  std::uint64_t points_per_layer = 0;
   //! Worker threads, [0, 256]; 0 = every core.
   int threads = 0;
 
@@ -107,7 +113,9 @@ struct SlicePlan {
 
 //! Resolves params against the mesh. Validates params first.
 //! \throw Error(InvalidParameter) naming the field;
-//! Error(BudgetExceeded, field "max_layers") when the plan has more layers than allowed.
+//! Error(BudgetExceeded, field "max_layers") when the plan has more layers than allowed;
+//! Error(BudgetExceeded, "point_budget", field "max_points") when its layers alone cost
+//! more than max_points (layers x points_per_layer), before any height is stored.
 SlicePlan plan_layers(const Mesh& mesh, const SliceParams& params);
 
 //! Totals over a slice run.
@@ -115,7 +123,8 @@ struct SliceStats {
   std::size_t layers = 0;
   std::size_t outer_loops = 0, holes = 0, open_polylines = 0;
   std::uint64_t points = 0;
-  //! Triangle-plane crossings found by the pre-pass (the output point budget's measure).
+  //! Triangle-plane crossings found by the pre-pass (with layers x points_per_layer, the
+  //! output point budget's measure).
   std::uint64_t crossings = 0;
   std::size_t degenerate_loops = 0, reversed_loops = 0;
   double seconds = 0;

@@ -5,6 +5,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <string>
 #include <system_error>
@@ -91,13 +92,28 @@ std::unique_ptr<LayerWriter> make_writer(SliceFormat format, const WriterOptions
   throw Error(ErrorCode::Internal, "unknown_format", "unknown slice format");
 }
 
+std::uint64_t empty_layer_points(SliceFormat format) {
+  // The fewest bytes one more point adds (see the header).
+  std::uint64_t point_bytes = 4;
+  if (format == SliceFormat::Json) point_bytes = 6;
+  if (format == SliceFormat::CliBinary) point_bytes = 8;
+  Layer empty;
+  empty.index = 999'999;  // max_layers is at most 1'000'000
+  empty.z = -0.00012345678901234567;
+  std::string record;
+  make_writer(format)->layer(empty, record);
+  return (record.size() + point_bytes - 1) / point_bytes;
+}
+
 SliceStats write_slices(const Mesh& mesh, const SliceParams& params, const LayerWriter& writer,
                         const ByteSink& sink, const ProgressFn& progress,
                         const std::atomic<bool>* cancel) {
-  const SlicePlan plan = plan_layers(mesh, params);
+  SliceParams charged = params;
+  charged.points_per_layer = std::max(params.points_per_layer, empty_layer_points(writer.format()));
+  const SlicePlan plan = plan_layers(mesh, charged);
   std::string text;
   SliceStats stats = detail::run(
-      mesh, params, plan,
+      mesh, charged, plan,
       [&] {  // after the budget checks: nothing is written for a refused request
         writer.header(plan, text);
         sink(text);

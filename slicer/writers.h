@@ -66,11 +66,21 @@ class LayerWriter {
 //! \throw Error(InvalidParameter) when the options are out of range.
 std::unique_ptr<LayerWriter> make_writer(SliceFormat format, const WriterOptions& options = {});
 
+//! What one layer costs in `format` against SliceParams::max_points, whatever it holds: the
+//! bytes of an empty layer's record (with a 6-digit index and a 23-character height) over
+//! the fewest bytes one more contour point takes in that format (",[0,0]" in JSON, "L0 0"
+//! in SVG, ",0,0" in CLI, 8 bytes in binary CLI), rounded up: 20 for JSON, 42 for SVG, 8
+//! for CLI and 1 for binary CLI. A million empty SVG layers (140 MB) count as 42 million
+//! points, over the daemon's default cap.
+std::uint64_t empty_layer_points(SliceFormat format);
+
 //! Receives the output bytes in order; may throw to abort (the error propagates).
 using ByteSink = std::function<void(std::string_view bytes)>;
 
 //! Slices `mesh` and streams the encoded result to `sink`: header, every layer in order,
 //! footer. Memory stays bounded by the layers in flight, whatever the part's height.
+//! Each layer costs at least empty_layer_points(writer.format()) against max_points
+//! (params.points_per_layer when that is larger), checked before anything is written.
 //! \throw as slice(), plus whatever the sink throws.
 SliceStats write_slices(const Mesh& mesh, const SliceParams& params, const LayerWriter& writer,
                         const ByteSink& sink, const ProgressFn& progress = {},

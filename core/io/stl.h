@@ -22,8 +22,9 @@ const char* to_string(StlFormat format);
 //! Limits and choices for reading untrusted STL bytes.
 struct StlReadOptions {
   //! Bytes after the last facet of a binary file, fewer than one facet (1..49 bytes, e.g.
-  //! exporter padding). false (default) = MalformedStl "trailing_bytes"; true = ignore them
-  //! and count them in TriangleSoup::trailing_bytes.
+  //! exporter padding). false (default) = MalformedStl "trailing_bytes" (no field: its
+  //! message speaks of the file, since the HTTP API and the CLI do not offer this option);
+  //! true = ignore them and count them in TriangleSoup::trailing_bytes.
   //! Whole extra facets (50 bytes or more beyond the header count) are always
   //! "count_mismatch", whatever this says: reading only the announced facets would drop
   //! geometry silently, and the bureau would print a part with holes.

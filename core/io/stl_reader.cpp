@@ -305,12 +305,14 @@ bool plausible_facet_stream(std::span<const std::uint8_t> bytes) {
     if (rest != 0) implied += " and " + std::to_string(rest) + " extra bytes";
     throw malformed("count_mismatch", says + implied).at_byte(kHeaderBytes);
   }
-  throw malformed("trailing_bytes", std::to_string(size - expected) + " bytes after the last of " +
-                                        std::to_string(n) + " facets (from byte " +
-                                        std::to_string(expected) +
-                                        "); set allow_trailing_bytes to ignore them")
-      .at_byte(expected)
-      .with_field("allow_trailing_bytes");
+  // No field: the file is at fault, not a parameter. (StlReadOptions::allow_trailing_bytes
+  // is the library's opt-in; neither the HTTP API nor the CLI offers it.)
+  throw malformed("trailing_bytes",
+                  std::to_string(size - expected) + " stray bytes after the last of " +
+                      std::to_string(n) + " facets (from byte " + std::to_string(expected) +
+                      "): a binary STL ends with its last facet, so the file is padded or "
+                      "damaged; re-export it")
+      .at_byte(expected);
 }
 
 // ---------------------------------------------------------------------------------------

@@ -5,11 +5,14 @@
 #include <cstring>
 #include <limits>
 #include <span>
+#include <stdexcept>
 #include <string>
+#include <string_view>
 
 #include "api/pipeline.h"
 #include "api/problem.h"
 #include "core/error.h"
+#include "slicer/writers.h"
 #include "test_stl.h"
 
 namespace stlrefine::api {
@@ -134,6 +137,92 @@ TEST(ApiPipeline, InfoOfAnOpenMesh) {
   EXPECT_TRUE(j.at("mesh").at("genus").is_null());
   EXPECT_EQ(j.at("mesh").at("boundary_edges"), 3);
   EXPECT_EQ(j.at("mesh").at("boundary_loops"), 1);
+}
+
+// --- issue 16, item 8
+
+// A refinement or a slice must not start: progress is the first sign of work.
+const ProgressFn kNoWork = [](double, std::string_view stage) {
+  throw std::runtime_error("work started (" + std::string(stage) + ")");
+};
+
+RequestLimits daemon_limits() {
+  RequestLimits l;
+  l.max_slice_points = 20'000'000;  // stlrefined's --max-slice-points default
+  return l;
+}
+
+TEST(ApiPipeline, WeldToleranceThatMergesEveryTriangleIs422NamingIt) {
+  const std::string octahedron = test::binary_stl(test::octahedron_triangles());
+  InfoRequest info;
+  info.weld_tolerance = 1e308;  // every corner welds into the first
+  try {
+    run_info(bytes_of(octahedron), info);
+    FAIL() << "accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::NotTriangleMesh);
+    EXPECT_EQ(e.reason(), "weld_collapsed");
+    EXPECT_EQ(problem_from_error(e).field, "weld_tolerance");
+    EXPECT_NE(std::string(e.what()).find("every one of the 8 triangles (the part is 2 across)"),
+              std::string::npos)
+        << e.what();
+  }
+  // A file whose facets are all degenerate as stored is the file's fault, not the
+  // tolerance's: build_mesh's no_faces, as without a tolerance.
+  auto flat = test::octahedron_triangles();
+  for (auto& t : flat) t[1] = t[0];
+  info.weld_tolerance = 0.5;
+  try {
+    run_info(bytes_of(test::binary_stl(flat)), info);
+    FAIL() << "accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.reason(), "no_faces") << e.what();
+    EXPECT_EQ(e.field(), "");
+  }
+}
+
+TEST(ApiPipeline, EmptyLayersOfA134ByteTriangleAreRefusedBeforeAnyLayer) {
+  // A flat triangle, 134 bytes as a binary STL; a million planes between 0 and 100 mm: 140
+  // MB of empty SVG groups until empty layers counted against the point cap.
+  const test::Triangle flat = {{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}};
+  const std::string triangle = test::binary_stl({flat});
+  ASSERT_EQ(triangle.size(), 134u);
+  const SliceRequest r = parse_slice_params(
+      {{"layer_height", "0.0001"}, {"z_min", "0"}, {"z_max", "100"}, {"format", "svg"}},
+      daemon_limits());
+  try {
+    run_slice(bytes_of(triangle), r, kNoWork);
+    FAIL() << "accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::BudgetExceeded) << e.what();
+    const Problem p = problem_from_error(e);
+    EXPECT_EQ(p.status, 422);
+    EXPECT_EQ(p.field, "max_points");
+    EXPECT_EQ(p.title, "Point budget exceeded");
+  }
+  // Binary CLI layers are 6 bytes each: the same million fits the cap.
+  const SliceRequest cli = parse_slice_params(
+      {{"layer_height", "0.0001"}, {"z_min", "0"}, {"z_max", "100"}, {"format", "cli-binary"}},
+      daemon_limits());
+  EXPECT_EQ(cli.slice.params.points_per_layer, 1u);
+  EXPECT_EQ(r.slice.params.points_per_layer, slicer::empty_layer_points(slicer::SliceFormat::Svg));
+}
+
+TEST(ApiPipeline, RefineAndSliceRefusesEmptyLayerCostBeforeRefining) {
+  // A 100 mm tall triangle sliced at 0.1 um after a refinement: refused on the input's
+  // bounds, before any refinement work.
+  const test::Triangle facet = {{{0, 0, 0}, {1, 0, 0}, {0, 1, 100}}};
+  const std::string tall = test::binary_stl({facet});
+  const RefineRequest r = parse_refine_params(
+      {{"scheme", "loop"}, {"levels", "1"}, {"slice", "0.0001"}, {"slice_format", "svg"}},
+      daemon_limits());
+  try {
+    run_refine(bytes_of(tall), r, kNoWork);
+    FAIL() << "accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::BudgetExceeded) << e.what();
+    EXPECT_EQ(e.field(), "max_points");
+  }
 }
 
 }  // namespace

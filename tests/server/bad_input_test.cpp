@@ -260,6 +260,9 @@ TEST_F(BadInput, TrailingBytesAreRefusedAsDocumented) {
     SCOPED_TRACE(extra);
     const auto j = expect_malformed(gearwheel_ + std::string(extra, '\0'), "trailing_bytes");
     EXPECT_EQ(j.value("byte_offset", 0u), gearwheel_.size());
+    // Issue 16: no parameter of that name exists here; the detail speaks of the file.
+    EXPECT_FALSE(j.contains("field")) << j.dump();
+    EXPECT_EQ(j.dump().find("allow_trailing_bytes"), std::string::npos) << j.dump();
   }
   expect_malformed(gearwheel_ + std::string(50, '\0'), "count_mismatch");
   expect_malformed(gearwheel_ + std::string(1000, 'x'), "count_mismatch");

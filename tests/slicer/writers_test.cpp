@@ -11,11 +11,15 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <span>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
 
+#include "core/io/stl.h"
+#include "core/mesh/build_mesh.h"
 #include "core/refine.h"
 #include "tests/slicer/slicer_test_util.h"
 #include "tests/support/shapes.h"
@@ -403,6 +407,127 @@ TEST(WriteSlices, RefusedRequestWritesNothingAndLeavesNoFile) {
   const auto doc = nlohmann::json::parse(in);
   EXPECT_EQ(doc.at("layers").size(), 10u);
   std::filesystem::remove_all(dir);
+}
+
+// ------------------------------------------------- empty layers cost output (issue 16, item 8)
+
+constexpr SliceFormat kFormats[] = {SliceFormat::Json, SliceFormat::Svg, SliceFormat::CliAscii,
+                                    SliceFormat::CliBinary};
+
+// The fewest bytes one more contour point adds in each format (writers.h).
+std::size_t point_bytes(SliceFormat format) {
+  return format == SliceFormat::Json ? 6 : format == SliceFormat::CliBinary ? 8 : 4;
+}
+
+// One facet, as the 134-byte binary STL a client would upload, read and welded: the
+// triangle (0,0,0) (1,0,0) (0,1,top).
+Mesh single_triangle(float top) {
+  std::string bytes(80, 'x');
+  const std::uint32_t count = 1;
+  const float facet[12] = {0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, top};
+  bytes.append(reinterpret_cast<const char*>(&count), 4);
+  bytes.append(reinterpret_cast<const char*>(facet), sizeof facet);
+  bytes.append(2, '\0');
+  EXPECT_EQ(bytes.size(), 134u);
+  const std::span<const std::uint8_t> view(reinterpret_cast<const std::uint8_t*>(bytes.data()),
+                                           bytes.size());
+  return build_mesh(weld(read_stl(view))).mesh;
+}
+
+// A sink that refuses to grow past `limit` bytes: a request that should have been refused
+// up front fails fast instead of building a 140 MB string.
+struct CappedSink {
+  std::size_t limit;
+  std::string out;
+  void operator()(std::string_view bytes) {
+    out.append(bytes);
+    if (out.size() > limit)
+      throw std::runtime_error("the output passed " + std::to_string(limit) + " bytes");
+  }
+};
+
+TEST(WriteSlices, AMillionEmptySvgLayersOfOneTriangleAreRefusedBeforeAnyByte) {
+  // The reproduction: a flat 134-byte triangle, z from 0 to 100 mm at 0.1 um, under the
+  // daemon's default point cap. Today: 999,999 empty <g> groups, 140 MB.
+  const Mesh triangle = single_triangle(0);
+  slicer::SliceParams p = uniform(1e-4);
+  p.z_min = 0;
+  p.z_max = 100;
+  p.max_points = 20'000'000;
+  const auto writer = slicer::make_writer(SliceFormat::Svg);
+  CappedSink sink{1 << 20, {}};
+  try {
+    slicer::write_slices(triangle, p, *writer, [&](std::string_view b) { sink(b); });
+    ADD_FAILURE() << "accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::BudgetExceeded) << e.what();
+    EXPECT_EQ(e.field(), "max_points");
+    EXPECT_EQ(e.reason(), "point_budget");
+    EXPECT_NE(std::string(e.what()).find("1000000 layers"), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(sink.out.empty());
+  // The same through explicit heights: every layer counts, wherever it is.
+  slicer::SliceParams h;
+  for (int k = 0; k < 1000; ++k) h.heights.push_back(1 + k * 0.1);
+  h.max_points = 999 * slicer::empty_layer_points(SliceFormat::Svg);
+  EXPECT_EQ(error_of([&] {
+              slicer::write_slices(triangle, h, *writer, [&](std::string_view b) { sink(b); });
+            }),
+            "budget_exceeded:max_points");
+  EXPECT_TRUE(sink.out.empty());
+}
+
+TEST(WriteSlices, EachFormatChargesWhatItsEmptyLayersCost) {
+  // 2,000 planes over a flat triangle at z = 0: every layer empty, no contour point. The
+  // budget they need is exactly layers x empty_layer_points, refused one point below
+  // (nothing written), and what is then written fits in that many of the format's
+  // shortest points (plus header and footer).
+  const Mesh triangle = single_triangle(0);
+  for (const SliceFormat format : kFormats) {
+    SCOPED_TRACE(slicer::to_string(format));
+    const std::uint64_t per_layer = slicer::empty_layer_points(format);
+    EXPECT_GE(per_layer, 1u);
+    slicer::SliceParams p = uniform(0.01);
+    p.z_min = 0;
+    p.z_max = 20;
+    const std::uint64_t layers = 2000;
+    const auto writer = slicer::make_writer(format);
+    p.max_points = layers * per_layer - 1;
+    CappedSink refused{1 << 20, {}};
+    EXPECT_EQ(error_of([&] {
+                slicer::write_slices(triangle, p, *writer, [&](std::string_view b) { refused(b); });
+              }),
+              "budget_exceeded:max_points");
+    EXPECT_TRUE(refused.out.empty());
+
+    p.max_points = layers * per_layer;
+    CappedSink written{1 << 24, {}};
+    const slicer::SliceStats stats =
+        slicer::write_slices(triangle, p, *writer, [&](std::string_view b) { written(b); });
+    EXPECT_EQ(stats.layers, layers);
+    EXPECT_EQ(stats.crossings, 0u);
+    EXPECT_LE(written.out.size(), p.max_points * point_bytes(format) + 4096);
+    // The charge is not far above the cost either (heights here are short numbers).
+    EXPECT_GE(written.out.size(), p.max_points * point_bytes(format) / 4);
+  }
+}
+
+TEST(SliceParams, PointsPerLayerIsChargedByThePlanAndTheSweep) {
+  const Mesh triangle = single_triangle(10);
+  slicer::SliceParams p = uniform(1.0);  // 10 layers, each crossing the triangle once
+  p.points_per_layer = 7;
+  p.max_points = 69;
+  EXPECT_EQ(error_of([&] { slicer::plan_layers(triangle, p); }), "budget_exceeded:max_points");
+  p.max_points = 70;  // the plan fits; its 10 crossings do not
+  EXPECT_EQ(slicer::plan_layers(triangle, p).heights.size(), 10u);
+  bool called = false;
+  EXPECT_EQ(error_of([&] { slicer::slice(triangle, p, [&](Layer&&) { called = true; }); }),
+            "budget_exceeded:max_points");
+  EXPECT_FALSE(called);
+  p.max_points = 80;
+  EXPECT_EQ(slicer::slice_all(triangle, p).size(), 10u);
+  p.points_per_layer = (std::uint64_t{1} << 20) + 1;
+  EXPECT_EQ(error_of([&] { p.validate(); }), "invalid_parameter:points_per_layer");
 }
 
 TEST(Formats, NamesParseAndBadOnesNameTheField) {
