@@ -6,10 +6,12 @@
 // built with (Request has an extra member under OPENSSL): they come from the
 // httplib::httplib target (pkg-config cflags), never from here.
 #include <arpa/inet.h>
+#include <fcntl.h>
 #include <httplib.h>
 #include <netinet/in.h>
 #include <poll.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 
 #include <algorithm>
 #include <atomic>
@@ -106,17 +108,13 @@ class InlineTaskQueue : public httplib::TaskQueue {
   void shutdown() override {}
 };
 
-//! httplib::Server whose accepted sockets go to the FrontEnd instead of a pool thread, and
-//! whose request processing runs on a stream the FrontEnd has already read.
+//! httplib::Server used for binding and accepting only: its accepted sockets go to the
+//! FrontEnd, which reads requests and writes answers itself (the library's response writer
+//! stops mid-body once its accept loop has ended, and serves Range requests past the body).
 class HttpServer : public httplib::Server {
  public:
   std::function<void(socket_t)> on_accept;
 
-  //! The library's processing of one request (parse, route, handlers, answer, logger).
-  bool serve(httplib::Stream& stream) {
-    bool closed = false;
-    return process_request(stream, true, closed, nullptr);
-  }
   //! 0.11.4 listens with a backlog of 5 (CPPHTTPLIB_LISTEN_BACKLOG, built into the shared
   //! library); listen() again on the bound socket raises it.
   void widen_backlog() {
@@ -129,59 +127,6 @@ class HttpServer : public httplib::Server {
     on_accept(sock);
     return true;
   }
-};
-
-//! A connection whose request the FrontEnd has read: reads replay the head (the body is
-//! taken from FrontEnd::current() by the handlers, without a copy); writes go to the socket.
-class ConnectionStream : public httplib::Stream {
- public:
-  ConnectionStream(const ReadRequest& request, std::chrono::milliseconds write_timeout)
-      : request_(request), write_timeout_(write_timeout) {}
-
-  bool is_readable() const override { return read_ < request_.head.size(); }
-  bool is_writable() const override {
-    pollfd p{request_.fd, POLLOUT, 0};
-    return ::poll(&p, 1, static_cast<int>(write_timeout_.count())) > 0 &&
-           (p.revents & (POLLERR | POLLHUP)) == 0;
-  }
-  ssize_t read(char* ptr, std::size_t size) override {
-    const std::size_t n = std::min(size, request_.head.size() - read_);
-    std::memcpy(ptr, request_.head.data() + read_, n);
-    read_ += n;
-    return static_cast<ssize_t>(n);
-  }
-  ssize_t write(const char* ptr, std::size_t size) override {
-    for (;;) {
-      if (!is_writable()) return -1;
-      const ssize_t n = ::send(request_.fd, ptr, size, MSG_NOSIGNAL);
-      if (n >= 0 || (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)) return n;
-    }
-  }
-  void get_remote_ip_and_port(std::string& ip, int& port) const override {
-    ip = request_.remote_ip;
-    port = request_.remote_port;
-  }
-  void get_local_ip_and_port(std::string& ip, int& port) const override {
-    sockaddr_storage addr{};
-    socklen_t len = sizeof addr;
-    if (::getsockname(request_.fd, reinterpret_cast<sockaddr*>(&addr), &len) != 0) return;
-    char text[INET6_ADDRSTRLEN] = {};
-    const void* where =
-        addr.ss_family == AF_INET6
-            ? static_cast<const void*>(&reinterpret_cast<const sockaddr_in6*>(&addr)->sin6_addr)
-            : &reinterpret_cast<const sockaddr_in*>(&addr)->sin_addr;
-    ::inet_ntop(addr.ss_family, where, text, sizeof text);
-    ip = text;
-    port =
-        ntohs(addr.ss_family == AF_INET6 ? reinterpret_cast<const sockaddr_in6*>(&addr)->sin6_port
-                                         : reinterpret_cast<const sockaddr_in*>(&addr)->sin_port);
-  }
-  socket_t socket() const override { return request_.fd; }
-
- private:
-  const ReadRequest& request_;
-  std::chrono::milliseconds write_timeout_;
-  std::size_t read_ = 0;
 };
 
 enum class RouteKind {
@@ -237,21 +182,6 @@ bool method_allowed(const Route& route, const std::string& method) {
     allow.remove_prefix(comma + 1);
   }
   return false;
-}
-
-// The pre-routing handler and the logger of one request run on the same worker thread.
-thread_local std::chrono::steady_clock::time_point request_start{};
-
-void mark_request_start() {
-  request_start = std::chrono::steady_clock::now();
-}
-
-double request_seconds() {
-  if (request_start == std::chrono::steady_clock::time_point{}) return 0;
-  const double s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - request_start).count();
-  request_start = {};
-  return s;
 }
 
 std::string iso8601_now() {
@@ -344,10 +274,17 @@ void send_problem(Response& res, const api::Problem& problem) {
   res.set_content(api::problem_body(problem), api::kProblemContentType);
 }
 
+// RFC 9110 section 15 reason phrases.
 const char* reason_phrase(int status) {
   switch (status) {
     case 200:
       return "OK";
+    case 202:
+      return "Accepted";
+    case 206:
+      return "Partial Content";
+    case 304:
+      return "Not Modified";
     case 400:
       return "Bad Request";
     case 401:
@@ -358,14 +295,20 @@ const char* reason_phrase(int status) {
       return "Method Not Allowed";
     case 408:
       return "Request Timeout";
+    case 409:
+      return "Conflict";
+    case 410:
+      return "Gone";
     case 411:
       return "Length Required";
     case 413:
-      return "Payload Too Large";
+      return "Content Too Large";
     case 414:
       return "URI Too Long";
     case 415:
       return "Unsupported Media Type";
+    case 416:
+      return "Range Not Satisfiable";
     case 422:
       return "Unprocessable Content";
     case 431:
@@ -374,9 +317,71 @@ const char* reason_phrase(int status) {
       return "Internal Server Error";
     case 503:
       return "Service Unavailable";
+    case 504:
+      return "Gateway Timeout";
+    case 507:
+      return "Insufficient Storage";
     default:
       return status >= 500 ? "Server Error" : "Client Error";
   }
+}
+
+//! A byte range of an answer (RFC 9110 14.1.2).
+struct ByteRange {
+  enum class Kind { Whole, Partial, Unsatisfiable };
+  Kind kind = Kind::Whole;
+  std::uint64_t first = 0, last = 0;  // Partial: inclusive, inside the body
+};
+
+// A decimal number; saturates at the largest value (a last position past the body is
+// clamped anyway, a first position past it is unsatisfiable either way).
+std::optional<std::uint64_t> range_number(std::string_view text) {
+  if (text.empty() ||
+      !std::all_of(text.begin(), text.end(), [](char c) { return c >= '0' && c <= '9'; }))
+    return std::nullopt;
+  std::uint64_t value = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (ec == std::errc::result_out_of_range) return std::numeric_limits<std::uint64_t>::max();
+  if (ec != std::errc() || end != text.data() + text.size()) return std::nullopt;
+  return value;
+}
+
+//! The one range of `header` against a body of `length` bytes. A header that is not one
+//! well-formed byte range (another unit, bad syntax, several ranges) is ignored: the whole
+//! body is sent, as RFC 9110 allows. Nothing outside [0, length) is ever selected.
+ByteRange parse_byte_range(std::string_view header, std::uint64_t length) {
+  ByteRange whole;
+  constexpr std::string_view kUnit = "bytes=";
+  if (header.size() < kUnit.size() || lowercase(header.substr(0, kUnit.size())) != kUnit)
+    return whole;
+  std::string_view spec = header.substr(kUnit.size());
+  while (!spec.empty() && (spec.front() == ' ' || spec.front() == '\t')) spec.remove_prefix(1);
+  while (!spec.empty() && (spec.back() == ' ' || spec.back() == '\t')) spec.remove_suffix(1);
+  const std::size_t dash = spec.find('-');
+  if (dash == std::string_view::npos || spec.find(',') != std::string_view::npos) return whole;
+  const std::string_view first_text = spec.substr(0, dash), last_text = spec.substr(dash + 1);
+  ByteRange r;
+  if (first_text.empty()) {  // a suffix: the last N bytes
+    const std::optional<std::uint64_t> suffix = range_number(last_text);
+    if (!suffix) return whole;
+    if (*suffix == 0 || length == 0) return {ByteRange::Kind::Unsatisfiable, 0, 0};
+    r.first = length - std::min(*suffix, length);
+    r.last = length - 1;
+  } else {
+    const std::optional<std::uint64_t> first = range_number(first_text);
+    if (!first) return whole;
+    std::uint64_t last = std::numeric_limits<std::uint64_t>::max();
+    if (!last_text.empty()) {
+      const std::optional<std::uint64_t> given = range_number(last_text);
+      if (!given || *given < *first) return whole;  // invalid: ignored
+      last = *given;
+    }
+    if (*first >= length) return {ByteRange::Kind::Unsatisfiable, 0, 0};
+    r.first = *first;
+    r.last = std::min(last, length - 1);
+  }
+  r.kind = ByteRange::Kind::Partial;
+  return r;
 }
 
 //! A complete HTTP/1.1 answer the front end writes itself (one request per connection).
@@ -416,25 +421,36 @@ struct Daemon::Impl : FrontEndDelegate {
   void install();
   std::optional<api::Problem> precheck(const Request& req) const;
   api::Problem busy_problem(bool stopping) const;
-  //! The body for an answer httplib made itself (status set, body empty).
-  api::Problem library_problem(int status, const Request& req) const;
   //! Headers a problem's status calls for (Retry-After, Allow, WWW-Authenticate).
   httplib::Headers problem_headers(const api::Problem& problem) const;
   void respond(Response& res, const api::Problem& problem) const;
-  void compute(const Request& req, std::string_view body, Response& res, const Route& route);
+  //! The handlers. Large bodies go into `big` (a view kept alive by big.keep, or a file),
+  //! small ones into res.
+  void route(const Request& req, ReadRequest& read, Response& res, Answer& big, bool& ranges);
+  void compute(const Request& req, ReadRequest& read, Response& res, Answer& big,
+               const Route& route);
   void submit_job(const Request& req, std::string_view body, Response& res);
-  void job_item(const Request& req, Response& res);
-  void page(const Request& req, Response& res, std::string_view name) const;
+  void job_item(const Request& req, Response& res, Answer& big);
+  void page(const Request& req, Response& res, Answer& big, std::string_view name) const;
+  //! The answer the front end writes: the head from res, the body from res or big, one byte
+  //! range of it when `ranges` and the client asked; recorded when it is written.
+  Answer finish(const Request& req, Response& res, Answer big, bool ranges,
+                std::chrono::steady_clock::time_point accepted);
   //! /readyz: 200 with the slots, or the busy / shutting-down problem.
   std::pair<std::string, std::optional<api::Problem>> readiness() const;
   bool authorized(const Request& req) const;
-  //! Metrics and the access log line of one answer.
+  //! The tenant that owns the jobs this request may see (JobStore::tenant_of its API key);
+  //! empty without API keys.
+  std::string tenant(const Request& req) const;
+  //! Metrics and the access log line of one answer; `aborted` names why an answer was not
+  //! written in full (then logged with status 499, never as the status its head carried).
   void record(const std::string& method, const std::string& path, int status, std::size_t bytes,
-              double seconds, const std::string& id, const std::string& remote);
+              double seconds, const std::string& id, const std::string& remote,
+              const char* aborted = nullptr);
 
   // FrontEndDelegate
   Verdict decide(const RequestHead& head) override;
-  void serve(ReadRequest& request) override;
+  Answer serve(ReadRequest& request) override;
   std::string refusal(const RequestHead* head, int status, std::string_view slug,
                       std::string detail) override;
   //! A problem answer written by the front end, recorded like any other.
@@ -476,6 +492,7 @@ DaemonConfig checked(DaemonConfig c) {
     throw std::invalid_argument("max_faces must be in [1, 2^31)");
   if (c.read_timeout.count() < 1 || c.write_timeout.count() < 1)
     throw std::invalid_argument("timeouts must be at least 1 s");
+  if (c.min_transfer_rate < 1) throw std::invalid_argument("min_transfer_rate must be >= 1");
   if (c.max_slice_points < 1 || c.max_slice_points > (std::uint64_t{1} << 40))
     throw std::invalid_argument("max_slice_points must be in [1, 2^40]");
   if (c.retry_after_seconds < 0) throw std::invalid_argument("retry_after_seconds must be >= 0");
@@ -517,9 +534,11 @@ Daemon::Impl::Impl(DaemonConfig c)
   fo.workers = config.http_threads;
   fo.max_queued = 4 * config.http_threads;
   fo.max_connections = config.max_connections;
+  fo.max_connections_per_client = config.max_connections_per_client;
   fo.head_timeout = config.read_timeout;
-  fo.idle_timeout = config.read_timeout;
-  fo.write_timeout = config.write_timeout;
+  fo.body_window = config.read_timeout;
+  fo.answer_window = config.write_timeout;
+  fo.min_rate = config.min_transfer_rate;
   fo.worker_nice = config.compute_nice;
   front = std::make_unique<FrontEnd>(fo, *this);
   install();
@@ -658,7 +677,9 @@ api::Problem Daemon::Impl::memory_busy_problem(std::uint64_t predicted) const {
 
 httplib::Headers Daemon::Impl::problem_headers(const api::Problem& problem) const {
   httplib::Headers h;
-  if (problem.status == 503) h.emplace("Retry-After", std::to_string(config.retry_after_seconds));
+  // 507: space comes back as finished jobs expire.
+  if (problem.status == 503 || problem.status == 507)
+    h.emplace("Retry-After", std::to_string(config.retry_after_seconds));
   if (problem.status == 401) h.emplace("WWW-Authenticate", "Bearer");
   if (problem.status == 405 && problem.extensions.contains("allow"))
     h.emplace("Allow", problem.extensions["allow"].get<std::string>());
@@ -672,9 +693,12 @@ void Daemon::Impl::respond(Response& res, const api::Problem& problem) const {
 
 void Daemon::Impl::record(const std::string& method, const std::string& path, int status,
                           std::size_t bytes, double seconds, const std::string& id,
-                          const std::string& remote) {
+                          const std::string& remote, const char* aborted) {
   const std::string route = route_label(path);
-  metrics.request(route, method, status, seconds);
+  // 499 (as nginx logs a client that went away): the head's status was sent, the answer
+  // was not.
+  const int logged = aborted ? 499 : status;
+  metrics.request(route, method, logged, seconds);
   if (!config.access_log) return;
   nlohmann::ordered_json line;
   line["time"] = iso8601_now();
@@ -683,7 +707,11 @@ void Daemon::Impl::record(const std::string& method, const std::string& path, in
   line["method"] = method;
   line["path"] = shortened(path);
   line["route"] = route;
-  line["status"] = status;
+  line["status"] = logged;
+  if (aborted) {
+    line["aborted"] = aborted;
+    line["sent_status"] = status;
+  }
   line["bytes"] = bytes;
   line["ms"] = std::round(seconds * 1e4) / 10;
   log_line(line.dump(-1, ' ', true, nlohmann::json::error_handler_t::replace));
@@ -745,8 +773,7 @@ Verdict Daemon::Impl::decide(const RequestHead& head) {
     const std::string length = req.get_header_value("Content-Length");
     std::from_chars(length.data(), length.data() + length.size(), verdict.body_bytes);
     if (route->kind == RouteKind::Compute || route->kind == RouteKind::Submit) {
-      // The body is memory from now on (a job's until it is on disk): reserved before it is
-      // read.
+      // The body is memory from now on (a job's until it is on disk).
       if (verdict.body_bytes > memory.capacity()) {
         api::Problem p =
             api::make_problem(413, "payload-too-large",
@@ -758,25 +785,178 @@ Verdict Daemon::Impl::decide(const RequestHead& head) {
         verdict.response = front_answer(&req, p);
         return verdict;
       }
-      std::optional<MemoryBudget::Reservation> held = memory.try_reserve(verdict.body_bytes);
-      if (!held) {
-        verdict.kind = Verdict::Kind::Answer;
-        verdict.response = front_answer(&req, memory_busy_problem(verdict.body_bytes));
-        return verdict;
-      }
-      verdict.hold = std::make_shared<MemoryBudget::Reservation>(std::move(*held));
+      // Memory is reserved as the body arrives (the front end asks before its buffer grows),
+      // so sockets that declare large bodies and trickle them cannot pin the budget.
+      std::optional<MemoryBudget::Reservation> held = memory.try_reserve(0);
+      auto reservation = std::make_shared<MemoryBudget::Reservation>(std::move(*held));
+      verdict.hold = reservation;
+      verdict.reserve_body = [this, reservation, req](std::uint64_t bytes) -> std::string {
+        if (reservation->grow_to(bytes)) return {};
+        return front_answer(&req, memory_busy_problem(bytes));
+      };
     }
   }
   return verdict;
 }
 
-void Daemon::Impl::serve(ReadRequest& request) {
-  ConnectionStream stream(request, std::chrono::milliseconds(config.write_timeout));
-  http.serve(stream);
+Answer Daemon::Impl::serve(ReadRequest& read) {
+  const Request req = to_request(read.head);
+  Response res;
+  Answer big;
+  bool ranges = false;
+  try {
+    route(req, read, res, big, ranges);
+    if (res.status == -1) res.status = 200;  // httplib::Response starts without one
+  } catch (...) {
+    std::string what = "unknown exception";
+    try {
+      throw;
+    } catch (const std::exception& e) {
+      what = e.what();
+    } catch (...) {
+    }
+    log_line("stlrefined: internal error on " + req.method + " " + shortened(req.path) + ": " +
+             what);
+    // Whatever the handler had set (a report header, a body) goes: the client gets only the
+    // generic problem.
+    res = Response();
+    big = Answer();
+    ranges = false;
+    send_problem(res, api::make_problem(500, "internal", "an internal error occurred"));
+  }
+  return finish(req, res, std::move(big), ranges, read.accepted);
 }
 
-void Daemon::Impl::compute(const Request& req, std::string_view raw_body, Response& res,
+void Daemon::Impl::route(const Request& req, ReadRequest& read, Response& res, Answer& big,
+                         bool& ranges) {
+  // decide() ran the same checks on the event loop; they run again here because the state
+  // may have changed while the body arrived (every slot taken, shutting down).
+  if (std::optional<api::Problem> problem = precheck(req)) return respond(res, *problem);
+  const Route& r = *find_route(req.path);  // precheck found it
+  switch (r.kind) {
+    case RouteKind::Compute:
+      return compute(req, read, res, big, r);
+    case RouteKind::Submit:
+      return submit_job(req, read.body, res);
+    case RouteKind::JobItem:
+      ranges = true;
+      return job_item(req, res, big);
+    case RouteKind::Page: {
+      ranges = true;
+      if (req.path == "/") return page(req, res, big, "index.html");
+      const std::string name = req.path.substr(std::string_view("/assets/").size());
+      if (name.find('/') != std::string::npos)
+        return respond(res, api::make_problem(404, "not-found", "no route " + shortened(req.path)));
+      return page(req, res, big, name);
+    }
+    case RouteKind::Plain:
+      break;
+  }
+  if (req.path == "/v1/openapi.json") return res.set_content(openapi_document(), kJsonContentType);
+  if (req.path == "/metrics") {
+    Metrics::Gauges g;
+    g.compute_slots = slots.capacity();
+    g.compute_slots_free = slots.available();
+    g.memory_budget_bytes = memory.budget();
+    g.memory_reserved_bytes = memory.reserved();
+    if (jobs) {
+      g.jobs_queued = jobs->queued();
+      g.jobs_running = jobs->running();
+    }
+    return res.set_content(metrics.render(g), "text/plain; version=0.0.4");
+  }
+  // /healthz and /readyz: normally answered by decide() on the event loop.
+  if (config.test_hook) config.test_hook(r.path);
+  if (req.path == "/readyz") {
+    auto [ready, busy] = readiness();
+    if (busy) return respond(res, *busy);
+    return res.set_content(ready, kJsonContentType);
+  }
+  res.set_content("{\"status\":\"ok\"}\n", kJsonContentType);
+}
+
+Answer Daemon::Impl::finish(const Request& req, Response& res, Answer big, bool ranges,
+                            std::chrono::steady_clock::time_point accepted) {
+  if (!res.has_header("X-Request-Id")) res.set_header("X-Request-Id", request_id(req));
+  const bool small = big.body.empty() && big.file < 0;
+  const std::uint64_t length = small ? res.body.size() : big.body.size() + big.file_length;
+  std::uint64_t first = 0, count = length;
+  if (ranges) {
+    res.set_header("Accept-Ranges", "bytes");
+    // If-Range: the range only applies to the representation the client has (its ETag).
+    const std::string if_range = req.get_header_value("If-Range");
+    const bool same =
+        if_range.empty() || (res.has_header("ETag") && if_range == res.get_header_value("ETag"));
+    if (res.status == 200 && req.method == "GET" && req.has_header("Range") && same) {
+      const ByteRange range = parse_byte_range(req.get_header_value("Range"), length);
+      if (range.kind == ByteRange::Kind::Partial) {
+        res.status = 206;
+        res.set_header("Content-Range", "bytes " + std::to_string(range.first) + "-" +
+                                            std::to_string(range.last) + "/" +
+                                            std::to_string(length));
+        first = range.first;
+        count = range.last - range.first + 1;
+      } else if (range.kind == ByteRange::Kind::Unsatisfiable) {
+        const std::string type = res.get_header_value("Content-Type");
+        Response refused;
+        refused.set_header("X-Request-Id", res.get_header_value("X-Request-Id"));
+        refused.set_header("Content-Range", "bytes */" + std::to_string(length));
+        api::Problem p =
+            api::make_problem(416, "range-not-satisfiable",
+                              "the range is outside the " + std::to_string(length) + "-byte body");
+        p.field = "Range";
+        send_problem(refused, p);
+        res = std::move(refused);
+        big = Answer();
+        return finish(req, res, std::move(big), false, accepted);
+      }
+    }
+  }
+  // The head: status line, the handler's fields, our framing.
+  std::string head =
+      "HTTP/1.1 " + std::to_string(res.status) + " " + reason_phrase(res.status) + "\r\n";
+  const bool not_modified = res.status == 304;  // keeps the length the 200 would have had
+  for (const auto& [name, value] : res.headers) {
+    if (!not_modified && lowercase(name) == "content-length") continue;
+    head += name + ": " + value + "\r\n";
+  }
+  if (!not_modified) head += "Content-Length: " + std::to_string(count) + "\r\n";
+  head += "Connection: close\r\n\r\n";
+  const bool head_only = req.method == "HEAD" || not_modified;
+  Answer out;
+  if (head_only) {
+    out.head = std::move(head);
+  } else if (small) {
+    out.head = std::move(head);
+    out.head.append(res.body, static_cast<std::size_t>(first), static_cast<std::size_t>(count));
+  } else {
+    out = std::move(big);
+    out.head = std::move(head);
+    if (out.file >= 0) {
+      out.file_offset += first;
+      out.file_length = count;
+    } else {
+      out.body = out.body.substr(static_cast<std::size_t>(first), static_cast<std::size_t>(count));
+    }
+  }
+  const std::uint64_t body_bytes = head_only ? 0 : count;
+  out.done = [this, method = req.method, path = req.path, status = res.status,
+              id = res.get_header_value("X-Request-Id"), remote = req.remote_addr, accepted,
+              head_bytes = out.head.size() - (small && !head_only ? count : 0),
+              body_bytes](const AnswerEnd& end) {
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - accepted).count();
+    if (end.outcome == AnswerEnd::Outcome::Complete)
+      return record(method, path, status, body_bytes, seconds, id, remote);
+    const std::uint64_t sent = end.bytes_sent > head_bytes ? end.bytes_sent - head_bytes : 0;
+    record(method, path, status, sent, seconds, id, remote, to_string(end.outcome));
+  };
+  return out;
+}
+
+void Daemon::Impl::compute(const Request& req, ReadRequest& read, Response& res, Answer& big,
                            const Route& route) {
+  const std::string_view raw_body = read.body;
   if (config.test_hook) config.test_hook(route.path);
   if (config.test_faults) {
     const std::string fault = req.get_header_value("X-Stlrefine-Test-Fault");
@@ -806,10 +986,8 @@ void Daemon::Impl::compute(const Request& req, std::string_view raw_body, Respon
 
     // Memory, before any work: the prediction must fit what one request may have (422) and
     // next to the running requests (503). decide() reserved the body; grow that.
-    const ReadRequest* connection = FrontEnd::current();
     std::shared_ptr<MemoryBudget::Reservation> reservation =
-        connection ? std::static_pointer_cast<MemoryBudget::Reservation>(connection->hold)
-                   : nullptr;
+        std::static_pointer_cast<MemoryBudget::Reservation>(read.hold);
     if (!reservation) {
       std::optional<MemoryBudget::Reservation> r = memory.try_reserve(0);
       reservation = std::make_shared<MemoryBudget::Reservation>(std::move(*r));
@@ -836,18 +1014,16 @@ void Daemon::Impl::compute(const Request& req, std::string_view raw_body, Respon
     };
 
     // Cancelled when the client hangs up, when the deadline passes (or on a second SIGTERM).
-    ticket = watch.watch(connection ? connection->fd : -1, config.request_deadline);
+    ticket = watch.watch(read.fd, config.request_deadline);
     const std::atomic<bool>* cancel = &ticket->cancel;
 
-    // Large answers are handed over by a provider, not copied into res.body: a refined STL
-    // can be a GiB.
-    auto provide = [&res](std::string bytes, const char* type) {
-      auto data = std::make_shared<std::string>(std::move(bytes));
-      res.set_content_provider(
-          data->size(), type,
-          [data](std::size_t offset, std::size_t length, httplib::DataSink& sink) {
-            return sink.write(data->data() + offset, length);
-          });
+    // Large answers are handed to the front end as they are, not copied: a refined STL can
+    // be a GiB.
+    auto provide = [&res, &big](std::string bytes, const char* type) {
+      auto data = std::make_shared<const std::string>(std::move(bytes));
+      big.body = *data;
+      big.keep = std::move(data);
+      res.set_header("Content-Type", type);
     };
     if (refine_request) {
       const auto started = std::chrono::steady_clock::now();
@@ -892,6 +1068,8 @@ void Daemon::Impl::compute(const Request& req, std::string_view raw_body, Respon
   } catch (const Error& e) {
     res.headers.erase(kReportHeader);
     res.headers.erase("Content-Disposition");
+    res.headers.erase("Content-Type");
+    big = Answer();
     if (e.code() == ErrorCode::Cancelled && ticket &&
         ticket->reason() == RequestWatch::Reason::Deadline)
       return respond(res, deadline_problem(config.request_deadline));
@@ -899,21 +1077,11 @@ void Daemon::Impl::compute(const Request& req, std::string_view raw_body, Respon
   }
 }
 
-api::Problem Daemon::Impl::library_problem(int status, const Request& req) const {
-  switch (status) {
-    case 404:
-      return api::make_problem(404, "not-found", "no route " + shortened(req.path));
-    case 413:
-      return api::make_problem(
-          413, "payload-too-large",
-          "the body is larger than " + std::to_string(config.max_body_bytes) + " bytes");
-    case 414:
-      return api::make_problem(414, "uri-too-long", "the request line is too long");
-    case 500:
-      return api::make_problem(500, "internal", "an internal error occurred");
-    default:
-      return api::make_problem(status, "bad-request", "the request could not be parsed");
-  }
+std::string Daemon::Impl::tenant(const Request& req) const {
+  if (config.api_keys.empty() || !jobs) return {};
+  // authorized() let it through: "Bearer <one of the keys>".
+  const std::string header = req.get_header_value("Authorization");
+  return jobs->tenant_of(std::string_view(header).substr(std::string_view("Bearer ").size()));
 }
 
 bool Daemon::Impl::authorized(const Request& req) const {
@@ -946,12 +1114,19 @@ void Daemon::Impl::submit_job(const Request& req, std::string_view body, Respons
       return respond(res, api::memory_budget_problem(predicted, memory.capacity()));
     const std::size_t q = req.target.find('?');
     std::string query = q == std::string::npos ? "" : req.target.substr(q + 1);
-    std::optional<JobView> job =
-        stopping ? std::nullopt : jobs->submit(std::move(request), std::move(query), body);
+    const std::uint64_t result_bytes = predicted_result_bytes(request, predicted);
+    const SubmitResult submitted =
+        stopping
+            ? SubmitResult::refused(SubmitResult::Status::ShuttingDown)
+            : jobs->submit(std::move(request), std::move(query), body, tenant(req), result_bytes);
+    if (submitted.status == SubmitResult::Status::NoSpace)
+      return respond(res, no_space_problem(submitted));
+    const std::optional<JobView>& job = submitted.job;
     if (!job) {
       api::Problem p =
-          stopping ? busy_problem(true)
-                   : api::make_problem(503, "queue-full", "the job queue is full; retry later");
+          submitted.status == SubmitResult::Status::ShuttingDown
+              ? busy_problem(true)
+              : api::make_problem(503, "queue-full", "the job queue is full; retry later");
       return respond(res, p);
     }
     res.status = 202;
@@ -962,7 +1137,7 @@ void Daemon::Impl::submit_job(const Request& req, std::string_view body, Respons
   }
 }
 
-void Daemon::Impl::job_item(const Request& req, Response& res) {
+void Daemon::Impl::job_item(const Request& req, Response& res, Answer& big) {
   // /v1/jobs/{id} or /v1/jobs/{id}/{file}
   const std::string rest = req.path.substr(std::string_view("/v1/jobs/").size());
   const std::size_t slash = rest.find('/');
@@ -977,10 +1152,30 @@ void Daemon::Impl::job_item(const Request& req, Response& res) {
     return respond(res, p);
   }
   JobView job;
+  // Another tenant's job is Unknown, exactly as an id that was never issued.
+  const std::string owner = tenant(req);
   const JobStore::Lookup found =
-      req.method == "DELETE" ? jobs->cancel(id, &job) : jobs->find(id, &job);
+      req.method == "DELETE" ? jobs->cancel(id, owner, &job) : jobs->find(id, owner, &job);
   if (found == JobStore::Lookup::Unknown)
     return respond(res, api::make_problem(404, "unknown-job", "no job " + shortened(id)));
+  if (req.method == "DELETE") {
+    // A cancel either wins (the job ends cancelled, whatever the runner was doing) or says
+    // it came too late: the job had finished, and DELETE removed its results.
+    nlohmann::ordered_json j = job_json(job);
+    if (found == JobStore::Lookup::TooLate) {
+      j["cancel"] = "too_late";
+      j["cancel_detail"] = "the job had already ended " + std::string(to_string(job.state)) +
+                           "; its results were deleted";
+    } else if (found == JobStore::Lookup::Expired) {
+      j["cancel"] = "too_late";
+      j["cancel_detail"] = "the job had already ended and its results were removed";
+    } else {
+      // A running job stops at its next cancellation check and then reads "cancelled".
+      j["cancel"] = "cancelled";
+    }
+    res.set_content(j.dump(2) + "\n", kJsonContentType);
+    return;
+  }
   if (found == JobStore::Lookup::Expired && (req.method != "DELETE" && !file.empty())) {
     return respond(res, api::make_problem(410, "expired",
                                           "the results of job " + id +
@@ -999,33 +1194,30 @@ void Daemon::Impl::job_item(const Request& req, Response& res) {
   }
   if (std::find(job.results.begin(), job.results.end(), file) == job.results.end())
     return respond(res, api::make_problem(404, "no-such-result", "job " + id + " has no " + file));
-  // Stream the file: results can be large. It was written by rename, so it is complete.
-  auto in = std::make_shared<std::ifstream>(jobs->result_path(id, file), std::ios::binary);
-  std::error_code ec;
-  const auto size = std::filesystem::file_size(jobs->result_path(id, file), ec);
-  if (!*in || ec)
+  // The front end sends the file from its descriptor: results can be large. It was written by
+  // rename, so it is complete; the open descriptor keeps it readable if it expires meanwhile.
+  const int fd = ::open(jobs->result_path(id, file).c_str(), O_RDONLY | O_CLOEXEC);
+  struct stat st {};
+  if (fd < 0 || ::fstat(fd, &st) != 0) {
+    if (fd >= 0) ::close(fd);
     return respond(res,
                    api::make_problem(410, "expired", "the results of job " + id + " are gone"));
+  }
+  big.file = fd;
+  big.file_length = static_cast<std::uint64_t>(st.st_size);
   const char* type = file == "result.stl"      ? kStlContentType
                      : file == "report.json"   ? kJsonContentType
                      : file == "contours.json" ? slicer::media_type(slicer::SliceFormat::Json)
                      : file == "contours.svg"  ? slicer::media_type(slicer::SliceFormat::Svg)
                                                : "application/octet-stream";
+  res.set_header("Content-Type", type);
   res.set_header("Content-Disposition", "attachment; filename=\"" + file + "\"");
-  res.set_content_provider(static_cast<std::size_t>(size), type,
-                           [in](std::size_t offset, std::size_t length, httplib::DataSink& sink) {
-                             std::vector<char> buffer(std::min<std::size_t>(length, 1 << 20));
-                             in->seekg(static_cast<std::streamoff>(offset));
-                             in->read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
-                             const std::streamsize got = in->gcount();
-                             return got > 0 &&
-                                    sink.write(buffer.data(), static_cast<std::size_t>(got));
-                           });
 }
 
 // The embedded page (web/assets.h). Cache-Control no-cache with a strong ETag: a browser
 // revalidates and gets 304, and never keeps a page from an older daemon.
-void Daemon::Impl::page(const Request& req, Response& res, std::string_view name) const {
+void Daemon::Impl::page(const Request& req, Response& res, Answer& big,
+                        std::string_view name) const {
   if (web::assets().empty())
     return respond(res,
                    api::make_problem(404, "page-not-built", std::string(web::missing_reason())));
@@ -1049,11 +1241,8 @@ void Daemon::Impl::page(const Request& req, Response& res, std::string_view name
     res.set_header("Content-Length", std::to_string(asset->bytes.size()));
     return;
   }
-  res.set_content_provider(
-      asset->bytes.size(), std::string(asset->content_type),
-      [asset](std::size_t offset, std::size_t length, httplib::DataSink& sink) {
-        return sink.write(asset->bytes.data() + offset, length);
-      });
+  res.set_header("Content-Type", std::string(asset->content_type));
+  big.body = asset->bytes;  // embedded in the binary
 }
 
 std::pair<std::string, std::optional<api::Problem>> Daemon::Impl::readiness() const {
@@ -1068,121 +1257,12 @@ std::pair<std::string, std::optional<api::Problem>> Daemon::Impl::readiness() co
 void Daemon::Impl::install() {
   http.new_task_queue = [] { return new InlineTaskQueue; };
   http.on_accept = [this](socket_t sock) { front->adopt(sock); };
-  http.set_keep_alive_max_count(1);
   // The library's default options add SO_REUSEPORT, with which a second daemon binds the
   // same port and silently takes half the connections. SO_REUSEADDR alone still allows a
   // quick restart.
   http.set_socket_options([](socket_t sock) {
     int yes = 1;
     ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
-  });
-  http.set_read_timeout(config.read_timeout.count(), 0);
-  http.set_write_timeout(config.write_timeout.count(), 0);
-  http.set_payload_max_length(config.max_body_bytes);
-
-  // decide() ran the same checks on the event loop; they run again here because the state
-  // may have changed while the body arrived (every slot taken, shutting down).
-  http.set_pre_routing_handler([this](const Request& req, Response& res) {
-    mark_request_start();
-    if (std::optional<api::Problem> problem = precheck(req)) {
-      respond(res, *problem);
-      return HandlerResponse::Handled;
-    }
-    return HandlerResponse::Unhandled;
-  });
-
-  // The body was read by the front end (exactly Content-Length bytes): take it from there
-  // rather than through the library's reader, which would copy it (and form-decode an
-  // application/x-www-form-urlencoded body, curl's default label).
-  auto body_of = []() -> std::string_view {
-    const ReadRequest* request = FrontEnd::current();
-    return request ? std::string_view(request->body) : std::string_view();
-  };
-  for (const Route& route : kRoutes) {
-    if (route.kind == RouteKind::Compute) {
-      http.Post(route.path, [this, &route, body_of](const Request& req, Response& res,
-                                                    const httplib::ContentReader&) {
-        compute(req, body_of(), res, route);
-      });
-    }
-  }
-  http.Post("/v1/jobs",
-            [this, body_of](const Request& req, Response& res, const httplib::ContentReader&) {
-              submit_job(req, body_of(), res);
-            });
-  http.Get(R"(/v1/jobs/[^/]+(/[^/]+)?)",
-           [this](const Request& req, Response& res) { job_item(req, res); });
-  http.Delete(R"(/v1/jobs/[^/]+(/[^/]+)?)",
-              [this](const Request& req, Response& res) { job_item(req, res); });
-  http.Get("/v1/openapi.json", [](const Request&, Response& res) {
-    res.set_content(openapi_document(), kJsonContentType);
-  });
-  http.Get("/metrics", [this](const Request&, Response& res) {
-    Metrics::Gauges g;
-    g.compute_slots = slots.capacity();
-    g.compute_slots_free = slots.available();
-    g.memory_budget_bytes = memory.budget();
-    g.memory_reserved_bytes = memory.reserved();
-    if (jobs) {
-      g.jobs_queued = jobs->queued();
-      g.jobs_running = jobs->running();
-    }
-    res.set_content(metrics.render(g), "text/plain; version=0.0.4");
-  });
-  http.Get("/", [this](const Request& req, Response& res) { page(req, res, "index.html"); });
-  http.Get(R"(/assets/([^/]+))",
-           [this](const Request& req, Response& res) { page(req, res, req.matches[1].str()); });
-  http.Get("/healthz", [this](const Request&, Response& res) {
-    if (config.test_hook) config.test_hook("/healthz");
-    res.set_content("{\"status\":\"ok\"}\n", kJsonContentType);
-  });
-  http.Get("/readyz", [this](const Request&, Response& res) {
-    if (config.test_hook) config.test_hook("/readyz");
-    auto [ready, busy] = readiness();
-    if (busy) return respond(res, *busy);
-    res.set_content(ready, kJsonContentType);
-  });
-
-  // Every answer >= 400 passes here, ours included: only fill in empty bodies (httplib's
-  // own 400 / 404 / 413 / 414 / 416 / 500).
-  http.set_error_handler(
-      httplib::Server::HandlerWithResponse([this](const Request& req, Response& res) {
-        try {
-          if (!res.body.empty() || res.content_length_ != 0) return HandlerResponse::Unhandled;
-          respond(res, library_problem(res.status, req));
-          return HandlerResponse::Handled;
-        } catch (...) {  // not inside httplib's try either
-          return HandlerResponse::Unhandled;
-        }
-      }));
-
-  http.set_exception_handler([](const Request& req, Response& res, std::exception_ptr ep) {
-    std::string what = "unknown exception";
-    try {
-      std::rethrow_exception(ep);
-    } catch (const std::exception& e) {
-      what = e.what();
-    } catch (...) {
-    }
-    log_line("stlrefined: internal error on " + req.method + " " + shortened(req.path) + ": " +
-             what);
-    // Whatever the handler had set (a report header, a provider) goes: the client gets
-    // only the generic problem.
-    res.headers.clear();
-    res.content_provider_ = nullptr;
-    res.content_length_ = 0;
-    send_problem(res, api::make_problem(500, "internal", "an internal error occurred"));
-  });
-
-  // Every answer carries a request id (the client's, when it sent a plain one), also in the
-  // access log, so a user's report can be matched to the server's log line.
-  http.set_post_routing_handler([](const Request& req, Response& res) {
-    if (!res.has_header("X-Request-Id")) res.set_header("X-Request-Id", request_id(req));
-  });
-  http.set_logger([this](const Request& req, const Response& res) {
-    const std::size_t bytes = res.body.empty() ? res.content_length_ : res.body.size();
-    record(req.method, req.path, res.status, bytes, request_seconds(),
-           res.get_header_value("X-Request-Id"), req.remote_addr);
   });
 }
 
@@ -1211,10 +1291,17 @@ void Daemon::run() {
   impl_->running = true;
   impl_->front->start();
   if (!impl_->stopping) impl_->http.listen_after_bind();
-  // Requests already read are answered; bodies still arriving are refused.
-  impl_->front->stop(impl_->front_answer(nullptr, impl_->busy_problem(true)));
+  // Running jobs get the same grace as the answers, at the same time.
+  std::thread jobs_shutdown;
+  if (impl_->jobs)
+    jobs_shutdown = std::thread([this] { impl_->jobs->shutdown(impl_->config.shutdown_grace); });
+  // Requests already read are computed and their answers written in full; bodies still
+  // arriving are refused. What is still running when the grace ends is cancelled, and
+  // answers still being written then are abandoned (logged as aborted).
+  impl_->front->stop(impl_->front_answer(nullptr, impl_->busy_problem(true)),
+                     impl_->config.shutdown_grace, [this] { impl_->watch.cancel_all(); });
   impl_->running = false;
-  if (impl_->jobs) impl_->jobs->shutdown(impl_->config.shutdown_grace);
+  if (jobs_shutdown.joinable()) jobs_shutdown.join();
 }
 
 void Daemon::stop() {

@@ -36,11 +36,17 @@ struct DaemonConfig {
   //! Contour points one slice answer may hold (about 20 bytes each in JSON), checked before
   //! the contour pass; more is 422 budget-exceeded, field max_points.
   std::uint64_t max_slice_points = 20'000'000;
-  //! Idle time allowed in one socket read / write before the connection is dropped.
+  //! A request head must arrive within read_timeout; a body must arrive, and an answer be
+  //! read, at min_transfer_rate bytes/s or more over every read_timeout (body) and
+  //! write_timeout (answer) window, else the connection is dropped (408 for a body).
   std::chrono::seconds read_timeout{10};
-  std::chrono::seconds write_timeout{60};
-  //! Connections open at once (reading, computing, answering); one more gets 503 at once.
+  std::chrono::seconds write_timeout{10};
+  std::uint64_t min_transfer_rate = 64 * 1024;
+  //! Connections open at once (reading, computing, answering), and per client address (0 =
+  //! no per-address cap). Connections over a cap are only answered when they are /healthz
+  //! or /readyz (or a refusal decided on the head); anything else gets 503.
   std::size_t max_connections = 1024;
+  std::size_t max_connections_per_client = 256;
   //! Bytes the whole daemon may use (0 = half the RAM or the cgroup limit, see
   //! default_memory_budget). kDaemonReserve of it is kept for the idle daemon; each compute
   //! request and job reserves its predicted peak (api/memory_model.h) from the rest, body and
@@ -62,7 +68,8 @@ struct DaemonConfig {
   bool access_log = false;
   //! Asynchronous jobs (POST /v1/jobs ...) are served when jobs.data_dir is not empty.
   JobsConfig jobs;
-  //! On shutdown, running jobs may finish for this long before they are cancelled.
+  //! On shutdown, requests and jobs in flight may finish (and answers be written) for this
+  //! long; then they are cancelled and unwritten answers abandoned.
   std::chrono::seconds shutdown_grace{30};
   //! When not empty, every route except /healthz, /readyz and /metrics needs
   //! `Authorization: Bearer <key>` with one of these keys (compared in constant time).

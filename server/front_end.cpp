@@ -8,12 +8,14 @@
 #include <netinet/tcp.h>
 #include <sys/epoll.h>
 #include <sys/eventfd.h>
+#include <sys/sendfile.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
+#include <csignal>
 #include <cstring>
 #include <optional>
 #include <stdexcept>
@@ -56,8 +58,12 @@ struct HeadError {
 // never disagree about where the head ends or what a field says (no bare CR or LF, no
 // folded lines, no controls, one space between the request line's parts).
 std::optional<HeadError> parse_head(std::string_view text, RequestHead& head) {
-  // text ends with "\r\n\r\n"
+  // text ends with "\r\n\r\n". Empty lines before the request line are skipped (RFC 9112
+  // 2.2); a head that is nothing else has no request line at all.
   std::size_t line_start = 0;
+  while (text.substr(line_start, 2) == "\r\n" && line_start + 4 < text.size()) line_start += 2;
+  if (text.substr(line_start, 2) == "\r\n")
+    return HeadError{400, "bad-request", "the request line is empty"};
   std::size_t lines = 0;
   while (line_start < text.size()) {
     const std::size_t end = text.find("\r\n", line_start);
@@ -118,15 +124,6 @@ std::optional<HeadError> parse_head(std::string_view text, RequestHead& head) {
   return std::nullopt;
 }
 
-// The head httplib parses again on the worker: `Expect` is answered here already.
-std::string replay_head(const RequestHead& head) {
-  std::string out = head.method + " " + head.target + " " + head.version + "\r\n";
-  for (const auto& [name, value] : head.fields)
-    if (!equals_ignore_case(name, "Expect")) out += name + ": " + value + "\r\n";
-  out += "\r\n";
-  return out;
-}
-
 void peer_of(int fd, std::string& ip, int& port) {
   sockaddr_storage addr{};
   socklen_t len = sizeof addr;
@@ -144,9 +141,59 @@ void peer_of(int fd, std::string& ip, int& port) {
   ip = text;
 }
 
-thread_local ReadRequest* current_request = nullptr;
+// Answers are written in pieces of at most this much per connection and wake-up, so one
+// fast client cannot hold the event loop.
+constexpr std::uint64_t kWriteSlice = 8 << 20;
 
 }  // namespace
+
+const char* to_string(AnswerEnd::Outcome outcome) {
+  switch (outcome) {
+    case AnswerEnd::Outcome::Complete:
+      return "complete";
+    case AnswerEnd::Outcome::ClientGone:
+      return "client_gone";
+    case AnswerEnd::Outcome::TooSlow:
+      return "too_slow";
+    case AnswerEnd::Outcome::Shutdown:
+      return "shutdown";
+  }
+  return "unknown";
+}
+
+Answer::Answer(Answer&& other) noexcept
+    : head(std::move(other.head)),
+      body(other.body),
+      file(other.file),
+      file_offset(other.file_offset),
+      file_length(other.file_length),
+      keep(std::move(other.keep)),
+      done(std::move(other.done)) {
+  other.body = {};
+  other.file = -1;
+  other.file_length = 0;
+}
+
+Answer& Answer::operator=(Answer&& other) noexcept {
+  if (this != &other) {
+    if (file >= 0) ::close(file);
+    head = std::move(other.head);
+    body = other.body;
+    file = other.file;
+    file_offset = other.file_offset;
+    file_length = other.file_length;
+    keep = std::move(other.keep);
+    done = std::move(other.done);
+    other.body = {};
+    other.file = -1;
+    other.file_length = 0;
+  }
+  return *this;
+}
+
+Answer::~Answer() {
+  if (file >= 0) ::close(file);
+}
 
 const std::string* RequestHead::find(std::string_view name) const {
   for (const auto& field : fields)
@@ -158,21 +205,28 @@ struct FrontEnd::Connection {
   enum class State {
     Head,    // reading the request head
     Body,    // reading Content-Length bytes of body
-    Answer,  // writing the front end's own answer; input is dropped
+    Answer,  // writing an answer; input is dropped
     Linger,  // answered and shut down for writing: input is dropped until EOF or timeout
   };
   int fd = -1;
   std::size_t slot = 0;
   State state = State::Head;
-  Clock::time_point accepted, deadline, idle_deadline;
-  std::string in;           // the head so far
-  std::size_t scanned = 0;  // in[0, scanned) holds no "\r\n\r\n"
-  std::unique_ptr<RequestHead> head;
+  Clock::time_point accepted, deadline;
+  // Body and Answer: bytes moved since window_start (the minimum-rate check).
+  Clock::time_point window_start;
+  std::uint64_t window_bytes = 0;
+  std::string in;                        // the head so far
+  std::size_t scanned = 0;               // in[0, scanned) holds no "\r\n\r\n"
   std::unique_ptr<ReadRequest> request;  // Body: the request being read
   std::uint64_t body_expected = 0;
-  std::string out;  // Answer: bytes to write
-  std::size_t out_sent = 0;
+  std::function<std::string(std::uint64_t)> reserve_body;
+  Answer out;  // Answer: what is written
+  std::uint64_t sent = 0;
+  std::shared_ptr<void> hold;  // released once the answer is written
+  bool in_probe_lane = false;
+  bool read_closed = false;  // the client half-closed while its answer is written
   std::uint32_t events = 0;  // registered with epoll
+  bool registered = false;
   std::string remote_ip;
   int remote_port = 0;
 };
@@ -189,7 +243,7 @@ FrontEnd::FrontEnd(Options options, FrontEndDelegate& delegate)
 }
 
 FrontEnd::~FrontEnd() {
-  if (started_) stop({});
+  if (started_) stop({}, std::chrono::milliseconds(0));
   for (int fd : adopted_) ::close(fd);
   ::close(wake_fd_);
   ::close(epoll_fd_);
@@ -206,17 +260,22 @@ void FrontEnd::adopt(int fd) {
 }
 
 void FrontEnd::start() {
+  // sendfile(2) has no MSG_NOSIGNAL: a client gone mid-download must not end the process.
+  std::signal(SIGPIPE, SIG_IGN);
   started_ = true;
   for (std::size_t i = 0; i < options_.workers; ++i) workers_.emplace_back([this] { work(); });
   loop_thread_ = std::thread([this] { loop(); });
 }
 
-void FrontEnd::stop(std::string shutdown_response_for_bodies) {
+void FrontEnd::stop(std::string shutdown_response_for_bodies, std::chrono::milliseconds grace,
+                    std::function<void()> on_grace_over) {
   if (!started_) return;
   started_ = false;
   {
     std::lock_guard lock(inbox_mutex_);
     shutdown_response_ = std::move(shutdown_response_for_bodies);
+    grace_end_ = Clock::now() + grace;
+    on_grace_over_ = std::move(on_grace_over);
   }
   stopping_ = true;
   const std::uint64_t one = 1;
@@ -229,10 +288,6 @@ void FrontEnd::stop(std::string shutdown_response_for_bodies) {
   work_cv_.notify_all();
   for (std::thread& t : workers_) t.join();
   workers_.clear();
-}
-
-ReadRequest* FrontEnd::current() {
-  return current_request;
 }
 
 std::size_t FrontEnd::open_connections() const {
@@ -251,18 +306,23 @@ void FrontEnd::work() {
       queue_.pop_front();
       ++busy_workers_;
     }
-    current_request = request.get();
+    Answer answer;
     try {
-      delegate_.serve(*request);
+      answer = delegate_.serve(*request);
     } catch (...) {
       // The delegate answers its own errors; nothing may take the worker down.
+      try {
+        answer = Answer(
+            delegate_.refusal(&request->head, 500, "internal", "an internal error occurred"));
+      } catch (...) {
+      }
     }
-    current_request = nullptr;
-    const int fd = request->fd;
-    request.reset();  // releases what the request held before the linger
+    Returned back{request->fd, std::move(request->head.remote_ip), std::move(answer),
+                  std::move(request->hold)};
+    request.reset();  // the body goes now; the reservation stays until the answer is sent
     {
       std::lock_guard lock(inbox_mutex_);
-      returned_.push_back(fd);
+      returned_.push_back(std::move(back));
     }
     {
       std::lock_guard lock(work_mutex_);
@@ -274,17 +334,27 @@ void FrontEnd::work() {
 }
 
 void FrontEnd::update_events(Connection& c) {
-  std::uint32_t want = EPOLLIN;
-  if (c.state == Connection::State::Answer && c.out_sent < c.out.size()) want |= EPOLLOUT;
+  std::uint32_t want = c.read_closed ? 0u : static_cast<std::uint32_t>(EPOLLIN);
+  if (c.state == Connection::State::Answer) want |= EPOLLOUT;
   if (want == c.events) return;
   epoll_event ev{};
   ev.events = want;
   ev.data.u64 = c.slot + 1;
-  ::epoll_ctl(epoll_fd_, c.events == 0 ? EPOLL_CTL_ADD : EPOLL_CTL_MOD, c.fd, &ev);
+  ::epoll_ctl(epoll_fd_, c.registered ? EPOLL_CTL_MOD : EPOLL_CTL_ADD, c.fd, &ev);
+  c.registered = true;
   c.events = want;
 }
 
 void FrontEnd::close(Connection& c) {
+  if (c.out.done) {
+    // Closed before its answer was written (never reached while writing normally).
+    AnswerEnd end{AnswerEnd::Outcome::ClientGone, c.sent, c.out.size()};
+    auto done = std::move(c.out.done);
+    done(end);
+  }
+  if (c.in_probe_lane) probe_lane_.erase(std::find(probe_lane_.begin(), probe_lane_.end(), c.slot));
+  if (auto it = per_client_.find(c.remote_ip); it != per_client_.end() && --it->second == 0)
+    per_client_.erase(it);
   ::epoll_ctl(epoll_fd_, EPOLL_CTL_DEL, c.fd, nullptr);
   ::close(c.fd);
   --open_;
@@ -292,15 +362,26 @@ void FrontEnd::close(Connection& c) {
   connections_[c.slot].reset();  // c is gone
 }
 
+void FrontEnd::admit_to_probe_lane(Connection& c) {
+  if (probe_lane_.size() >= kProbeLane) {
+    const std::size_t oldest = probe_lane_.front();  // close() takes it out of the lane
+    if (connections_[oldest]) close(*connections_[oldest]);
+  }
+  c.in_probe_lane = true;
+  c.deadline = c.accepted + kProbeHeadTimeout;
+  probe_lane_.push_back(c.slot);
+}
+
 void FrontEnd::take_new() {
-  std::vector<int> adopted, returned;
+  std::vector<int> adopted;
+  std::vector<Returned> returned;
   {
     std::lock_guard lock(inbox_mutex_);
     adopted.swap(adopted_);
     returned.swap(returned_);
   }
   const auto now = Clock::now();
-  auto make = [&](int fd) -> Connection& {
+  auto make = [&](int fd, std::string remote_ip) -> Connection& {
     std::size_t slot;
     if (free_slots_.empty()) {
       slot = connections_.size();
@@ -314,15 +395,14 @@ void FrontEnd::take_new() {
     c.fd = fd;
     c.slot = slot;
     c.accepted = now;
+    c.remote_ip = std::move(remote_ip);
     return c;
   };
-  for (int fd : returned) {
-    // Answered by a worker: shut down for writing, then drop input until the client closes.
-    Connection& c = make(fd);
-    ::shutdown(fd, SHUT_WR);
-    c.state = Connection::State::Linger;
-    c.deadline = now + kLinger;
-    update_events(c);
+  for (Returned& r : returned) {
+    // Answered by a worker (its client address is still counted): write the answer here.
+    Connection& c = make(r.fd, std::move(r.remote_ip));
+    c.hold = std::move(r.hold);
+    answer(c, std::move(r.answer));
   }
   for (int fd : adopted) {
     ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) | O_NONBLOCK);
@@ -330,56 +410,87 @@ void FrontEnd::take_new() {
     // Answers are written in pieces (head, body): without this, Nagle's algorithm and the
     // peer's delayed ACK hold the second piece up to 40 ms.
     ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
-    Connection& c = make(fd);
-    peer_of(fd, c.remote_ip, c.remote_port);
+    std::string ip;
+    int port = 0;
+    peer_of(fd, ip, port);
+    Connection& c = make(fd, ip);
+    c.remote_port = port;
+    const std::size_t from_client = ++per_client_[ip];
     c.deadline = now + options_.head_timeout;
     if (stopping_) {
       close(c);
       continue;
     }
-    if (open_ > options_.max_connections) {
-      answer(c, delegate_.refusal(nullptr, 503, "overloaded",
-                                  "the server has " + std::to_string(options_.max_connections) +
-                                      " connections open; retry later"));
-      continue;
-    }
+    const bool over_cap =
+        open_ > options_.max_connections || (options_.max_connections_per_client > 0 &&
+                                             from_client > options_.max_connections_per_client);
+    if (over_cap) admit_to_probe_lane(c);
     update_events(c);
   }
 }
 
-void FrontEnd::answer(Connection& c, std::string response) {
+void FrontEnd::answer(Connection& c, Answer answer) {
   c.request.reset();
+  c.reserve_body = nullptr;
   c.state = Connection::State::Answer;
-  c.out = std::move(response);
-  c.out_sent = 0;
-  c.deadline = Clock::now() + options_.write_timeout;
+  c.out = std::move(answer);
+  c.sent = 0;
+  c.window_start = Clock::now();
+  c.window_bytes = 0;
+  if (grace_over_) return finish_answer(c, AnswerEnd::Outcome::Shutdown);
   flush(c);
 }
 
-void FrontEnd::flush(Connection& c) {
-  while (c.out_sent < c.out.size()) {
-    const ssize_t n =
-        ::send(c.fd, c.out.data() + c.out_sent, c.out.size() - c.out_sent, MSG_NOSIGNAL);
-    if (n > 0) {
-      c.out_sent += static_cast<std::size_t>(n);
-      continue;
-    }
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) {
-      update_events(c);
-      return;
-    }
-    return close(c);  // the peer is gone
+void FrontEnd::finish_answer(Connection& c, AnswerEnd::Outcome outcome) {
+  if (c.out.done) {
+    AnswerEnd end{outcome, c.sent, c.out.size()};
+    auto done = std::move(c.out.done);
+    done(end);
   }
+  c.out = Answer();  // the body, its file and what kept them
+  c.hold.reset();    // the reservation
+  if (outcome != AnswerEnd::Outcome::Complete) return close(c);
   // Sent: no more from us; read and drop what the client still sends, then close. Closing
   // with unread input would make the kernel reset the connection, and a client still
   // uploading could lose the answer.
   ::shutdown(c.fd, SHUT_WR);
   c.state = Connection::State::Linger;
-  c.out.clear();
-  c.out.shrink_to_fit();
   c.deadline = Clock::now() + kLinger;
   update_events(c);
+}
+
+void FrontEnd::flush(Connection& c) {
+  const Answer& a = c.out;
+  const std::uint64_t head_end = a.head.size();
+  const std::uint64_t body_end = head_end + a.body.size();
+  std::uint64_t budget = kWriteSlice;
+  while (c.sent < a.size()) {
+    if (budget == 0) return update_events(c);  // the rest on a later round
+    ssize_t n;
+    if (c.sent < head_end) {
+      n = ::send(c.fd, a.head.data() + c.sent, head_end - c.sent, MSG_NOSIGNAL);
+    } else if (c.sent < body_end) {
+      const std::uint64_t at = c.sent - head_end;
+      n = ::send(c.fd, a.body.data() + at, std::min(a.body.size() - at, budget), MSG_NOSIGNAL);
+    } else {
+      const std::uint64_t at = c.sent - body_end;
+      auto offset = static_cast<off_t>(a.file_offset + at);
+      n = ::sendfile(c.fd, a.file, &offset, std::min(a.file_length - at, budget));
+      // A file shorter than announced: the answer cannot be completed.
+      if (n == 0) return finish_answer(c, AnswerEnd::Outcome::ClientGone);
+    }
+    if (n > 0) {
+      const auto moved = static_cast<std::uint64_t>(n);
+      c.sent += moved;
+      c.window_bytes += moved;
+      budget -= std::min(budget, moved);
+      continue;
+    }
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) return update_events(c);
+    return finish_answer(c, AnswerEnd::Outcome::ClientGone);  // the peer is gone
+  }
+  finish_answer(c, AnswerEnd::Outcome::Complete);
 }
 
 void FrontEnd::dispatch(Connection& c) {
@@ -395,29 +506,56 @@ void FrontEnd::dispatch(Connection& c) {
       return;
     }
   }
-  answer(c, delegate_.refusal(c.head.get(), 503, "overloaded",
-                              "every worker is busy and " + std::to_string(options_.max_queued) +
-                                  " requests wait; retry later"));
+  answer(c, Answer(delegate_.refusal(&request->head, 503, "overloaded",
+                                     "every worker is busy and " +
+                                         std::to_string(options_.max_queued) +
+                                         " requests wait; retry later")));
+}
+
+bool FrontEnd::grow_body(Connection& c, std::size_t incoming) {
+  std::string& body = c.request->body;
+  const std::size_t need = body.size() + incoming;
+  if (need <= body.capacity()) return true;
+  std::size_t target = std::max({need, 2 * body.capacity(), kBodyChunk});
+  target = static_cast<std::size_t>(std::min<std::uint64_t>(target, c.body_expected));
+  if (c.reserve_body) {
+    std::string refusal = c.reserve_body(target);
+    if (!refusal.empty()) {
+      answer(c, Answer(std::move(refusal)));
+      return false;
+    }
+  }
+  body.reserve(target);
+  return true;
 }
 
 void FrontEnd::on_head(Connection& c, std::size_t head_end) {
-  c.head = std::make_unique<RequestHead>();
-  c.head->remote_ip = c.remote_ip;
-  c.head->remote_port = c.remote_port;
-  if (std::optional<HeadError> error =
-          parse_head(std::string_view(c.in).substr(0, head_end), *c.head)) {
-    const bool parsed = !c.head->method.empty() && !c.head->target.empty();
-    return answer(c, delegate_.refusal(parsed ? c.head.get() : nullptr, error->status, error->slug,
-                                       std::move(error->detail)));
+  const bool probe_lane = c.in_probe_lane;
+  if (probe_lane) {
+    probe_lane_.erase(std::find(probe_lane_.begin(), probe_lane_.end(), c.slot));
+    c.in_probe_lane = false;
   }
-  Verdict verdict = delegate_.decide(*c.head);
-  if (verdict.kind == Verdict::Kind::Answer) return answer(c, std::move(verdict.response));
-
   auto request = std::make_unique<ReadRequest>();
+  RequestHead& head = request->head;
+  head.remote_ip = c.remote_ip;
+  head.remote_port = c.remote_port;
+  if (std::optional<HeadError> error =
+          parse_head(std::string_view(c.in).substr(0, head_end), head)) {
+    const bool parsed = !head.method.empty() && !head.target.empty();
+    return answer(c, Answer(delegate_.refusal(parsed ? &head : nullptr, error->status, error->slug,
+                                              std::move(error->detail))));
+  }
+  Verdict verdict = delegate_.decide(head);
+  if (verdict.kind == Verdict::Kind::Answer) return answer(c, Answer(std::move(verdict.response)));
+  if (probe_lane) {
+    // Over a connection cap: only what decide() answers at once (the probes, refusals).
+    return answer(
+        c, Answer(delegate_.refusal(&head, 503, "overloaded",
+                                    "too many connections are open (from this address, or in all); "
+                                    "retry later")));
+  }
+
   request->fd = c.fd;
-  request->head = replay_head(*c.head);
-  request->remote_ip = c.remote_ip;
-  request->remote_port = c.remote_port;
   request->accepted = c.accepted;
   request->hold = std::move(verdict.hold);
   if (verdict.kind == Verdict::Kind::Dispatch) {
@@ -427,14 +565,18 @@ void FrontEnd::on_head(Connection& c, std::size_t head_end) {
   }
   // ReadBody
   c.body_expected = verdict.body_bytes;
-  request->body.reserve(static_cast<std::size_t>(c.body_expected));
-  const std::string_view early = std::string_view(c.in).substr(head_end);
-  request->body.append(early.substr(0, static_cast<std::size_t>(c.body_expected)));
+  c.reserve_body = std::move(verdict.reserve_body);
+  c.request = std::move(request);
+  const std::string_view early =
+      std::string_view(c.in).substr(head_end).substr(0, static_cast<std::size_t>(c.body_expected));
+  if (!early.empty()) {
+    if (!grow_body(c, early.size())) return;
+    c.request->body.append(early);
+  }
   c.in.clear();
   c.in.shrink_to_fit();
-  c.request = std::move(request);
   if (c.request->body.size() == c.body_expected) return dispatch(c);
-  const std::string* expect = c.head->find("Expect");
+  const std::string* expect = c.request->head.find("Expect");
   if (expect && equals_ignore_case(*expect, "100-continue") && c.request->body.empty()) {
     static constexpr std::string_view kContinue = "HTTP/1.1 100 Continue\r\n\r\n";
     // 25 bytes into a fresh socket's empty buffer: a partial send means the peer is gone.
@@ -442,11 +584,9 @@ void FrontEnd::on_head(Connection& c, std::size_t head_end) {
         static_cast<ssize_t>(kContinue.size()))
       return close(c);
   }
-  const auto now = Clock::now();
   c.state = Connection::State::Body;
-  c.idle_deadline = now + options_.idle_timeout;
-  c.deadline = now + options_.head_timeout +
-               std::chrono::milliseconds(c.body_expected * 1000 / kMinBodyRate);
+  c.window_start = Clock::now();
+  c.window_bytes = 0;
 }
 
 void FrontEnd::on_readable(Connection& c) {
@@ -461,7 +601,12 @@ void FrontEnd::on_readable(Connection& c) {
     if (n < 0 && errno == EINTR) continue;
     if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) return;
     if (n <= 0) {
-      // EOF or reset. A client that hangs up before its request is complete gets nothing.
+      // EOF or reset. A client that hangs up before its request is complete gets nothing;
+      // one that half-closes while its answer is written still gets it.
+      if (n == 0 && c.state == Connection::State::Answer) {
+        c.read_closed = true;  // EPOLLIN would report the EOF again and again
+        return update_events(c);
+      }
       return close(c);
     }
     const auto got = static_cast<std::size_t>(n);
@@ -473,15 +618,16 @@ void FrontEnd::on_readable(Connection& c) {
         if (end != std::string::npos) return on_head(c, end + 4);
         c.scanned = c.in.size();
         if (c.in.size() > kMaxHeadBytes) {
-          return answer(c, delegate_.refusal(nullptr, 431, "header-fields-too-large",
-                                             "the request head is longer than " +
-                                                 std::to_string(kMaxHeadBytes) + " bytes"));
+          return answer(c, Answer(delegate_.refusal(nullptr, 431, "header-fields-too-large",
+                                                    "the request head is longer than " +
+                                                        std::to_string(kMaxHeadBytes) + " bytes")));
         }
         break;
       }
       case Connection::State::Body:
+        if (!grow_body(c, got)) return;
         c.request->body.append(buffer, got);
-        c.idle_deadline = Clock::now() + options_.idle_timeout;
+        c.window_bytes += got;
         if (c.request->body.size() == c.body_expected) return dispatch(c);
         break;
       case Connection::State::Answer:
@@ -491,30 +637,53 @@ void FrontEnd::on_readable(Connection& c) {
   }
 }
 
+bool FrontEnd::too_slow(Connection& c, Clock::time_point now, std::chrono::milliseconds window,
+                        std::uint64_t remaining) {
+  if (now - c.window_start < window) return false;
+  const double seconds = std::chrono::duration<double>(now - c.window_start).count();
+  // What the window should have moved: the minimum rate, or all that was left of the
+  // transfer when the window began.
+  const auto at_rate = static_cast<std::uint64_t>(static_cast<double>(options_.min_rate) * seconds);
+  const std::uint64_t wanted = std::min(at_rate, c.window_bytes + remaining);
+  if (c.window_bytes == 0 || c.window_bytes < wanted) return true;
+  c.window_start = now;
+  c.window_bytes = 0;
+  return false;
+}
+
 void FrontEnd::expire(Clock::time_point now) {
   for (std::size_t i = 0; i < connections_.size(); ++i) {
     Connection* c = connections_[i].get();
     if (!c) continue;
     switch (c->state) {
       case Connection::State::Head:
-        if (stopping_) {
+        if (stopping_ || (c->in_probe_lane && now > c->deadline)) {
           close(*c);
         } else if (now > c->deadline) {
-          answer(*c, delegate_.refusal(nullptr, 408, "request-timeout",
-                                       "the request head did not arrive within " +
-                                           std::to_string(options_.head_timeout.count()) + " ms"));
+          answer(*c, Answer(delegate_.refusal(nullptr, 408, "request-timeout",
+                                              "the request head did not arrive within " +
+                                                  std::to_string(options_.head_timeout.count()) +
+                                                  " ms")));
         }
         break;
       case Connection::State::Body:
         if (stopping_) {
-          answer(*c, shutdown_response_);
-        } else if (now > c->deadline || now > c->idle_deadline) {
-          answer(*c, delegate_.refusal(c->head.get(), 408, "request-timeout",
-                                       "the body stalled or arrived slower than " +
-                                           std::to_string(kMinBodyRate / 1024) + " KiB/s"));
+          answer(*c, Answer(std::string(shutdown_response_)));
+        } else if (too_slow(*c, now, options_.body_window,
+                            c->body_expected - c->request->body.size())) {
+          answer(*c,
+                 Answer(delegate_.refusal(
+                     &c->request->head, 408, "request-timeout",
+                     "the body arrived slower than " + std::to_string(options_.min_rate / 1024) +
+                         " KiB/s over " + std::to_string(options_.body_window.count()) + " ms")));
         }
         break;
       case Connection::State::Answer:
+        if (grace_over_)
+          finish_answer(*c, AnswerEnd::Outcome::Shutdown);
+        else if (too_slow(*c, now, options_.answer_window, c->out.size() - c->sent))
+          finish_answer(*c, AnswerEnd::Outcome::TooSlow);
+        break;
       case Connection::State::Linger:
         if (now > c->deadline) close(*c);
         break;
@@ -538,15 +707,26 @@ void FrontEnd::loop() {
       }
       const std::size_t slot = tag - 1;
       if (slot >= connections_.size() || !connections_[slot]) continue;
-      Connection& c = *connections_[slot];
-      if (events[i].events & EPOLLOUT) {
-        flush(c);
-        if (!connections_[slot] || connections_[slot].get() != &c) continue;
+      Connection* c = connections_[slot].get();
+      if ((events[i].events & EPOLLOUT) && c->state == Connection::State::Answer) {
+        flush(*c);
+        if (connections_[slot].get() != c) continue;  // closed
       }
-      if (events[i].events & (EPOLLIN | EPOLLHUP | EPOLLERR)) on_readable(c);
+      if (events[i].events & (EPOLLIN | EPOLLHUP | EPOLLERR)) on_readable(*c);
     }
     if (woken || stopping_) take_new();
     const auto now = Clock::now();
+    if (stopping_ && !grace_over_) {
+      std::function<void()> on_grace_over;
+      {
+        std::lock_guard lock(inbox_mutex_);
+        if (now >= grace_end_) {
+          grace_over_ = true;
+          on_grace_over = std::move(on_grace_over_);
+        }
+      }
+      if (on_grace_over) on_grace_over();
+    }
     if (now - last_scan >= std::chrono::milliseconds(20) || stopping_) {
       expire(now);
       last_scan = now;

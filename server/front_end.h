@@ -8,6 +8,8 @@
 #include <cstddef>
 #include <cstdint>
 #include <deque>
+#include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -29,6 +31,42 @@ struct RequestHead {
   const std::string* find(std::string_view name) const;
 };
 
+//! How the writing of an answer ended.
+struct AnswerEnd {
+  enum class Outcome {
+    Complete,    //!< every byte was handed to the kernel
+    ClientGone,  //!< the client closed or reset the connection
+    TooSlow,     //!< the client read slower than the minimum rate
+    Shutdown,    //!< the shutdown grace ended first
+  };
+  Outcome outcome = Outcome::Complete;
+  std::uint64_t bytes_sent = 0;   //!< head and body
+  std::uint64_t bytes_total = 0;  //!< what the answer had
+};
+const char* to_string(AnswerEnd::Outcome outcome);
+
+//! A complete answer, written by the event loop (never by a worker, so a client that reads
+//! slowly or not at all holds no thread). `head` is sent first (the status line, fields,
+//! blank line, and possibly a small body), then `body` or `file`.
+struct Answer {
+  std::string head;
+  std::string_view body;  //!< a body in memory, kept alive by `keep`
+  int file = -1;          //!< or a file (owned: the front end closes it)
+  std::uint64_t file_offset = 0, file_length = 0;
+  std::shared_ptr<const void> keep;  //!< what `body` points into, reservations
+  //! Called once on the event loop when the answer is written or abandoned.
+  std::function<void(const AnswerEnd&)> done;
+
+  Answer() = default;
+  explicit Answer(std::string whole) : head(std::move(whole)) {}
+  Answer(Answer&& other) noexcept;
+  Answer& operator=(Answer&& other) noexcept;
+  Answer(const Answer&) = delete;
+  Answer& operator=(const Answer&) = delete;
+  ~Answer();
+  std::uint64_t size() const { return head.size() + body.size() + file_length; }
+};
+
 //! What the daemon decides on a request head. decide() runs on the event loop: it must be
 //! quick and must not block.
 struct Verdict {
@@ -41,16 +79,18 @@ struct Verdict {
   std::string response;          //!< Answer: the complete HTTP response
   std::uint64_t body_bytes = 0;  //!< ReadBody: the Content-Length (`100 Continue` is sent
                                  //!< first when the client asked with `Expect`)
-  std::shared_ptr<void> hold;    //!< kept until the connection is closed (a reservation)
+  std::shared_ptr<void> hold;    //!< kept until the answer is written (a reservation)
+  //! ReadBody: called before the body buffer grows, with the bytes it is about to hold:
+  //! memory is reserved for what arrives, not for what a header declares. Returns an empty
+  //! string when that is reserved, else the complete refusal to answer instead.
+  std::function<std::string(std::uint64_t bytes)> reserve_body;
 };
 
 //! A request read in full, on its way to (and on) a worker thread.
 struct ReadRequest {
   int fd = -1;
-  std::string head;  //!< request line + fields + blank line, `Expect` removed
+  RequestHead head;
   std::string body;  //!< exactly Content-Length bytes
-  std::string remote_ip;
-  int remote_port = 0;
   std::chrono::steady_clock::time_point accepted;
   std::shared_ptr<void> hold;
 };
@@ -61,43 +101,61 @@ class FrontEndDelegate {
   virtual ~FrontEndDelegate() = default;
   //! On the event loop, once a head is complete and well-formed.
   virtual Verdict decide(const RequestHead& head) = 0;
-  //! On a worker thread: answer the request on request.fd (not closed here).
-  virtual void serve(ReadRequest& request) = 0;
+  //! On a worker thread: the answer to the request (written by the event loop).
+  virtual Answer serve(ReadRequest& request) = 0;
   //! The complete response for a refusal the front end makes itself (400 malformed head,
   //! 408 too slow, 414, 431, 503 overloaded). `head` is null when none was parsed.
   virtual std::string refusal(const RequestHead* head, int status, std::string_view slug,
                               std::string detail) = 0;
 };
 
-//! Reads requests on one epoll thread and hands complete ones to a bounded pool of workers.
+//! Reads requests and writes answers on one epoll thread, and hands complete requests to a
+//! bounded pool of workers that only compute.
 //!
 //! cpp-httplib 0.11.4 reads a connection's head and body on a worker thread with a
-//! per-recv timeout and no limit on the head's size or field count: a client trickling one
-//! byte every few seconds holds a thread indefinitely, a few hundred such sockets starve
-//! every other request, and a 100 MB header line is buffered whole. Here no thread waits
-//! on a client: heads (at most kMaxHeadBytes, kMaxFields fields, kMaxLineBytes per field
-//! line) must be complete within `head_timeout` of the accept, bodies must keep arriving
-//! (idle timeout) at an average of at least kMinBodyRate after the first `head_timeout`.
-//! Workers only compute and write answers.
+//! per-recv timeout and no limit on the head's size or field count, and writes answers
+//! there too: a client trickling one byte every few seconds, or never reading its answer,
+//! holds a thread; a few such sockets starve every other request, and a 100 MB header line
+//! is buffered whole. Here no thread waits on a client:
+//!  - heads (at most kMaxHeadBytes, kMaxFields fields, kMaxLineBytes per field line) must be
+//!    complete within `head_timeout` of the accept;
+//!  - bodies and answers move at `min_rate` or faster, measured over every window
+//!    (a sliding check, not one deadline a trickle can stretch); a body's memory is reserved
+//!    as it arrives (Verdict::reserve_body), not when a header declares it;
+//!  - one client address holds at most `max_connections_per_client` connections, and
+//!    connections over either cap get a short look at their head in a small probe lane:
+//!    /healthz and /readyz are answered there (decide() answers probes itself), anything
+//!    else gets 503, and the lane evicts its oldest socket for a new one, so no flood of
+//!    slow sockets can starve the health checks.
 class FrontEnd {
  public:
   static constexpr std::size_t kMaxHeadBytes = 64 * 1024;
   static constexpr std::size_t kMaxLineBytes = 8 * 1024;
   static constexpr std::size_t kMaxFields = 100;
   static constexpr std::size_t kMaxTargetBytes = 8192;
-  static constexpr std::uint64_t kMinBodyRate = 64 * 1024;  // bytes per second
   //! After an answer, input is read and dropped this long at most before the close, so the
   //! kernel does not reset the connection (and lose the answer) under a client still
   //! sending.
   static constexpr std::chrono::seconds kLinger{2};
+  //! Connections over a cap that may wait for their head at once, and how long.
+  static constexpr std::size_t kProbeLane = 64;
+  static constexpr std::chrono::milliseconds kProbeHeadTimeout{2000};
+  //! A body buffer grows by at least this much (and doubles), so its reservation follows
+  //! what arrived.
+  static constexpr std::size_t kBodyChunk = 1 << 20;
 
   struct Options {
     std::size_t workers = 4;
     std::size_t max_queued = 16;         //!< complete requests waiting for a worker
-    std::size_t max_connections = 1024;  //!< open connections at most; more get 503
+    std::size_t max_connections = 1024;  //!< open connections at most
+    //! Connections one client address may hold; 0 = no per-address cap.
+    std::size_t max_connections_per_client = 256;
     std::chrono::milliseconds head_timeout{10000};
-    std::chrono::milliseconds idle_timeout{10000};  //!< between two reads of a body
-    std::chrono::milliseconds write_timeout{60000};
+    //! Bodies must arrive, and answers be read, at min_rate bytes/s or more over every
+    //! window of these lengths (or finish within it): a trickle cannot stretch a deadline.
+    std::chrono::milliseconds body_window{10000};
+    std::chrono::milliseconds answer_window{10000};
+    std::uint64_t min_rate = 64 * 1024;
     //! Workers run at this much lower priority (nice increment; the computations run on
     //! them), the event loop at the process's: probes and refusals never wait for compute.
     int worker_nice = 0;
@@ -113,12 +171,12 @@ class FrontEnd {
   //! Starts the event loop and the workers.
   void start();
   //! Stops reading new requests: connections still sending a head are closed, bodies in
-  //! progress are refused (503); requests already read are answered. Returns when every
-  //! connection is closed.
-  void stop(std::string shutdown_response_for_bodies);
-
-  //! The request the calling worker thread is serving (null elsewhere).
-  static ReadRequest* current();
+  //! progress are refused with `shutdown_response_for_bodies`; requests already read are
+  //! computed and their answers written in full. When `grace` has passed, `on_grace_over`
+  //! is called (to cancel computations) and answers still being written are abandoned
+  //! (AnswerEnd::Shutdown). Returns when every connection is closed.
+  void stop(std::string shutdown_response_for_bodies, std::chrono::milliseconds grace,
+            std::function<void()> on_grace_over = {});
 
   //! Connections open right now (tests, metrics).
   std::size_t open_connections() const;
@@ -129,27 +187,42 @@ class FrontEnd {
   void work();
   void on_readable(Connection& c);
   void on_head(Connection& c, std::size_t head_end);
-  void answer(Connection& c, std::string response);
+  void answer(Connection& c, Answer answer);
   void flush(Connection& c);
+  void finish_answer(Connection& c, AnswerEnd::Outcome outcome);
   void dispatch(Connection& c);
   void close(Connection& c);
   void update_events(Connection& c);
   void expire(std::chrono::steady_clock::time_point now);
   void take_new();
+  bool grow_body(Connection& c, std::size_t incoming);
+  bool too_slow(Connection& c, std::chrono::steady_clock::time_point now,
+                std::chrono::milliseconds window, std::uint64_t remaining);
+  void admit_to_probe_lane(Connection& c);
 
   Options options_;
   FrontEndDelegate& delegate_;
   int epoll_fd_ = -1;
   int wake_fd_ = -1;
 
-  // Handed over from other threads: new sockets, sockets back from workers.
+  struct Returned {
+    int fd;
+    std::string remote_ip;
+    Answer answer;
+    std::shared_ptr<void> hold;
+  };
+  // Handed over from other threads: new sockets, answered requests back from workers.
   std::mutex inbox_mutex_;
   std::vector<int> adopted_;
-  std::vector<int> returned_;
+  std::vector<Returned> returned_;
 
   std::vector<std::unique_ptr<Connection>> connections_;  // indexed by slot
   std::vector<std::size_t> free_slots_;
   std::atomic<std::size_t> open_{0};
+  // Event loop only: open connections per client address, and the probe lane (slots, oldest
+  // first).
+  std::map<std::string, std::size_t> per_client_;
+  std::deque<std::size_t> probe_lane_;
 
   std::mutex work_mutex_;
   std::condition_variable work_cv_;
@@ -160,6 +233,9 @@ class FrontEnd {
   std::thread loop_thread_;
   std::atomic<bool> stopping_{false};
   std::string shutdown_response_;
+  std::chrono::steady_clock::time_point grace_end_{};
+  std::function<void()> on_grace_over_;
+  bool grace_over_ = false;
   bool started_ = false;
 };
 

@@ -2,6 +2,7 @@
 // Copyright (c) 2026 stlrefine authors
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
@@ -16,9 +17,11 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
+#include "api/memory_model.h"
 #include "api/params.h"
 #include "api/problem.h"
 #include "server/compute_slots.h"
@@ -56,6 +59,13 @@ struct JobsConfig {
   std::chrono::milliseconds deadline{0};
   //! Runners compute at this much lower priority (nice increment), as the HTTP workers do.
   int runner_nice = 0;
+  //! Kept free on the data directory's file system beyond each job's input, its predicted
+  //! results and those of the jobs accepted before it: a job that would eat into it is
+  //! refused (SubmitResult::Status::NoSpace, 507).
+  std::uint64_t min_free_bytes = std::uint64_t{64} << 20;
+  //! Free bytes of the data directory's file system (empty: statvfs's f_bavail * f_frsize;
+  //! a file system it cannot measure counts as unlimited). Tests inject their own.
+  std::function<std::uint64_t()> free_bytes;
 };
 
 //! What a client sees of a job (a copy, taken under the store's lock).
@@ -76,30 +86,90 @@ struct JobView {
 //! The job's JSON answer: id, state, progress, stage, timings, report, problem, links.
 nlohmann::ordered_json job_json(const JobView& job);
 
+//! What JobStore::submit did with a job.
+struct SubmitResult {
+  enum class Status {
+    Accepted,      //!< queued: `job` is set (202)
+    QueueFull,     //!< max_queued jobs wait already (503 + Retry-After)
+    ShuttingDown,  //!< the store takes no more jobs (503)
+    NoSpace,       //!< the data directory's file system is too full (507)
+  };
+  Status status = Status::Accepted;
+  std::optional<JobView> job;
+  //! NoSpace: what the job needed free (input + predicted results + the predicted results
+  //! of the jobs accepted and not finished + min_free_bytes) and what was free. After a
+  //! write that failed for want of space (ENOSPC, EDQUOT, EFBIG), free_bytes is what the
+  //! file system said afterwards.
+  std::uint64_t needed_bytes = 0;
+  std::uint64_t free_bytes = 0;
+
+  //! A job not accepted, for `status`.
+  static SubmitResult refused(Status status, std::uint64_t needed_bytes = 0,
+                              std::uint64_t free_bytes = 0) {
+    return {status, std::nullopt, needed_bytes, free_bytes};
+  }
+};
+
+//! The 507 answer to SubmitResult::Status::NoSpace: insufficient-storage, reason
+//! "no_space", `needed_bytes`, `free_bytes`.
+api::Problem no_space_problem(const SubmitResult& refused);
+
+//! Bytes a job's files take at most on disk (the figure submit() checks free space for):
+//! the STL of `predicted.output_faces` facets in the request's output format, the contours
+//! of `predicted.contour_points` points at the widest format's size, and the report.
+//! (api::MemoryEstimate::answer_bytes is 0 for ResultSink::JobFiles.)
+std::uint64_t predicted_result_bytes(const api::RefineRequest& request,
+                                     const api::MemoryEstimate& predicted);
+
 //! Asynchronous refinement jobs (refine, optionally slice) with a bounded queue, results in
 //! a data directory written by atomic rename, retention by age and disk budget, and
 //! recovery after a restart: finished jobs stay downloadable, interrupted ones are failed.
+//! Ids are 128 bits from getrandom(2) as 32 lowercase hex digits (the capability to the
+//! results); a job belongs to the tenant that submitted it, and is unknown to any other.
 class JobStore {
  public:
   //! Called when a job ends (for metrics): scheme, state, seconds running, faces in/out.
   using FinishedFn = std::function<void(const JobView&, double seconds)>;
 
-  //! \throw std::runtime_error when the data directory cannot be created or read.
+  //! \throw std::runtime_error when the data directory cannot be created or read, or its
+  //! `.tenant-key` is not one this store wrote (see tenant_of()).
   JobStore(JobsConfig config, ComputeSlots& slots, FinishedFn on_finished = {});
   ~JobStore();
   JobStore(const JobStore&) = delete;
   JobStore& operator=(const JobStore&) = delete;
 
-  //! Queues a job; its input is written to disk first. Returns nothing when the queue is
-  //! full or the store is shutting down.
-  std::optional<JobView> submit(api::RefineRequest request, std::string query,
-                                std::string_view stl_bytes);
+  //! Queues a job owned by `owner` (an opaque tenant id, tenant_of(key); empty when the
+  //! daemon has no API keys). Free space is checked first: the data directory's file system
+  //! must keep min_free_bytes free after the input, `predicted_result_bytes` (see
+  //! predicted_result_bytes()) and the predicted results of every accepted job not yet
+  //! finished. The input is written to disk before the job is visible; a write that fails
+  //! leaves no job directory behind (NoSpace when it failed for want of space, otherwise
+  //! the exception propagates).
+  SubmitResult submit(api::RefineRequest request, std::string query, std::string_view stl_bytes,
+                      std::string owner, std::uint64_t predicted_result_bytes);
 
-  enum class Lookup { Found, Unknown, Expired };
-  Lookup find(const std::string& id, JobView* out) const;
-  //! Cancels a queued or running job (a running one stops at its next cancellation check);
-  //! a finished job's results are deleted (it then answers 410).
-  Lookup cancel(const std::string& id, JobView* out);
+  //! Found; Unknown: no such job, or a malformed id, or a job of another owner (the same
+  //! answer, `out` untouched); Expired: its results were removed (410); TooLate (cancel
+  //! only): the job had finished before the cancel, see cancel().
+  enum class Lookup { Found, Unknown, Expired, TooLate };
+  //! The job `id` if `owner` owns it (the owner given to submit, compared in constant time).
+  Lookup find(const std::string& id, const std::string& owner, JobView* out) const;
+  //! Cancels `owner`'s job `id`.
+  //!  - Found: it was queued or running, and it ends `cancelled`, never `done`: a queued one
+  //!    at once, a running one at its next cancellation check, and one whose computation
+  //!    had just ended has its results discarded. `out` is the job as it is now (a running
+  //!    one with stage "cancel requested").
+  //!  - TooLate: it had already finished (done, failed or cancelled); its results are
+  //!    deleted and it then answers 410 (`out`: the finished job, `expired`). Another
+  //!    replica's job is deleted by that replica's janitor (within a minute; `out` is the
+  //!    job as it was).
+  //!  - Expired: its results were already removed. Unknown: as for find().
+  Lookup cancel(const std::string& id, const std::string& owner, JobView* out);
+  //! The tenant id of an API key: HMAC-SHA256 under this data directory's secret
+  //! (`.tenant-key`, 32 random bytes made at the first start, mode 0600, shared by the
+  //! replicas of the directory), 32 hex digits. Stable across restarts; the key itself is
+  //! never stored.
+  std::string tenant_of(std::string_view api_key) const;
   //! Path of a result file of a done job (name from JobView::results).
   std::filesystem::path result_path(const std::string& id, const std::string& name) const;
 
@@ -108,25 +178,38 @@ class JobStore {
   const JobsConfig& config() const { return config_; }
 
   //! Stops taking jobs: queued jobs fail ("shutting down"); running jobs may finish until
-  //! `grace` has passed, then they are cancelled. Returns when every runner has stopped.
+  //! `grace` has passed, then they are cancelled (503 shutting-down, "cancelled at shutdown
+  //! after the grace period"). Returns when every runner has stopped.
   void shutdown(std::chrono::milliseconds grace);
-  //! Cancels every running job now (a second SIGTERM).
+  //! Cancels every running job now (a second SIGTERM): they end cancelled, 503
+  //! shutting-down, saying the server was stopped at once.
   void cancel_running();
-  //! Removes expired results now (the janitor also does it periodically).
+  //! Removes expired results now (the janitor also does it periodically), with what a crash
+  //! left: job directories without job.json and `*.tmp` files untouched for a minute. The
+  //! `*.tmp` bytes still there count against disk_budget_bytes.
   void expire_now();
 
  private:
   struct Job;
+  enum class CancelReason { None, Client, ShutdownGrace, ShutdownNow };
+  struct Leftovers;
   void run_jobs();
   void run_one(const std::shared_ptr<Job>& job);
   void janitor();
   void persist(const Job& job) const;
   void persist_or_log(const Job& job) const;
   std::shared_ptr<Job> read_job(const std::filesystem::path& dir) const;
-  Lookup find_on_disk(const std::string& id, JobView* out) const;
+  Lookup find_on_disk(const std::string& id, const std::string& owner, JobView* out) const;
+  Lookup cancel_on_disk(const std::string& id, const std::string& owner, JobView* out);
   void load_existing();
+  Leftovers sweep_leftovers();
   void expire(Job& job);
   JobView view(const Job& job) const;
+  void request_cancel(Job& job, CancelReason why);  // under mutex_
+  bool cancel_noted(Job& job);                      // another replica's note; takes mutex_
+  void cancel_running(CancelReason why);
+  void release_disk(Job& job);  // under mutex_
+  api::Problem cancel_problem(CancelReason why, bool discarded) const;
 
   JobsConfig config_;
   ComputeSlots& slots_;
@@ -136,8 +219,13 @@ class JobStore {
   std::map<std::string, std::shared_ptr<Job>> jobs_;
   std::deque<std::shared_ptr<Job>> queue_;
   std::size_t running_ = 0;
+  //! Predicted result bytes of accepted, unfinished jobs, and inputs being written.
+  std::uint64_t committed_disk_ = 0;
   bool stopping_ = false;
   std::atomic<bool> cancel_all_{false};
+  CancelReason shutdown_reason_ = CancelReason::None;  // the cancel_all_ reason
+  std::chrono::milliseconds grace_{0};                 // shutdown's, for the message
+  std::array<unsigned char, 32> tenant_key_{};
   std::vector<std::thread> runners_;
   std::thread janitor_;
   RequestWatch watch_;  // deadlines of running jobs

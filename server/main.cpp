@@ -86,7 +86,9 @@ int main(int argc, char** argv) {
   std::uint64_t max_faces = 20'000'000;
   std::uint64_t max_slice_points = 20'000'000;
   int read_timeout = 10;
-  int write_timeout = 60;
+  int write_timeout = 10;
+  std::size_t max_connections_per_client = 256;
+  std::uint64_t min_transfer_rate_kib = 64;
   bool access_log = false;
   std::string data_dir = "stlrefine-data";
   std::size_t job_queue = 16;
@@ -121,10 +123,14 @@ int main(int argc, char** argv) {
                  "Contour points one slice answer may hold (422 above)")
       ->check(CLI::Range(std::uint64_t{1}, std::uint64_t{1} << 40))
       ->capture_default_str();
-  app.add_option("--read-timeout", read_timeout, "Seconds a socket read may stall")
+  app.add_option("--read-timeout", read_timeout,
+                 "Seconds a request head may take; a body must also arrive at "
+                 "--min-transfer-rate over every window this long")
       ->check(CLI::Range(1, 3600))
       ->capture_default_str();
-  app.add_option("--write-timeout", write_timeout, "Seconds a socket write may stall")
+  app.add_option("--write-timeout", write_timeout,
+                 "An answer must be read at --min-transfer-rate over every window this long "
+                 "(seconds), or the connection is dropped")
       ->check(CLI::Range(1, 3600))
       ->capture_default_str();
   app.add_flag("--access-log", access_log, "Log one JSON line per request on stderr");
@@ -144,15 +150,27 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(std::uint64_t{1}, std::uint64_t{1} << 30))
       ->capture_default_str();
   app.add_option("--shutdown-grace", shutdown_grace,
-                 "Seconds running jobs may finish after SIGTERM before they are cancelled")
+                 "Seconds requests and jobs in flight may finish (answers be written) after "
+                 "SIGTERM before they are cancelled")
       ->check(CLI::Range(0, 3600))
       ->capture_default_str();
   app.add_option("--api-key-file", api_key_file,
                  "File with one API key per line (>= 16 characters); then every route but "
                  "/healthz, /readyz and /metrics needs Authorization: Bearer <key>");
   app.add_option("--max-connections", max_connections,
-                 "Connections open at once; one more gets 503 at once")
+                 "Connections open at once; more are only answered if they are /healthz or "
+                 "/readyz, else 503")
       ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 20))
+      ->capture_default_str();
+  app.add_option("--max-connections-per-client", max_connections_per_client,
+                 "Connections one client address may hold (as --max-connections); 0 = no "
+                 "cap. Behind a reverse proxy every client has the proxy's address: raise it")
+      ->check(CLI::Range(std::size_t{0}, std::size_t{1} << 20))
+      ->capture_default_str();
+  app.add_option("--min-transfer-rate", min_transfer_rate_kib,
+                 "KiB/s a body must arrive at, and an answer be read at, over every "
+                 "--read-timeout / --write-timeout window")
+      ->check(CLI::Range(std::uint64_t{1}, std::uint64_t{1} << 20))
       ->capture_default_str();
   app.add_option("--memory-budget", memory_budget,
                  "Memory the daemon may use in all: bytes, or with a suffix K, M, G, T (binary: "
@@ -210,6 +228,8 @@ int main(int argc, char** argv) {
     config.jobs.disk_budget_bytes = disk_budget_mib << 20;
     config.shutdown_grace = std::chrono::seconds(shutdown_grace);
     config.max_connections = max_connections;
+    config.max_connections_per_client = max_connections_per_client;
+    config.min_transfer_rate = min_transfer_rate_kib << 10;
     config.compute_nice = compute_nice;
     config.memory_budget =
         memory_budget.empty() ? 0 : stlrefine::server::parse_byte_size(memory_budget);
