@@ -162,6 +162,9 @@ Json build() {
                             : Json{{"202", json_response("The queued job; "
                                                          "Location names it.")}},
                         true));
+      if (p == "/v1/jobs")
+        op["responses"]["507"] = problem_response(
+            "No room in the data directory for the input and the predicted results.");
       op["parameters"] = query_parameters(api::refine_param_names(limits));
       op["requestBody"] = stl_body();
       item["post"] = op;
@@ -188,7 +191,9 @@ Json build() {
                      {"404", problem_response("Unknown job.")},
                      {"410", json_response("The job's results were removed after retention.")}});
       item["delete"] = operation("Cancel a queued or running job; delete a finished job's results",
-                                 {{"200", json_response("The job after cancellation.")},
+                                 {{"200", json_response("The job; `cancel` says `cancelled` "
+                                                        "(it will end cancelled) or `too_late` "
+                                                        "(it had ended; results deleted).")},
                                   {"404", problem_response("Unknown job.")},
                                   {"410", json_response("Already removed.")}});
     } else if (p == "/v1/jobs/{id}/{file}") {
@@ -204,6 +209,9 @@ Json build() {
       item["parameters"] = params;
       item["get"] = operation("Download a result of a done job",
                               {{"200", binary_response("The file.", "application/octet-stream")},
+                               {"206", binary_response("One byte range of the file (Range).",
+                                                       "application/octet-stream")},
+                               {"416", problem_response("The Range starts past the end.")},
                                {"404", problem_response("Unknown job or no such result.")},
                                {"409", problem_response("The job is not done.")},
                                {"410", problem_response("Removed after retention.")}});
