@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "api/ingest.h"
+#include "api/memory_model.h"
 #include "api/problem.h"
 #include "api/report.h"
 #include "core/error.h"
@@ -58,7 +59,8 @@ InfoOutcome run_info(std::span<const std::uint8_t> bytes, const InfoRequest& req
 }
 
 RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineRequest& request,
-                         const ProgressFn& progress, const std::atomic<bool>* cancel) {
+                         const ProgressFn& progress, const std::atomic<bool>* cancel,
+                         const MemoryGrowFn& grow) {
   const auto start = Clock::now();
   request.refine.validate();  // a bad parameter is reported before the file is read
   RefineTimes times;
@@ -72,9 +74,27 @@ RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineReques
   if (request.slice) slicer::plan_layers(in.result.mesh, request.slice->params);
 
   auto phase = Clock::now();
+  const std::size_t input_faces = in.result.mesh.num_faces();
+  // refine's figures are its own: the body is held beside them for the whole request.
+  MemoryGrowFn refine_grow;
+  if (grow) refine_grow = [&](std::uint64_t refining) { return grow(bytes.size() + refining); };
   // The input mesh is not needed afterwards (the report only uses counters): move it in.
-  RefineResult refined = refine(std::move(in.result.mesh), request.refine, progress, cancel);
+  RefineResult refined = [&] {
+    try {
+      return refine(std::move(in.result.mesh), request.refine, progress, cancel, refine_grow);
+    } catch (const MemoryBudgetError& e) {
+      throw MemoryBudgetError(e.field(), e.level(), bytes.size() + e.needed_bytes());
+    }
+  }();
   times.refine = seconds_since(phase);
+  if (grow) {
+    // The hierarchy is gone; the mesh, its STL (and contours) are what the rest holds.
+    const std::uint64_t rest = refined_memory_bytes(
+        bytes, request, input_faces, refined.mesh.num_faces(), mesh_bytes(refined.mesh));
+    if (!grow(rest))
+      throw MemoryBudgetError(request.refine.adaptive() ? "max_level" : "levels",
+                              refined.report.levels, rest);
+  }
 
   phase = Clock::now();
   RefineOutcome out;

@@ -49,9 +49,18 @@ struct RefineOutcome {
 //! FaceBudgetError (an Error with code BudgetExceeded) with the predicted face count.
 //! With request.slice, the slice plan is checked on the input's bounds before refining
 //! (too many layers: BudgetExceeded, field max_layers), then the refined mesh is sliced.
+//!
+//! Memory: `grow` (see MemoryGrowFn in core/refine.h), when set, receives whole-request
+//! figures comparable with estimate_refine_memory's peak_bytes: the body (`bytes`) plus,
+//! while refining, what refine holds (the input mesh, the hierarchy or levels, its slack),
+//! then, before the STL is written, refined_memory_bytes (the refined mesh, the STL, and the
+//! slice's contours predicted from the faces made). Ingest is not metered: the up-front
+//! estimate covers it. When grow says no: MemoryBudgetError (BudgetExceeded, reason
+//! "memory_budget", field "max_level" or "levels") whose needed_bytes() is the refused
+//! whole-request figure; compare it with what one request may hold to tell 422 from 503.
 RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineRequest& request,
-                         const ProgressFn& progress = {},
-                         const std::atomic<bool>* cancel = nullptr);
+                         const ProgressFn& progress = {}, const std::atomic<bool>* cancel = nullptr,
+                         const MemoryGrowFn& grow = {});
 
 struct SliceOutcome {
   std::string contours;           //!< in request.slice.format

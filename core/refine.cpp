@@ -5,6 +5,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <optional>
@@ -15,6 +16,8 @@
 #include "core/parallel.h"
 #include "core/schemes/adaptive_split4.h"
 #include "core/schemes/adaptive_sqrt3.h"
+#include "core/schemes/split4_host.h"
+#include "core/schemes/sqrt3_host.h"
 
 namespace stlrefine {
 
@@ -105,13 +108,97 @@ void require_simple_mesh(const Mesh& m) {
 
 namespace {
 
+std::string mib(std::uint64_t bytes) {
+  return std::to_string((bytes + (1 << 20) - 1) >> 20) + " MiB";
+}
+
+}  // namespace
+
+MemoryBudgetError::MemoryBudgetError(std::string field, int level, std::uint64_t needed_bytes)
+    : Error(ErrorCode::BudgetExceeded, "memory_budget",
+            (field == "max_level" ? "adaptive level " : "level ") + std::to_string(level) +
+                " would need " + std::to_string(needed_bytes) + " bytes (" + mib(needed_bytes) +
+                ") of memory, more than the memory budget grants"),
+      level_(level),
+      needed_bytes_(needed_bytes) {
+  with_field(std::move(field));
+}
+
+std::uint64_t mesh_bytes(const Mesh& m) {
+  const std::size_t nv = m.num_vertices(), nh = m.num_halfedges(), ne = m.num_edges();
+  // Mesh::memory_bytes counts capacities: whatever it has beyond the sizes is put on the
+  // edge array, the one that can have more (Mesh::from_parts reserves it).
+  const std::uint64_t sized = nv * (sizeof(Vec3) + sizeof(HalfedgeId)) + 3 * nh * 4 + ne * 4;
+  const std::uint64_t spare = m.memory_bytes() > sized ? m.memory_bytes() - sized : 0;
+  return big_vector_bytes<Vec3>(nv) + 3 * big_vector_bytes<HalfedgeId>(nh) +
+         big_vector_bytes<HalfedgeId>(ne + spare / 4) + big_vector_bytes<HalfedgeId>(nv);
+}
+
+namespace {
+
+std::uint64_t features_bytes(const Mesh& m) {
+  return big_vector_bytes<std::uint8_t>(m.num_edges()) +
+         big_vector_bytes<VertexKind>(m.num_vertices()) +
+         big_vector_bytes<std::array<VertexId, 2>>(m.num_vertices());
+}
+
+}  // namespace
+
+std::uint64_t level_bytes(const Level& level) {
+  std::uint64_t bytes = mesh_bytes(level.mesh) + features_bytes(level.mesh) +
+                        big_vector_bytes<double>(level.alpha.size());
+  if (level.irregular.list) bytes += level.irregular.list->capacity() * 8;
+  return bytes;
+}
+
+namespace {
+
+// Memory admission of one refinement: what it holds besides the host (the input, copies),
+// the level in the making for the message, and the figure granted so far. Figures only rise.
+class Meter {
+ public:
+  Meter(const MemoryGrowFn& grow, std::string field) : grow_(grow), field_(std::move(field)) {}
+
+  bool on() const { return static_cast<bool>(grow_); }
+  void set_level(int level) { level_ = level; }
+  void set_outside(std::uint64_t bytes) { outside_ = bytes; }
+  //! The host (or the step about to run) holds `bytes` besides what set_outside said.
+  void need(std::uint64_t bytes) {
+    if (!grow_) return;
+    const std::uint64_t total = kRefineSlackBytes + outside_ + bytes;
+    if (total <= granted_) return;
+    if (!grow_(total)) throw MemoryBudgetError(field_, level_, total);
+    granted_ = total;
+  }
+  //! For a host: its own bytes, through need().
+  std::function<void(std::uint64_t)> host() {
+    if (!grow_) return {};
+    return [this](std::uint64_t bytes) { need(bytes); };
+  }
+
+ private:
+  const MemoryGrowFn& grow_;
+  std::string field_;
+  int level_ = 0;
+  std::uint64_t outside_ = 0, granted_ = 0;
+};
+
 void throw_if_cancelled(const std::atomic<bool>* cancel) {
   if (cancel && cancel->load(std::memory_order_relaxed))
     throw Error(ErrorCode::Cancelled, "cancelled", "refinement cancelled");
 }
 
+// The input mesh and what refine makes of it before a host runs: its features with a
+// normal per face while they are detected, and the simple-mesh check's hash set (a node and
+// a bucket per edge, with allocator headers).
+std::uint64_t input_bytes(const Mesh& m) {
+  return mesh_bytes(m) + features_bytes(m) + big_vector_bytes<Vec3>(m.num_faces()) +
+         std::uint64_t(m.num_edges()) * 48;
+}
+
 RefineResult run_levels(Mesh mesh, const RefineParams& params, const Scheme& scheme,
-                        const ProgressFn& progress, const std::atomic<bool>* cancel) {
+                        const ProgressFn& progress, const std::atomic<bool>* cancel,
+                        const MemoryGrowFn& grow) {
   const CancelScope cancel_scope(cancel);  // parallel loops of this request stop early
   const auto start = std::chrono::steady_clock::now();
   RefineResult result;
@@ -121,6 +208,12 @@ RefineResult run_levels(Mesh mesh, const RefineParams& params, const Scheme& sch
   r.input_vertices = mesh.num_vertices();
   r.input_faces = mesh.num_faces();
   const std::size_t input_faces = mesh.num_faces();
+  Meter meter(grow, params.adaptive() ? "max_level" : "levels");
+  const std::uint64_t copied_positions = big_vector_bytes<Vec3>(mesh.num_vertices());
+  if (meter.on()) {
+    meter.set_outside(copied_positions);
+    meter.need(input_bytes(mesh));
+  }
   // Old vertices keep their ids at every level, so input vertex v is output vertex v.
   const BigVector<Vec3> input_positions(mesh.positions().begin(), mesh.positions().end());
 
@@ -144,31 +237,51 @@ RefineResult run_levels(Mesh mesh, const RefineParams& params, const Scheme& sch
   if (params.adaptive() && adaptive_sqrt3_scheme(scheme)) {
     const Sqrt3AdaptiveCriteria criteria{params.adaptive_angle, params.adaptive_tol,
                                          params.max_level};
-    AdaptiveSqrt3 adaptive(level, *adaptive_sqrt3_scheme(scheme), criteria);
-    adaptive.run(params.max_faces, cancel, [&](int l) { adaptive_progress(l + 1); });
+    meter.set_level(1);
+    // The input level is held until the hierarchy has copied it.
+    meter.set_outside(copied_positions + level_bytes(level));
+    std::optional<AdaptiveSqrt3> adaptive;
+    adaptive.emplace(level, *adaptive_sqrt3_scheme(scheme), criteria, meter.host());
+    level = Level{};
+    meter.set_outside(copied_positions);
+    adaptive->run(params.max_faces, cancel, [&](int l) {
+      meter.set_level(l + 1);
+      adaptive_progress(l + 1);
+    });
     throw_if_cancelled(cancel);
-    level = adaptive.result();
-    r.levels = adaptive.stats().levels;
-    r.faces_over_criterion = adaptive.stats().over_criterion_at_cap;
+    level = adaptive->result();
+    r.levels = adaptive->stats().levels;
+    r.faces_over_criterion = adaptive->stats().over_criterion_at_cap;
   } else if (params.adaptive()) {
     const Split4Stencil& stencil = *adaptive_scheme(scheme);
-    AdaptiveSplit4 adaptive(level);
+    meter.set_level(1);
+    meter.set_outside(copied_positions + level_bytes(level));
+    std::optional<AdaptiveSplit4> adaptive;
+    adaptive.emplace(level, meter.host());
+    level = Level{};
+    meter.set_outside(copied_positions);
     int made = 0;
     for (int i = 1; i <= params.max_level; ++i) {
       throw_if_cancelled(cancel);
       adaptive_progress(i);
+      meter.set_level(i);
       AdaptiveStepStats step;
-      if (!adaptive.step(stencil, params.adaptive_tol, params.max_faces, stats, step,
-                         params.adaptive_angle))
+      if (!adaptive->step(stencil, params.adaptive_tol, params.max_faces, stats, step,
+                          params.adaptive_angle))
         break;
       made = i;
     }
-    level = adaptive.release();
+    level = adaptive->release();
+    adaptive.reset();  // its hierarchy is not needed for the count below
     r.levels = made;
     // At the cap some edges may still be over a criterion: say how many.
-    if (made == params.max_level)
-      r.edges_over_tolerance =
-          count_edges_over_tolerance(level, stencil, params.adaptive_tol, params.adaptive_angle);
+    if (made == params.max_level) {
+      const std::uint64_t held = level_bytes(level);
+      std::function<void(std::uint64_t)> reserve;
+      if (meter.on()) reserve = [&](std::uint64_t bytes) { meter.need(held + bytes); };
+      r.edges_over_tolerance = count_edges_over_tolerance(level, stencil, params.adaptive_tol,
+                                                          params.adaptive_angle, reserve);
+    }
   }
   // Work per level grows 4x (3x for sqrt3), so weight progress by output faces.
   std::uint64_t total = 0;
@@ -180,6 +293,13 @@ RefineResult run_levels(Mesh mesh, const RefineParams& params, const Scheme& sch
     if (progress)
       progress(total ? double(done) / double(total) : 0.0,
                "level " + std::to_string(i) + "/" + std::to_string(params.levels));
+    if (meter.on()) {
+      // The coarse level next to everything the step makes (exact counts).
+      meter.set_level(i);
+      const auto* split4 = dynamic_cast<const Split4Scheme*>(&scheme);
+      meter.need(level_bytes(level) +
+                 (split4 ? split4_step_bytes(level, split4->stencil()) : sqrt3_step_bytes(level)));
+    }
     level = scheme.refine_once(level, stats);
     done += level.mesh.num_faces();
   }
@@ -203,15 +323,16 @@ RefineResult run_levels(Mesh mesh, const RefineParams& params, const Scheme& sch
 }  // namespace
 
 RefineResult refine(Mesh mesh, const RefineParams& params, const ProgressFn& progress,
-                    const std::atomic<bool>* cancel) {
+                    const std::atomic<bool>* cancel, const MemoryGrowFn& grow) {
   params.validate();
   check_face_budget(mesh.num_faces(), params);
   const auto scheme = make_scheme(params.scheme, scheme_options(params));
-  if (params.threads == 0) return run_levels(std::move(mesh), params, *scheme, progress, cancel);
+  if (params.threads == 0)
+    return run_levels(std::move(mesh), params, *scheme, progress, cancel, grow);
   // A dedicated arena caps this request's threads without touching the global pool.
   tbb::task_arena arena(params.threads);
   return arena.execute(
-      [&] { return run_levels(std::move(mesh), params, *scheme, progress, cancel); });
+      [&] { return run_levels(std::move(mesh), params, *scheme, progress, cancel, grow); });
 }
 
 }  // namespace stlrefine

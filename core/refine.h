@@ -9,7 +9,9 @@
 #include <string>
 #include <string_view>
 
+#include "core/error.h"
 #include "core/features/features.h"
+#include "core/mesh/array_pool.h"
 #include "core/mesh/mesh.h"
 #include "core/schemes/scheme.h"
 
@@ -67,6 +69,46 @@ const Sqrt3Stencil* adaptive_sqrt3_scheme(const Scheme& scheme);
 //! Progress sink: fraction in [0, 1] and a short stage name ("level 2/3").
 using ProgressFn = std::function<void(double fraction, std::string_view stage)>;
 
+//! Memory admission while a refinement grows. Called with the peak bytes the refinement
+//! will hold from now on (its arrays as they are about to grow, a true upper bound for the
+//! next step, until the next call); returns false when that does not fit. The figures
+//! only rise: a call is made when the next step needs more than was granted so far.
+//! The adaptive hosts call it before every growth of their hierarchy (the sqrt3 one a chunk
+//! of at most 0.9 MiB at a time, the 1-to-4 one per phase of a step) and before they build
+//! their output; uniform refinement once per level.
+//!
+//! What a figure counts: every array the refinement allocates (rounded as the allocators
+//! round them), the input mesh it was given and its features, plus kRefineSlackBytes for
+//! small buffers (stencil patches, per-thread scratch, allocator headers). Not counted:
+//! the array pool's slabs (core/mesh/array_pool.h, at most 64 MiB per process, which the
+//! daemon keeps in its own reserve) and what the caller holds (api::run_refine adds the
+//! request body and the STL it writes).
+using MemoryGrowFn = std::function<bool(std::uint64_t bytes)>;
+
+//! What a figure adds for small buffers besides the counted arrays.
+inline constexpr std::uint64_t kRefineSlackBytes = std::uint64_t{8} << 20;
+
+//! Thrown by refine (and api::run_refine) when a MemoryGrowFn returned false: code
+//! BudgetExceeded, reason "memory_budget", field "max_level" (adaptive) or "levels"
+//! (uniform), the message naming the bytes and the level.
+//!
+//! "Does not fit now" or "never fits": the error cannot know the caller's capacity, so the
+//! caller compares needed_bytes() (the figure its callback refused) with what one request
+//! may ever hold: above it the request can never run (422 with the field; lower max_level /
+//! levels), at or below it it did not fit next to the other requests (503, retry later).
+class MemoryBudgetError : public Error {
+ public:
+  MemoryBudgetError(std::string field, int level, std::uint64_t needed_bytes);
+  //! The figure the callback refused.
+  std::uint64_t needed_bytes() const { return needed_bytes_; }
+  //! The level being made when it was refused (adaptive: the finest level in the making).
+  int level() const { return level_; }
+
+ private:
+  int level_;
+  std::uint64_t needed_bytes_;
+};
+
 struct RefineReport {
   std::string scheme;
   int levels = 0;
@@ -106,10 +148,28 @@ std::uint64_t check_face_budget(std::size_t faces, const RefineParams& params);
 void require_simple_mesh(const Mesh& mesh);
 
 //! Applies params.scheme params.levels times. Checks the face budget before any work,
-//! the cancel flag between levels. Takes the mesh by value: move it in to save a copy.
-//! \throw Error(InvalidParameter | BudgetExceeded | Cancelled); Error(NotTriangleMesh) in the
-//! adaptive mode of a sqrt3 scheme on a mesh that is not simple (see require_simple_mesh).
+//! the cancel flag between levels, and asks `grow` (when set) before the memory it holds
+//! grows (see MemoryGrowFn). Takes the mesh by value: move it in to save a copy.
+//! \throw Error(InvalidParameter | BudgetExceeded | Cancelled); MemoryBudgetError when grow
+//! said no; Error(NotTriangleMesh) in the adaptive mode of a sqrt3 scheme on a mesh that is
+//! not simple (see require_simple_mesh).
 RefineResult refine(Mesh mesh, const RefineParams& params, const ProgressFn& progress = {},
-                    const std::atomic<bool>* cancel = nullptr);
+                    const std::atomic<bool>* cancel = nullptr, const MemoryGrowFn& grow = {});
+
+//! Bytes the allocator takes for n elements of T in a BigVector (HugePageAllocator): whole
+//! 2 MiB pages from 2 MiB up, the array pool's size class from 4 KiB, else the bytes.
+template <class T>
+std::uint64_t big_vector_bytes(std::size_t n) {
+  const std::uint64_t bytes = std::uint64_t(n) * sizeof(T);
+  constexpr std::uint64_t kHuge = std::uint64_t{2} << 20;
+  if (bytes >= kHuge) return (bytes + kHuge - 1) / kHuge * kHuge;
+  const std::size_t pooled = array_pool::block_bytes(static_cast<std::size_t>(bytes));
+  return pooled ? pooled : bytes;
+}
+
+//! Bytes the arrays of a mesh hold (their capacities, rounded as big_vector_bytes).
+std::uint64_t mesh_bytes(const Mesh& mesh);
+//! ... and of a level: its mesh, features, alpha and irregular-vertex list.
+std::uint64_t level_bytes(const Level& level);
 
 }  // namespace stlrefine

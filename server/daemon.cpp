@@ -8,6 +8,7 @@
 #include <arpa/inet.h>
 #include <fcntl.h>
 #include <httplib.h>
+#include <malloc.h>
 #include <netinet/in.h>
 #include <poll.h>
 #include <sys/socket.h>
@@ -966,6 +967,13 @@ void Daemon::Impl::compute(const Request& req, ReadRequest& read, Response& res,
     if (fault == "oom") throw std::bad_alloc();
   }
   std::shared_ptr<RequestWatch::Ticket> ticket;
+  // What a computation freed goes back to the kernel before its reservation does: small
+  // blocks (the adaptive hierarchies' chunks, stencil patches) otherwise stay in the
+  // threads' malloc arenas, and a daemon that ran 577 MiB requests one after another under a
+  // 640 MiB budget held 1.36 GB.
+  struct TrimAfter {
+    ~TrimAfter() { ::malloc_trim(0); }
+  } trim_after;
   try {
     // Parsed again (cheap): the pre-routing check only validated.
     const auto body =
@@ -1027,7 +1035,10 @@ void Daemon::Impl::compute(const Request& req, ReadRequest& read, Response& res,
     };
     if (refine_request) {
       const auto started = std::chrono::steady_clock::now();
-      api::RefineOutcome out = api::run_refine(body, *refine_request, {}, cancel);
+      // The reservation grows with the refinement (an adaptive hierarchy's size is known
+      // only as it is made); it stops the moment it would pass the budget.
+      auto grow = [&reservation](std::uint64_t bytes) { return reservation->grow_to(bytes); };
+      api::RefineOutcome out = api::run_refine(body, *refine_request, {}, cancel, grow);
       metrics.refinement(
           refine_request->refine.scheme, "done",
           std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(),
@@ -1065,6 +1076,16 @@ void Daemon::Impl::compute(const Request& req, ReadRequest& read, Response& res,
       res.set_content(report.dump(2, ' ', true) + "\n", kJsonContentType);
     }
     res.status = 200;
+  } catch (const MemoryBudgetError& e) {
+    res.headers.erase(kReportHeader);
+    res.headers.erase("Content-Disposition");
+    res.headers.erase("Content-Type");
+    big = Answer();
+    // Above what one request may ever hold: 422 naming the level parameter; else it did not
+    // fit next to the running requests: 503, retry.
+    if (e.needed_bytes() > memory.capacity())
+      return respond(res, api::memory_budget_problem(e, memory.capacity()));
+    respond(res, memory_busy_problem(e.needed_bytes()));
   } catch (const Error& e) {
     res.headers.erase(kReportHeader);
     res.headers.erase("Content-Disposition");

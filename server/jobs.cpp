@@ -3,6 +3,7 @@
 #include "server/jobs.h"
 
 #include <fcntl.h>
+#include <malloc.h>
 #include <openssl/crypto.h>
 #include <openssl/evp.h>
 #include <openssl/hmac.h>
@@ -69,6 +70,8 @@ namespace {
 
 constexpr const char* kJobFile = "job.json";
 constexpr const char* kInputFile = "input.stl";
+// How long a running job waits for memory its refinement needs next (held by other work).
+constexpr std::chrono::seconds kGrowWait{10};
 // Notes from another replica sharing the data directory, for the job's owner: cancel it
 // (running), delete its results (finished).
 constexpr const char* kCancelFile = "cancel";
@@ -901,7 +904,20 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
       job->progress = std::clamp(fraction, 0.0, 1.0);
       job->stage = std::string(stage);
     };
-    api::RefineOutcome out = api::run_refine(input_bytes, job->request, progress, &ticket->cancel);
+    // The reservation grows with the refinement. Memory held by other work may come back:
+    // wait for it a while (cancellable), then give up rather than hold half a hierarchy.
+    auto grow = [&](std::uint64_t needed) {
+      if (!memory) return true;  // no budget configured
+      if (needed > config_.memory->capacity()) return false;
+      const auto until = std::chrono::steady_clock::now() + kGrowWait;
+      while (!memory->grow_to(needed)) {
+        if (std::chrono::steady_clock::now() > until || ticket->cancel) return false;
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      }
+      return true;
+    };
+    api::RefineOutcome out =
+        api::run_refine(input_bytes, job->request, progress, &ticket->cancel, grow);
     report = out.report;
     // Each file is listed once it is whole, so a failure below removes exactly those.
     write_atomically(job->dir / "result.stl", out.stl);
@@ -921,6 +937,19 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
     state = JobState::Done;
   } catch (const Refused& r) {
     problem = r.problem;
+  } catch (const MemoryBudgetError& e) {
+    if (job->cancel || cancel_all_) {
+      state = JobState::Cancelled;
+    } else if (config_.memory && e.needed_bytes() <= config_.memory->capacity()) {
+      problem = api::make_problem(
+          503, "busy",
+          "the job needed " + std::to_string((e.needed_bytes() + (1 << 20) - 1) >> 20) +
+              " MiB while other work held the memory budget; submit it again");
+      problem->extensions["reason"] = "memory";
+    } else {
+      problem = config_.memory ? api::memory_budget_problem(e, config_.memory->capacity())
+                               : api::problem_from_error(e);
+    }
   } catch (const Error& e) {
     if (e.code() == ErrorCode::Cancelled || job->cancel || cancel_all_)
       state = JobState::Cancelled;
@@ -939,6 +968,7 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
     problem = api::make_problem(500, "internal", "an internal error occurred");
   }
   lease.reset();
+  ::malloc_trim(0);  // what the refinement freed goes back before its reservation does
   memory.reset();
   std::error_code ignored;
   fs::remove(job->dir / kInputFile, ignored);

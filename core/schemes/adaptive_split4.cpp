@@ -10,22 +10,33 @@
 
 #include "core/error.h"
 #include "core/parallel.h"
+#include "core/refine.h"
 
 namespace stlrefine {
 
 namespace {
 
 // Coarse vertices then one candidate point per edge (V + e), fold-guarded like the uniform
-// host, so an adaptive step places exactly the points a uniform step would.
-BigVector<Vec3> candidate_points(const Level& level, const Split4Stencil& stencil,
-                                 StepStats& stats) {
+// host, so an adaptive step places exactly the points a uniform step would. `guard_reserve`
+// gets the fold guard's work bytes when it needs them.
+BigVector<Vec3> candidate_points(const Level& level, const Split4Stencil& stencil, StepStats& stats,
+                                 const std::function<void(std::uint64_t)>& guard_reserve) {
   const Mesh& m = level.mesh;
   const std::size_t nv = m.num_vertices();
   BigVector<Vec3> pos(nv + m.num_edges());
   stencil.vertex_points(level, std::span<Vec3>(pos.data(), nv));
   stencil.edge_points(level, std::span<Vec3>(pos.data() + nv, m.num_edges()));
-  stats.fold_fallbacks += guard_folds(m, level.features, pos);
+  stats.fold_fallbacks += guard_folds(m, level.features, pos, guard_reserve);
   return pos;
+}
+
+// What the marking allocates besides the level at most: the candidate points, the stencil's
+// scratch, the fold guard's flags and the marks (the guard's work arrays are reserved by the
+// guard itself, see candidate_points).
+std::uint64_t marking_bytes(const Level& level, const Split4Stencil& stencil) {
+  const Mesh& m = level.mesh;
+  return big_vector_bytes<Vec3>(m.num_vertices() + m.num_edges()) + stencil.scratch_bytes(level) +
+         2 * std::uint64_t(m.num_edges()) + m.num_faces();
 }
 
 std::vector<std::uint8_t> over_tolerance(const Level& level, const BigVector<Vec3>& pos,
@@ -53,15 +64,23 @@ std::vector<std::uint8_t> over_tolerance(const Level& level, const BigVector<Vec
 }  // namespace
 
 std::size_t count_edges_over_tolerance(const Level& level, const Split4Stencil& stencil,
-                                       double tolerance, double angle_deg) {
+                                       double tolerance, double angle_deg,
+                                       const std::function<void(std::uint64_t)>& reserve) {
   StepStats ignored;
-  const auto marked =
-      over_tolerance(level, candidate_points(level, stencil, ignored), tolerance, angle_deg);
+  const std::uint64_t marking = marking_bytes(level, stencil);
+  if (reserve) reserve(marking);
+  std::function<void(std::uint64_t)> guard_reserve;
+  if (reserve) guard_reserve = [&](std::uint64_t work) { reserve(marking + work); };
+  const auto marked = over_tolerance(
+      level, candidate_points(level, stencil, ignored, guard_reserve), tolerance, angle_deg);
   return static_cast<std::size_t>(std::count(marked.begin(), marked.end(), 1));
 }
 
-AdaptiveSplit4::AdaptiveSplit4(const Level& coarse) {
+AdaptiveSplit4::AdaptiveSplit4(const Level& coarse, std::function<void(std::uint64_t)> reserve)
+    : reserve_(std::move(reserve)) {
   const Mesh& m = coarse.mesh;
+  const std::size_t nv = m.num_vertices(), ne = m.num_edges(), nf = m.num_faces();
+  need(nv * sizeof(Vec3) + ne * sizeof(Edge) + nf * sizeof(Leaf) + build_bytes(nf, 0, nf, ne, nv));
   positions_.assign(m.positions().begin(), m.positions().end());
   edges_.resize(m.num_edges());
   for (std::uint32_t e = 0; e < m.num_edges(); ++e) {
@@ -90,16 +109,43 @@ std::uint32_t AdaptiveSplit4::add_edge(std::uint32_t a, std::uint32_t b, bool sh
   return static_cast<std::uint32_t>(edges_.size() - 1);
 }
 
+std::uint64_t AdaptiveSplit4::held_bytes() const {
+  return positions_.capacity() * sizeof(Vec3) + edges_.capacity() * sizeof(Edge) +
+         leaves_.capacity() * sizeof(Leaf) + owner_.capacity() * sizeof(std::uint32_t) +
+         leaf_halfedge_.capacity() * sizeof(leaf_halfedge_[0]) + level_bytes(level_);
+}
+
+std::uint64_t AdaptiveSplit4::build_bytes(std::uint64_t faces, std::uint64_t greens,
+                                          std::uint64_t leaves, std::uint64_t edges,
+                                          std::uint64_t vertices) const {
+  const std::size_t h = 3 * faces, v = vertices;
+  // Mesh::from_parts reserves edge_halfedge for h / 2 + 1 edges and doubles it when the
+  // boundary makes more: both buffers at once.
+  const std::size_t edge_reserve = h / 2 + 1;
+  return big_vector_bytes<VertexId>(h) + h * sizeof(std::uint32_t) +  // corners, keys
+         (faces > owner_.capacity() ? faces * sizeof(std::uint32_t) : 0) +
+         (leaves > leaf_halfedge_.capacity() ? leaves * sizeof(leaf_halfedge_[0]) : 0) +
+         big_vector_bytes<HalfedgeId>(h) + (edges + greens) * sizeof(HalfedgeId) +  // twins
+         big_vector_bytes<Vec3>(v) + big_vector_bytes<EdgeId>(h) +
+         big_vector_bytes<HalfedgeId>(edge_reserve) +
+         big_vector_bytes<HalfedgeId>(2 * edge_reserve) + big_vector_bytes<HalfedgeId>(v) +
+         big_vector_bytes<std::uint8_t>(h) + big_vector_bytes<VertexKind>(v) +
+         big_vector_bytes<std::array<VertexId, 2>>(v);
+}
+
 void AdaptiveSplit4::build_level() {
   // Conforming triangles, each side known by an edge key: an entry of edges_, or
   // edges_.size() + g for the bisector of the g-th green leaf.
   const std::uint32_t num_edges = static_cast<std::uint32_t>(edges_.size());
+  std::size_t faces = leaves_.size();  // exactly: a green leaf makes two
+  for (const Leaf& leaf : leaves_)
+    for (const std::uint32_t e : leaf.e) faces += edges_[e].mid != kNone;
   BigVector<VertexId> corner_vertex;
   std::vector<std::uint32_t> key;
-  corner_vertex.reserve(3 * (leaves_.size() + leaves_.size() / 4));
-  key.reserve(corner_vertex.capacity());
+  corner_vertex.reserve(3 * faces);
+  key.reserve(3 * faces);
   owner_.clear();
-  owner_.reserve(corner_vertex.capacity() / 3);
+  owner_.reserve(faces);
   leaf_halfedge_.assign(leaves_.size(), {HalfedgeId(), HalfedgeId(), HalfedgeId()});
   std::uint32_t greens = 0;
   auto add_triangle = [&](std::uint32_t leaf, std::array<std::uint32_t, 3> v,
@@ -166,49 +212,89 @@ void AdaptiveSplit4::build_level() {
   level_.features = Features(m, std::move(sharp));
 }
 
+namespace {
+
+Error face_budget_error(const char* bound, std::uint64_t faces, std::uint64_t max_faces) {
+  return Error(ErrorCode::BudgetExceeded, "face_budget",
+               std::string("the next adaptive level would make ") + bound + std::to_string(faces) +
+                   " faces; the limit is max_faces = " + std::to_string(max_faces))
+      .with_field("max_faces");
+}
+
+template <class T>
+void free_array(T& array) {
+  T().swap(array);
+}
+
+}  // namespace
+
 bool AdaptiveSplit4::step(const Split4Stencil& stencil, double tolerance, std::uint64_t max_faces,
                           StepStats& stats, AdaptiveStepStats& step, double angle_deg) {
   const Mesh& m = level_.mesh;
   const std::size_t nv = m.num_vertices();
-  const BigVector<Vec3> pos = candidate_points(level_, stencil, stats);
-  const std::vector<std::uint8_t> marked = over_tolerance(level_, pos, tolerance, angle_deg);
+  const std::uint64_t held = held_bytes();
+  const std::uint64_t marking = marking_bytes(level_, stencil);
+  need(held + marking);
+  std::function<void(std::uint64_t)> guard_reserve;
+  if (reserve_) guard_reserve = [&](std::uint64_t work) { need(held + marking + work); };
+  BigVector<Vec3> pos = candidate_points(level_, stencil, stats, guard_reserve);
+  std::vector<std::uint8_t> marked = over_tolerance(level_, pos, tolerance, angle_deg);
   step.marked_by_tolerance = static_cast<std::size_t>(std::count(marked.begin(), marked.end(), 1));
   if (step.marked_by_tolerance == 0) return false;
+
+  const std::size_t num_leaves = leaves_.size(), num_edges = edges_.size();
+  const std::uint64_t points = big_vector_bytes<Vec3>(pos.capacity()) + marked.capacity();
+  need(held + points + num_leaves);
 
   // A leaf is split red when any edge of its conforming faces is over tolerance; that
   // includes a green's bisector and the halves of a split edge (the finer neighbour
   // needs refining, which needs this leaf at its level first).
-  std::vector<std::uint8_t> red(leaves_.size(), 0);
+  std::vector<std::uint8_t> red(num_leaves, 0);
   for (std::uint32_t h = 0; h < m.num_halfedges(); ++h)
     if (marked[m.edge(HalfedgeId(h)).idx]) red[owner_[h / 3]] = 1;
   step.red_by_tolerance = static_cast<std::size_t>(std::count(red.begin(), red.end(), 1));
+  // A red leaf makes at least four faces, any other at least one: over the budget already,
+  // the closure need not run.
+  if (const std::uint64_t at_least = num_leaves + 3 * std::uint64_t(step.red_by_tolerance);
+      at_least > max_faces)
+    throw face_budget_error("at least ", at_least, max_faces);
+  // The closure's work arrays: a flag per leaf (red, queued), a worklist that never holds a
+  // leaf twice, and per edge its leaves and whether it will be split.
+  need(held + points + num_leaves * (2 + sizeof(std::uint32_t)) +
+       num_edges * (1 + sizeof(std::array<std::uint32_t, 2>)));
 
   // Closure: every edge of a red leaf gets a midpoint; a leaf that would then carry two
   // hanging midpoints, or one on a half of its already split edge (a level jump of two),
   // turns red as well. A worklist holds the leaves next to edges that just got marked:
-  // those on the edge, and those on the edge it is a half of.
-  std::vector<std::array<std::uint32_t, 2>> leaves_of(edges_.size(), {kNone, kNone});
-  for (std::uint32_t f = 0; f < leaves_.size(); ++f)
+  // those on the edge, and those on the edge it is a half of. The rule only ever adds red
+  // leaves, so the order does not change the result, and a leaf is queued once at a time.
+  std::vector<std::array<std::uint32_t, 2>> leaves_of(num_edges, {kNone, kNone});
+  for (std::uint32_t f = 0; f < num_leaves; ++f)
     for (const std::uint32_t e : leaves_[f].e) leaves_of[e][leaves_of[e][0] == kNone ? 0 : 1] = f;
-  std::vector<std::uint8_t> will_split(edges_.size(), 0);
+  std::vector<std::uint8_t> will_split(num_edges, 0), queued(num_leaves, 0);
   std::vector<std::uint32_t> todo;
+  todo.reserve(num_leaves);
+  auto enqueue = [&](std::uint32_t g) {
+    if (g == kNone || red[g] || queued[g]) return;
+    queued[g] = 1;
+    todo.push_back(g);
+  };
   auto mark_edges = [&](std::uint32_t f) {
     for (const std::uint32_t e : leaves_[f].e) {
       if (edges_[e].mid != kNone || will_split[e]) continue;
       will_split[e] = 1;
-      for (const std::uint32_t g : leaves_of[e])
-        if (g != kNone && !red[g]) todo.push_back(g);
+      for (const std::uint32_t g : leaves_of[e]) enqueue(g);
       if (edges_[e].parent != kNone)
-        for (const std::uint32_t g : leaves_of[edges_[e].parent])
-          if (g != kNone && !red[g]) todo.push_back(g);
+        for (const std::uint32_t g : leaves_of[edges_[e].parent]) enqueue(g);
     }
   };
   auto split_after = [&](std::uint32_t e) { return edges_[e].mid != kNone || will_split[e]; };
-  for (std::uint32_t f = 0; f < leaves_.size(); ++f)
+  for (std::uint32_t f = 0; f < num_leaves; ++f)
     if (red[f]) mark_edges(f);
   while (!todo.empty()) {
     const std::uint32_t f = todo.back();
     todo.pop_back();
+    queued[f] = 0;
     if (red[f]) continue;
     int hanging = 0;
     bool level_jump = false;
@@ -224,6 +310,9 @@ bool AdaptiveSplit4::step(const Split4Stencil& stencil, double tolerance, std::u
     }
   }
   step.red_faces = step.red_by_tolerance + step.red_by_closure;
+  free_array(leaves_of);
+  free_array(queued);
+  free_array(todo);
 
   // The conforming face count of the next level, before anything is changed. A kept leaf
   // is green when one of its edges is split; of a red leaf's four children only a corner
@@ -234,7 +323,7 @@ bool AdaptiveSplit4::step(const Split4Stencil& stencil, double tolerance, std::u
     faces += green ? 2 : 1;
     step.green_faces += green;
   };
-  for (std::uint32_t f = 0; f < leaves_.size(); ++f) {
+  for (std::uint32_t f = 0; f < num_leaves; ++f) {
     const Leaf& leaf = leaves_[f];
     if (!red[f]) {
       count(split_after(leaf.e[0]) || split_after(leaf.e[1]) || split_after(leaf.e[2]));
@@ -248,15 +337,34 @@ bool AdaptiveSplit4::step(const Split4Stencil& stencil, double tolerance, std::u
     }
     count(false);  // the middle child
   }
-  if (faces > max_faces) {
-    throw Error(ErrorCode::BudgetExceeded, "face_budget",
-                "the next adaptive level would make " + std::to_string(faces) +
-                    " faces; the limit is max_faces = " + std::to_string(max_faces))
-        .with_field("max_faces");
-  }
+  if (faces > max_faces) throw face_budget_error("", faces, max_faces);
+
+  // The next level's sizes are exact now: reserve the commit (the grown arrays next to the
+  // old ones while they move) and the build (after this step's work arrays are gone).
+  const std::size_t midpoints =
+      static_cast<std::size_t>(std::count(will_split.begin(), will_split.end(), 1));
+  const std::size_t next_vertices = positions_.size() + midpoints;
+  const std::size_t next_edges = num_edges + 2 * midpoints + 3 * step.red_faces;
+  const std::size_t next_leaves = num_leaves + 3 * step.red_faces;
+  auto grown = [](std::size_t capacity, std::size_t size, std::size_t element) {
+    return size > capacity ? std::uint64_t(size) * element : std::uint64_t{0};
+  };
+  const std::uint64_t commit = held + points + red.capacity() + will_split.capacity() +
+                               grown(positions_.capacity(), next_vertices, sizeof(Vec3)) +
+                               grown(edges_.capacity(), next_edges, sizeof(Edge)) +
+                               next_leaves * sizeof(Leaf);
+  const std::uint64_t after_commit =
+      held - positions_.capacity() * sizeof(Vec3) - edges_.capacity() * sizeof(Edge) -
+      leaves_.capacity() * sizeof(Leaf) +
+      std::max(positions_.capacity(), next_vertices) * sizeof(Vec3) +
+      std::max(edges_.capacity(), next_edges) * sizeof(Edge) + next_leaves * sizeof(Leaf);
+  need(std::max(commit, after_commit + build_bytes(faces, step.green_faces, next_leaves, next_edges,
+                                                   next_vertices)));
 
   // Commit. New vertices at the stencil's edge points; halves of sharp edges stay sharp.
-  for (std::uint32_t f = 0; f < leaves_.size(); ++f) {
+  positions_.reserve(next_vertices);
+  edges_.reserve(next_edges);
+  for (std::uint32_t f = 0; f < num_leaves; ++f) {
     if (!red[f]) continue;
     for (std::uint32_t k = 0; k < 3; ++k) {
       const std::uint32_t e = leaves_[f].e[k];
@@ -271,9 +379,12 @@ bool AdaptiveSplit4::step(const Split4Stencil& stencil, double tolerance, std::u
       edges_[e].half = {first, second};
     }
   }
+  free_array(pos);
+  free_array(marked);
+  free_array(will_split);
   std::vector<Leaf> next;
-  next.reserve(leaves_.size() + 3 * step.red_faces);
-  for (std::uint32_t f = 0; f < leaves_.size(); ++f) {
+  next.reserve(next_leaves);
+  for (std::uint32_t f = 0; f < num_leaves; ++f) {
     const Leaf& leaf = leaves_[f];
     if (!red[f]) {
       next.push_back(leaf);
@@ -291,6 +402,7 @@ bool AdaptiveSplit4::step(const Split4Stencil& stencil, double tolerance, std::u
     }
     next.push_back({{mid[0], mid[1], mid[2]}, {inner[1], inner[2], inner[0]}});
   }
+  free_array(red);
   leaves_ = std::move(next);
   build_level();
   return true;

@@ -5,6 +5,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "core/schemes/split4_host.h"
@@ -24,8 +25,10 @@ struct AdaptiveStepStats {
 //! `tolerance` from the edge's chord midpoint (spec 5 gap 4), or, when angle_deg > 0,
 //! non-sharp edges whose two faces' normals differ by more than angle_deg. A criterion is
 //! off when it is 0.
+//! `reserve`, when set, is called first with the bytes it allocates at most.
 std::size_t count_edges_over_tolerance(const Level& level, const Split4Stencil& stencil,
-                                       double tolerance, double angle_deg = 0);
+                                       double tolerance, double angle_deg = 0,
+                                       const std::function<void(std::uint64_t)>& reserve = {});
 
 //! Curvature-adaptive 1-to-4 refinement with red-green closure (spec 5 gap 4).
 //!
@@ -43,15 +46,27 @@ std::size_t count_edges_over_tolerance(const Level& level, const Split4Stencil& 
 //! edge of a split), never by their end vertices, so meshes that are not simple work as
 //! they do in uniform refinement: two edges between the same two vertices (ingest cuts a
 //! non-manifold edge apart that way) and a facet with its reverse (a two-face pillow).
+//!
+//! Memory: `reserve`, when set, is called with the bytes this object will hold at most
+//! until its next call (its arrays, the conforming level, and the work arrays of the phase
+//! about to run), before they are allocated; it throws to stop the refinement. A step
+//! reserves its marking phase, then, once the next level's exact size is known and within
+//! max_faces, its commit and build: a level over max_faces is never reserved.
 class AdaptiveSplit4 {
  public:
-  explicit AdaptiveSplit4(const Level& coarse);
+  explicit AdaptiveSplit4(const Level& coarse,
+                          std::function<void(std::uint64_t bytes)> reserve = {});
 
   //! One step. Returns false, changing nothing, when no edge is over a criterion (see
   //! count_edges_over_tolerance).
-  //! \throw Error(BudgetExceeded, field "max_faces") before building a mesh above max_faces.
+  //! \throw Error(BudgetExceeded, field "max_faces") as soon as the next level is known to
+  //! pass max_faces (a lower bound right after the marking, else the exact count), before
+  //! anything of it is built.
   bool step(const Split4Stencil& stencil, double tolerance, std::uint64_t max_faces,
             StepStats& stats, AdaptiveStepStats& step, double angle_deg = 0);
+
+  //! Bytes of the arrays this object holds now, the conforming level included.
+  std::uint64_t held_bytes() const;
 
   //! The current conforming mesh and its features.
   const Level& level() const { return level_; }
@@ -71,6 +86,13 @@ class AdaptiveSplit4 {
     std::array<std::uint32_t, 3> e;  // e[k] joins v[k] and v[k+1]
   };
   void build_level();
+  //! What build_level() allocates at most for a hierarchy of `leaves` leaves (`greens` of
+  //! them green), `edges` edges and `vertices` vertices, whose conforming mesh has `faces`.
+  std::uint64_t build_bytes(std::uint64_t faces, std::uint64_t greens, std::uint64_t leaves,
+                            std::uint64_t edges, std::uint64_t vertices) const;
+  void need(std::uint64_t bytes) const {
+    if (reserve_) reserve_(bytes);
+  }
   //! The half of split edge e that ends at vertex x.
   std::uint32_t half_at(std::uint32_t e, std::uint32_t x) const {
     return edges_[e].v[0] == x ? edges_[e].half[0] : edges_[e].half[1];
@@ -85,6 +107,7 @@ class AdaptiveSplit4 {
   // level_ that is that edge, or invalid when the edge is split by a hanging midpoint.
   std::vector<std::uint32_t> owner_;
   std::vector<std::array<HalfedgeId, 3>> leaf_halfedge_;
+  std::function<void(std::uint64_t)> reserve_;
 };
 
 }  // namespace stlrefine

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <deque>
 #include <limits>
+#include <memory>
 #include <numbers>
 #include <string>
 #include <utility>
@@ -14,6 +15,7 @@
 #include "core/error.h"
 #include "core/geometry/point_triangle.h"
 #include "core/parallel.h"
+#include "core/refine.h"
 
 namespace stlrefine {
 
@@ -84,18 +86,75 @@ Error internal(const std::string& what) {
   return Error(ErrorCode::Internal, "adaptive_sqrt3", "adaptive sqrt3: " + what);
 }
 
+// The hierarchy's arrays: they grow a chunk at a time and never move. A vector holds its
+// old and new buffers while it doubles and keeps up to twice what it uses; these hold what
+// they use rounded up to one chunk, and memory admission reserves them a chunk at a time.
+// References to elements stay valid while it grows.
+template <class T>
+class Chunked {
+ public:
+  static constexpr int kShift = 14;
+  static constexpr std::size_t kChunk = std::size_t{1} << kShift;
+  static constexpr std::uint64_t kChunkBytes = sizeof(T) * kChunk;
+
+  T& operator[](std::size_t i) { return chunks_[i >> kShift][i & (kChunk - 1)]; }
+  const T& operator[](std::size_t i) const { return chunks_[i >> kShift][i & (kChunk - 1)]; }
+  std::size_t size() const { return size_; }
+  std::size_t capacity() const { return chunks_.size() * kChunk; }
+  //! Bytes of the chunks (and their table) to add before the size can be n.
+  std::uint64_t growth_bytes(std::size_t n) const {
+    const std::size_t chunks = (n + kChunk - 1) >> kShift;
+    return chunks > chunks_.size() ? (chunks - chunks_.size()) * (kChunkBytes + sizeof(void*)) : 0;
+  }
+  //! Grows to n elements, the new ones set to `value`.
+  void grow(std::size_t n, const T& value = T()) {
+    while (chunks_.size() * kChunk < n) chunks_.push_back(std::make_unique<T[]>(kChunk));
+    for (std::size_t i = size_; i < n; ++i) (*this)[i] = value;
+    size_ = n;
+  }
+  void push_back(const T& value) { grow(size_ + 1, value); }
+  //! Drops the elements from n on, and the chunks they alone used.
+  void truncate(std::size_t n) {
+    size_ = std::min(size_, n);
+    chunks_.resize((size_ + kChunk - 1) >> kShift);
+  }
+  std::uint64_t bytes() const {
+    return chunks_.size() * kChunkBytes + chunks_.capacity() * sizeof(void*);
+  }
+
+ private:
+  std::vector<std::unique_ptr<T[]>> chunks_;
+  std::size_t size_ = 0;
+};
+
+// The heap a stencil patch takes per face (its small mesh, features and index arrays,
+// about 130 B) with room for allocator headers, and per patch.
+constexpr std::uint64_t kPatchFaceBytes = 256;
+constexpr std::uint64_t kPatchBytes = 4096;
+
 }  // namespace
 
 class AdaptiveSqrt3::Hierarchy {
  public:
-  Hierarchy(const Level& coarse, const Sqrt3Stencil& stencil, const Sqrt3AdaptiveCriteria& c)
+  Hierarchy(const Level& coarse, const Sqrt3Stencil& stencil, const Sqrt3AdaptiveCriteria& c,
+            std::function<void(std::uint64_t)> reserve)
       : stencil_(stencil),
         criteria_(c),
         interpolating_(stencil.interpolating()),
         top_level_(c.max_level + 2),
         input_vertices_(static_cast<std::uint32_t>(coarse.mesh.num_vertices())),
-        input_faces_(coarse.mesh.num_faces()) {
+        input_faces_(coarse.mesh.num_faces()),
+        reserve_(std::move(reserve)) {
     const Mesh& m = coarse.mesh;
+    // Patches: a triangle and the fans round its corners, at most one per level alive at
+    // once (positions recurse to coarser levels). Old vertices keep their valence; new
+    // ones have at most 6, or a few more next to a crease.
+    int valence = 12;
+    for (std::uint32_t v = 0; v < input_vertices_; ++v)
+      if (!m.is_isolated(VertexId(v))) valence = std::max(valence, m.valence(VertexId(v)));
+    patch_bytes_ = std::uint64_t(top_level_ + 1) *
+                   (kPatchBytes + kPatchFaceBytes * (1 + 3 * std::uint64_t(valence)));
+    need(held_bytes() + big_vector_bytes<double>(input_vertices_));  // the initial alpha
     const BigVector<double> alpha = stencil.initial_alpha(coarse);
     has_alpha_ = !alpha.empty();
     for (std::uint32_t v = 0; v < input_vertices_; ++v) {
@@ -105,7 +164,6 @@ class AdaptiveSqrt3::Hierarchy {
       set_position(id, 0, m.position(VertexId(v)));
       if (has_alpha_) alpha_[id] = alpha[v];
     }
-    tris_.reserve(4 * m.num_faces());
     for (std::uint32_t f = 0; f < m.num_faces(); ++f) {
       Tri t;
       for (std::uint8_t k = 0; k < 3; ++k) {
@@ -117,7 +175,7 @@ class AdaptiveSqrt3::Hierarchy {
         if (coarse.features.is_sharp(m.edge(h))) t.sharp |= 1 << k;
         if (m.halfedge(m.edge(h)) == h) t.canon |= 1 << k;
       }
-      tris_.push_back(t);
+      add_tri(t);
     }
   }
 
@@ -181,12 +239,43 @@ class AdaptiveSqrt3::Hierarchy {
     v.slot = static_cast<std::uint32_t>(pool_.size());
     // Interpolating stencils never move a vertex: one position. Others: one per level.
     const int slots = interpolating_ ? 1 : std::max(1, top_level_ - level + 1);
-    pool_.resize(pool_.size() + slots);
-    known_.resize(known_.size() + slots, 0);
+    const std::uint64_t growth = pool_.growth_bytes(pool_.size() + slots) +
+                                 known_.growth_bytes(known_.size() + slots) +
+                                 verts_.growth_bytes(verts_.size() + 1) +
+                                 (has_alpha_ ? alpha_.growth_bytes(alpha_.size() + 1) : 0);
+    if (growth) need(held_bytes() + growth);
+    pool_.grow(pool_.size() + slots);
+    known_.grow(known_.size() + slots, 0);
     verts_.push_back(v);
     if (has_alpha_) alpha_.push_back(1.0);
     return id;
   }
+  std::uint32_t add_tri(const Tri& t) {
+    if (const std::uint64_t growth = tris_.growth_bytes(tris_.size() + 1))
+      need(held_bytes() + growth);
+    tris_.push_back(t);
+    return static_cast<std::uint32_t>(tris_.size() - 1);
+  }
+
+  // --- memory (see AdaptiveSqrt3's comment)
+
+  //! Everything the hierarchy holds now, and what may be alive besides at any moment.
+  std::uint64_t held_bytes() const {
+    // The queues hold each triangle at most once: 4 B each, their blocks and maps about 2 %
+    // more, and a partly used block per queue.
+    const std::uint64_t queues = 5 * std::uint64_t(tris_.capacity()) + queue_.size() * 2048;
+    return tris_.bytes() + verts_.bytes() + pool_.bytes() + known_.bytes() + alpha_.bytes() +
+           queues + patch_bytes_ + transient_bytes_;
+  }
+  void need(std::uint64_t bytes) const {
+    if (reserve_) reserve_(bytes);
+  }
+  //! The cap count's triangles and vertices are only measured: it drops them in batches.
+  struct Checkpoint {
+    std::size_t tris, verts, slots;
+  };
+  Checkpoint checkpoint() const { return {tris_.size(), verts_.size(), pool_.size()}; }
+  void rollback(const Checkpoint& c);
   std::uint32_t slot_of(std::uint32_t v, int level) const {
     const Vert& info = verts_[v];
     return info.slot + (interpolating_ ? 0 : static_cast<std::uint32_t>(level - info.level));
@@ -257,11 +346,11 @@ class AdaptiveSqrt3::Hierarchy {
   std::uint32_t input_vertices_;
   std::size_t input_faces_;
 
-  std::vector<Tri> tris_;
-  std::vector<Vert> verts_;
-  std::vector<Vec3> pool_;
-  std::vector<std::uint8_t> known_;
-  std::vector<double> alpha_;
+  Chunked<Tri> tris_;
+  Chunked<Vert> verts_;
+  Chunked<Vec3> pool_;
+  Chunked<std::uint8_t> known_;
+  Chunked<double> alpha_;
 
   std::array<std::deque<std::uint32_t>, 9> queue_;
   std::size_t refined_count_ = 0;
@@ -269,6 +358,9 @@ class AdaptiveSqrt3::Hierarchy {
   const std::atomic<bool>* cancel_ = nullptr;
   const std::atomic<bool>* scope_cancel_ = nullptr;  // the CancelScope run() was called in
   Sqrt3AdaptiveStats stats_;
+  std::function<void(std::uint64_t)> reserve_;
+  std::uint64_t patch_bytes_ = 0;      // the stencil patches alive at once, at most
+  std::uint64_t transient_bytes_ = 0;  // a work array alive now besides the hierarchy
 };
 
 // ---------------------------------------------------------------------------------------
@@ -388,8 +480,7 @@ std::uint32_t AdaptiveSqrt3::Hierarchy::child(He h) {
     }
   }
   if (tris_[h.t].child[h.k] != kNone) throw internal("a child was made twice");
-  tris_.push_back(c);
-  const auto id = static_cast<std::uint32_t>(tris_.size() - 1);
+  const std::uint32_t id = add_tri(c);
   tris_[h.t].child[h.k] = id;
   return id;
 }
@@ -563,7 +654,7 @@ AdaptiveSqrt3::Hierarchy::Patch AdaptiveSqrt3::Hierarchy::build_patch(
                                       p.vertices.begin());
   };
 
-  // Positions first: they may grow the hierarchy (coarser patches), which moves tris_.
+  // Positions first: they may grow the hierarchy (coarser patches).
   BigVector<Vec3> positions(p.vertices.size());
   for (std::size_t i = 0; i < p.vertices.size(); ++i) positions[i] = position(p.vertices[i], l);
 
@@ -750,6 +841,15 @@ bool AdaptiveSqrt3::Hierarchy::refine_across_pieces_over_tolerance() {
   // triangle across, which flips the edge and replaces the piece by finer triangles. A
   // piece, once measured, keeps its measure: the triangle across can only become refined.
   std::vector<std::uint32_t> across;
+  auto add = [&](std::uint32_t t) {
+    if (across.size() == across.capacity()) {  // reserved before it doubles
+      const std::size_t capacity = std::max<std::size_t>(1024, 2 * across.capacity());
+      need(held_bytes() + capacity * sizeof(std::uint32_t));
+      across.reserve(capacity);
+      transient_bytes_ = capacity * sizeof(std::uint32_t);
+    }
+    across.push_back(t);
+  };
   const auto count = static_cast<std::uint32_t>(tris_.size());
   for (std::uint32_t t = 0; t < count; ++t) {
     if (!refined(t) || flag(t, kPiecesChecked)) continue;
@@ -761,7 +861,7 @@ bool AdaptiveSqrt3::Hierarchy::refine_across_pieces_over_tolerance() {
       if (refined(tw.t)) continue;
       throw_if_cancelled();
       const double limit = criteria_.tol / kTail;
-      if (piece_deviation(h, limit) > limit) across.push_back(tw.t);
+      if (piece_deviation(h, limit) > limit) add(tw.t);
     }
   }
   for (std::uint32_t t : across) {
@@ -771,6 +871,7 @@ bool AdaptiveSqrt3::Hierarchy::refine_across_pieces_over_tolerance() {
     ++stats_.refined_by_criterion;
     stats_.refined_by_closure += refined_count_ - before - 1;
   }
+  transient_bytes_ = 0;
   return !across.empty();
 }
 
@@ -854,18 +955,67 @@ void AdaptiveSqrt3::Hierarchy::run(std::uint64_t max_faces, const std::atomic<bo
     ++stats_.refined_by_criterion;
     stats_.refined_by_closure += refined_count_ - before - 1;
   }
-  // At the cap some faces may still ask for more: say how many.
-  for (std::uint32_t t = 0; t < tris_.size(); ++t) {
+  // At the cap some faces may still ask for more: say how many. Measuring a face at the
+  // cap makes the two levels below it, which nothing else needs: up to 9 triangles per
+  // face, several times the whole hierarchy. They are dropped in batches (an eighth of the
+  // hierarchy) and remade where the next batch needs them again. Every face at the cap
+  // exists already (refine() makes the children it brings into existence).
+  const Checkpoint mark = checkpoint();
+  const std::uint64_t base = held_bytes();
+  const std::uint64_t batch = std::max<std::uint64_t>(base / 8, std::uint64_t{16} << 20);
+  for (std::uint32_t t = 0; t < mark.tris; ++t) {
     if (level(t) != criteria_.max_level || refined(t) || !exists(t)) continue;
     throw_if_cancelled();
     if (wants_refinement(t)) ++stats_.over_criterion_at_cap;
+    if (held_bytes() > base + batch) rollback(mark);
   }
+  rollback(mark);
+}
+
+void AdaptiveSqrt3::Hierarchy::rollback(const Checkpoint& c) {
+  // Everything made after the checkpoint goes; so do the links older triangles and
+  // vertices got to it (children, neighbours, face and trisection points, homes). They are
+  // all caches of what the uniform hierarchy is: made again, they come out the same.
+  const auto tris = static_cast<std::uint32_t>(c.tris);
+  const auto verts = static_cast<std::uint32_t>(c.verts);
+  for (std::uint32_t t = 0; t < tris; ++t) {
+    Tri& x = tris_[t];
+    for (int k = 0; k < 3; ++k) {
+      if (x.child[k] != kNone && x.child[k] >= tris) x.child[k] = kNone;
+      if (x.nbr[k] < kUnknown && x.nbr[k] >= tris) x.nbr[k] = kUnknown;
+    }
+    if (x.point != kNone && x.point >= verts) x.point = kNone;
+    if (x.point2 != kNone && x.point2 >= verts) x.point2 = kNone;
+  }
+  for (std::uint32_t v = 0; v < verts; ++v)
+    if (verts_[v].home.valid() && verts_[v].home.t >= tris) verts_[v].home = He{};
+  tris_.truncate(c.tris);
+  verts_.truncate(c.verts);
+  alpha_.truncate(c.verts);
+  pool_.truncate(c.slots);
+  known_.truncate(c.slots);
 }
 
 Level AdaptiveSqrt3::Hierarchy::result(std::vector<std::uint8_t>* face_level) {
-  std::vector<std::array<std::uint32_t, 3>> faces;
+  // Built in phases, each reserved before it allocates. transient_bytes_ holds what the
+  // phase has alive besides the hierarchy, which may still grow meanwhile (positions of
+  // approximating stencils, neighbours looked up), so its chunks are reserved on top.
+  const std::size_t num_faces = input_faces_ + 2 * refined_count_;  // a split adds two
+  const std::size_t nh = 3 * num_faces;
+  auto phase = [&](std::uint64_t bytes) {
+    transient_bytes_ = bytes;
+    need(held_bytes());
+  };
+  using Face = std::array<std::uint32_t, 3>;
+  const std::uint64_t face_list = num_faces * sizeof(Face);
+  const std::uint64_t face_bits = 2 * std::uint64_t(num_faces);  // sharp bits, levels
+  phase(face_list + face_bits);
+
+  std::vector<Face> faces;
   std::vector<std::uint8_t> sharp_bits, levels;
-  faces.reserve(input_faces_ + 2 * refined_count_);
+  faces.reserve(num_faces);
+  sharp_bits.reserve(num_faces);
+  levels.reserve(num_faces);
   for (std::uint32_t t = 0; t < tris_.size(); ++t) {
     if (!exists(t)) continue;
     const int l = level(t);
@@ -888,19 +1038,29 @@ Level AdaptiveSqrt3::Hierarchy::result(std::vector<std::uint8_t>* face_level) {
       levels.push_back(static_cast<std::uint8_t>(l + 1));
     }
   }
+  if (faces.size() != num_faces) throw internal("the output face count is not the predicted one");
 
   // Input vertices keep their ids; the new vertices in use follow in creation order.
-  std::vector<std::uint32_t> out_id(verts_.size(), kNone);
-  std::vector<std::uint8_t> vertex_level(verts_.size(), 0);
+  const std::size_t nv = verts_.size();
+  const std::uint64_t vertex_ids = nv * (sizeof(std::uint32_t) + 1);
+  phase(face_list + face_bits + vertex_ids);
+  std::vector<std::uint32_t> out_id(nv, kNone);
+  std::vector<std::uint8_t> vertex_level(nv, 0);
   for (std::uint32_t v = 0; v < input_vertices_; ++v) out_id[v] = v;
   for (std::size_t f = 0; f < faces.size(); ++f)
     for (std::uint32_t v : faces[f]) vertex_level[v] = std::max(vertex_level[v], levels[f]);
-  std::vector<std::uint32_t> used(input_vertices_);
-  for (std::uint32_t v = 0; v < input_vertices_; ++v) used[v] = v;
-  for (const auto& f : faces)
+  std::size_t nu = input_vertices_;
+  for (const Face& f : faces)
     for (std::uint32_t v : f)
-      if (out_id[v] == kNone) out_id[v] = 0, used.push_back(v);
-  std::sort(used.begin() + input_vertices_, used.end());
+      if (out_id[v] == kNone) out_id[v] = 0, ++nu;
+  const std::uint64_t vertex_arrays =
+      big_vector_bytes<Vec3>(nu) + (has_alpha_ ? big_vector_bytes<double>(nu) : 0);
+  phase(face_list + face_bits + vertex_ids + nu * sizeof(std::uint32_t) + vertex_arrays);
+  std::vector<std::uint32_t> used;
+  used.reserve(nu);
+  for (std::uint32_t v = 0; v < input_vertices_; ++v) used.push_back(v);
+  for (std::uint32_t v = input_vertices_; v < nv; ++v)
+    if (out_id[v] != kNone) used.push_back(v);
   BigVector<Vec3> positions(used.size());
   BigVector<double> alpha(has_alpha_ ? used.size() : 0);
   for (std::uint32_t i = 0; i < used.size(); ++i) {
@@ -908,28 +1068,54 @@ Level AdaptiveSqrt3::Hierarchy::result(std::vector<std::uint8_t>* face_level) {
     positions[i] = position(used[i], vertex_level[used[i]]);
     if (has_alpha_) alpha[i] = alpha_[used[i]];
   }
+  std::vector<std::uint32_t>().swap(used);
+  std::vector<std::uint8_t>().swap(vertex_level);
 
-  BigVector<VertexId> corner(3 * faces.size());
+  const std::uint64_t corners = big_vector_bytes<VertexId>(nh);
+  phase(face_list + face_bits + nv * sizeof(std::uint32_t) + vertex_arrays + corners);
+  BigVector<VertexId> corner(nh);
   for (std::size_t f = 0; f < faces.size(); ++f)
     for (std::size_t k = 0; k < 3; ++k) corner[3 * f + k] = VertexId(out_id[faces[f][k]]);
-  // Twins: the reversed directed edge, found by sorting.
-  std::vector<std::pair<std::uint64_t, std::uint32_t>> directed(corner.size());
-  auto key = [&](std::uint32_t h, bool reversed) {
-    const std::uint64_t a = corner[h].idx, b = corner[Mesh::next(HalfedgeId(h)).idx].idx;
-    return reversed ? (b << 32) | a : (a << 32) | b;
-  };
-  for (std::uint32_t h = 0; h < corner.size(); ++h) directed[h] = {key(h, false), h};
-  std::sort(directed.begin(), directed.end());
-  BigVector<HalfedgeId> twin_of(corner.size());
-  for (std::uint32_t h = 0; h < corner.size(); ++h) {
-    if (h > 0 && directed[h].first == directed[h - 1].first)
-      throw internal("the refined mesh repeats a directed edge");
-    const std::uint64_t want = key(h, true);
-    const auto it =
-        std::lower_bound(directed.begin(), directed.end(), std::make_pair(want, std::uint32_t{0}));
-    if (it != directed.end() && it->first == want) twin_of[h] = HalfedgeId(it->second);
+  std::vector<Face>().swap(faces);
+  std::vector<std::uint32_t>().swap(out_id);
+
+  // Twins: each vertex's outgoing half-edges sorted by where they go (a counting sort by
+  // vertex, then each short list), so h = a -> b finds b -> a by a binary search in b's.
+  const std::uint64_t twins = big_vector_bytes<HalfedgeId>(nh);
+  phase(face_bits + vertex_arrays + corners + (nu + 1 + nh) * sizeof(std::uint32_t) + twins);
+  BigVector<HalfedgeId> twin_of(nh);
+  {
+    auto target = [&](std::uint32_t h) { return corner[Mesh::next(HalfedgeId(h)).idx].idx; };
+    std::vector<std::uint32_t> first(nu + 1, 0), outgoing(nh);
+    for (std::uint32_t h = 0; h < nh; ++h) ++first[corner[h].idx + 1];
+    for (std::size_t v = 0; v < nu; ++v) first[v + 1] += first[v];
+    for (std::uint32_t h = 0; h < nh; ++h) outgoing[first[corner[h].idx]++] = h;
+    for (std::size_t v = nu; v > 0; --v) first[v] = first[v - 1];
+    first[0] = 0;
+    auto by_target = [&](std::uint32_t g, std::uint32_t h) { return target(g) < target(h); };
+    for (std::size_t v = 0; v < nu; ++v) {
+      const auto begin = outgoing.begin() + first[v], end = outgoing.begin() + first[v + 1];
+      std::sort(begin, end, by_target);
+      if (std::adjacent_find(begin, end, [&](std::uint32_t g, std::uint32_t h) {
+            return target(g) == target(h);
+          }) != end)
+        throw internal("the refined mesh repeats a directed edge");
+    }
+    for (std::uint32_t h = 0; h < nh; ++h) {
+      const std::uint32_t a = corner[h].idx, b = target(h);
+      const auto begin = outgoing.begin() + first[b], end = outgoing.begin() + first[b + 1];
+      const auto it = std::lower_bound(
+          begin, end, a, [&](std::uint32_t g, std::uint32_t want) { return target(g) < want; });
+      if (it != end && target(*it) == a) twin_of[h] = HalfedgeId(*it);
+    }
   }
 
+  const std::size_t edge_reserve = nh / 2 + 1;  // Mesh::from_parts doubles it at a boundary
+  phase(face_bits + vertex_arrays + corners + twins + big_vector_bytes<EdgeId>(nh) +
+        big_vector_bytes<HalfedgeId>(edge_reserve) +
+        big_vector_bytes<HalfedgeId>(2 * edge_reserve) + big_vector_bytes<HalfedgeId>(nu) +
+        big_vector_bytes<std::uint8_t>(nh) + big_vector_bytes<VertexKind>(nu) +
+        big_vector_bytes<std::array<VertexId, 2>>(nu));
   Level out;
   out.mesh = Mesh::from_parts(std::move(positions), std::move(corner), std::move(twin_of));
   BigVector<std::uint8_t> sharp(out.mesh.num_edges());
@@ -940,6 +1126,7 @@ Level AdaptiveSqrt3::Hierarchy::result(std::vector<std::uint8_t>* face_level) {
   out.features = Features(out.mesh, std::move(sharp));
   out.alpha = std::move(alpha);
   stats_.levels = levels.empty() ? 0 : *std::max_element(levels.begin(), levels.end());
+  transient_bytes_ = 0;
   if (face_level) *face_level = std::move(levels);
   return out;
 }
@@ -947,8 +1134,9 @@ Level AdaptiveSqrt3::Hierarchy::result(std::vector<std::uint8_t>* face_level) {
 // ---------------------------------------------------------------------------------------
 
 AdaptiveSqrt3::AdaptiveSqrt3(const Level& coarse, const Sqrt3Stencil& stencil,
-                             const Sqrt3AdaptiveCriteria& criteria)
-    : h_(std::make_unique<Hierarchy>(coarse, stencil, criteria)) {
+                             const Sqrt3AdaptiveCriteria& criteria,
+                             std::function<void(std::uint64_t)> reserve)
+    : h_(std::make_unique<Hierarchy>(coarse, stencil, criteria, std::move(reserve))) {
   if (coarse.step != 0) throw internal("the adaptive mode starts from an input level");
   if (criteria.max_level < 1 || criteria.max_level > 8) throw internal("max_level outside [1, 8]");
 }

@@ -75,11 +75,20 @@ struct Sqrt3AdaptiveStats {
 //! stencil's own face_point / curve_points / vertex_point on a small patch of the level.
 //! Interpolating stencils keep every input vertex bit-identical; for approximating ones an
 //! output vertex is at its position on the finest level among the faces around it.
+//!
+//! Memory: the criterion measures two levels below a triangle, so the hierarchy holds
+//! several times more triangles than the output has faces, and how many depends on the
+//! geometry. `reserve`, when set, is called with the bytes the object will hold at most
+//! until its next call (its arrays, which grow a chunk of 16384 elements at a time, the
+//! stencil patches alive at once, and the work array of the moment) before each chunk is
+//! allocated and before result() builds the mesh; it throws to stop the refinement.
 class AdaptiveSqrt3 {
  public:
-  //! \pre coarse is an input level (step 0); the stencil outlives this object.
+  //! \pre coarse is an input level (step 0); the stencil outlives this object; `coarse`
+  //! may go once this is made.
   AdaptiveSqrt3(const Level& coarse, const Sqrt3Stencil& stencil,
-                const Sqrt3AdaptiveCriteria& criteria);
+                const Sqrt3AdaptiveCriteria& criteria,
+                std::function<void(std::uint64_t bytes)> reserve = {});
   ~AdaptiveSqrt3();
   AdaptiveSqrt3(const AdaptiveSqrt3&) = delete;
   AdaptiveSqrt3& operator=(const AdaptiveSqrt3&) = delete;

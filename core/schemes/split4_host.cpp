@@ -6,6 +6,7 @@
 #include <array>
 
 #include "core/parallel.h"
+#include "core/refine.h"
 #include "core/schemes/crease_rules.h"
 
 namespace stlrefine {
@@ -19,6 +20,11 @@ void Split4Stencil::points(const Level& coarse, const IrregularVertices&,
                            std::span<Vec3> vertex_out, std::span<Vec3> edge_out) const {
   vertex_points(coarse, vertex_out);
   edge_points(coarse, edge_out);
+}
+
+std::uint64_t Split4Stencil::scratch_bytes(const Level& coarse) const {
+  return 24 * std::uint64_t(coarse.mesh.num_edges()) +
+         64 * std::uint64_t(coarse.mesh.num_vertices());
 }
 
 IrregularVertices irregular_vertices(const Level& level) {
@@ -130,6 +136,11 @@ Split4Topology split4_topology(const Mesh& m, const Features& features) {
 
 }  // namespace
 
+std::uint64_t guard_folds_work_bytes(const Mesh& m) {
+  return sizeof(Vec3) * std::uint64_t(m.num_edges()) +
+         2 * sizeof(std::uint32_t) * std::uint64_t(m.num_faces());
+}
+
 // Fold guard. An interpolating stencil can push an edge point so far that a child turns
 // over (the butterfly does on long thin CAD triangles). Where a child's normal is more
 // than 90 degrees from its parent's, the offending edge points are pulled towards their
@@ -138,7 +149,8 @@ Split4Topology split4_topology(const Mesh& m, const Features& features) {
 // Sharp (crease and boundary) edge points lie on their curve and are moved only when the
 // face's smooth edges are already at their midpoints: pulling a crease point off its curve
 // would make a dent in the crease that later levels amplify.
-std::size_t guard_folds(const Mesh& m, const Features& features, BigVector<Vec3>& pos) {
+std::size_t guard_folds(const Mesh& m, const Features& features, BigVector<Vec3>& pos,
+                        const std::function<void(std::uint64_t)>& reserve) {
   const std::uint32_t nv = static_cast<std::uint32_t>(m.num_vertices());
   const std::uint32_t nf = static_cast<std::uint32_t>(m.num_faces());
   constexpr std::array<double, 4> kScale = {1.0, 0.5, 0.25, 0.0};
@@ -161,13 +173,25 @@ std::size_t guard_folds(const Mesh& m, const Features& features, BigVector<Vec3>
   std::vector<std::uint8_t> folding(nf, 0);
   parallel_for_each_index(
       nf, [&](std::size_t f) { folding[f] = folds(static_cast<std::uint32_t>(f)); });
-  std::vector<std::uint32_t> todo;
+  if (std::find(folding.begin(), folding.end(), 1) == folding.end()) return 0;
+  // Work arrays of a known size from here on (the face lists never repeat a face), so
+  // memory admission can reserve them first.
+  if (reserve) reserve(guard_folds_work_bytes(m));
+  std::vector<std::uint32_t> todo, touched;
+  todo.reserve(nf);
+  touched.reserve(nf);
   for (std::uint32_t f = 0; f < nf; ++f)
     if (folding[f]) todo.push_back(f);
+  std::fill(folding.begin(), folding.end(), 0);  // from now on: "in touched"
+  auto touch = [&](std::uint32_t f) {
+    if (folding[f]) return;
+    folding[f] = 1;
+    touched.push_back(f);
+  };
   std::size_t moved_edges = 0;
   while (!todo.empty()) {
     if (original.empty()) original.assign(pos.begin() + nv, pos.end());
-    std::vector<std::uint32_t> touched;
+    touched.clear();
     for (std::uint32_t f : todo) {
       bool smooth_movable = false;
       for (std::uint32_t k = 0; k < 3; ++k) {
@@ -183,12 +207,12 @@ std::size_t guard_folds(const Mesh& m, const Features& features, BigVector<Vec3>
         ++stage[e.idx];
         const Vec3 mid = 0.5 * (pos[m.from(h).idx] + pos[m.to(h).idx]);
         pos[nv + e.idx] = mid + kScale[stage[e.idx]] * (original[e.idx] - mid);
-        touched.push_back(f);
-        if (m.twin(h).valid()) touched.push_back(m.twin(h).idx / 3);
+        touch(f);
+        if (m.twin(h).valid()) touch(m.twin(h).idx / 3);
       }
     }
     std::sort(touched.begin(), touched.end());
-    touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+    for (std::uint32_t f : touched) folding[f] = 0;
     todo.clear();
     for (std::uint32_t f : touched) {
       if (!folds(f)) continue;
@@ -242,6 +266,21 @@ std::uint64_t Split4Scheme::predict_faces(std::uint64_t faces, int levels) const
   // Saturates instead of overflowing, so absurd requests still compare as too large.
   for (int i = 0; i < levels; ++i) faces = faces > (UINT64_MAX >> 2) ? UINT64_MAX : faces * 4;
   return faces;
+}
+
+std::uint64_t split4_step_bytes(const Level& coarse, const Split4Stencil& stencil) {
+  const Mesh& m = coarse.mesh;
+  const std::size_t nv = m.num_vertices(), ne = m.num_edges(), nf = m.num_faces();
+  const std::size_t fine_vertices = nv + ne, fine_edges = 2 * ne + 3 * nf;
+  std::uint64_t bytes =
+      big_vector_bytes<Vec3>(fine_vertices) + 3 * big_vector_bytes<HalfedgeId>(12 * nf) +
+      big_vector_bytes<HalfedgeId>(fine_edges) + big_vector_bytes<HalfedgeId>(fine_vertices) +
+      big_vector_bytes<std::uint8_t>(fine_edges) + big_vector_bytes<VertexKind>(fine_vertices) +
+      big_vector_bytes<std::array<VertexId, 2>>(fine_vertices) + stencil.scratch_bytes(coarse);
+  // irregular_vertices(): a valence per vertex and the list of the irregular ones.
+  if (stencil.uses_irregular()) bytes += (sizeof(int) + 8) * std::uint64_t(nv);
+  if (stencil.guards_folds()) bytes += ne + nf + guard_folds_work_bytes(m);
+  return bytes;
 }
 
 Level split4(const Level& coarse, const Split4Stencil& stencil, StepStats& stats, FoldGuard guard) {

@@ -2,6 +2,8 @@
 // Copyright (c) 2026 stlrefine authors
 #pragma once
 
+#include <cstdint>
+#include <functional>
 #include <memory>
 #include <span>
 #include <string_view>
@@ -30,6 +32,12 @@ class Split4Stencil {
   //! the coarse mesh when uses_irregular(), else empty. Default: vertex_points, edge_points.
   virtual void points(const Level& coarse, const IrregularVertices& irregular,
                       std::span<Vec3> vertex_out, std::span<Vec3> edge_out) const;
+  //! Heap bytes points() allocates besides its output, at most (memory admission, see
+  //! MemoryGrowFn in core/refine.h). The default, 24 B per edge and 64 per vertex, bounds
+  //! the built-in stencils: lsf's second estimate per edge, butterfly's valence per vertex,
+  //! the spectral stencils' candidates and polar nets (sites lie clean rings apart);
+  //! per-thread ring buffers are in the refinement's fixed slack.
+  virtual std::uint64_t scratch_bytes(const Level& coarse) const;
 };
 
 //! level.irregular when it is valid for level.mesh, else found now (one pass over the
@@ -51,8 +59,17 @@ Level split4(const Level& coarse, const Split4Stencil& stencil, StepStats& stats
 //! The fold guard on its own: `positions` holds the coarse vertices then one edge point
 //! per coarse edge (V + e). Pulls edge points whose 1-to-4 children would turn more than
 //! 90 degrees from their parent towards the chord midpoint, smooth edges before sharp
-//! ones; returns how many moved.
-std::size_t guard_folds(const Mesh& coarse, const Features& features, BigVector<Vec3>& positions);
+//! ones; returns how many moved. It allocates a byte per edge and per face; only when some
+//! child folds, guard_folds_work_bytes more, and calls `reserve` with that first.
+std::size_t guard_folds(const Mesh& coarse, const Features& features, BigVector<Vec3>& positions,
+                        const std::function<void(std::uint64_t)>& reserve = {});
+
+//! The fold guard's work arrays when some child folds: the original edge points and two
+//! face lists.
+std::uint64_t guard_folds_work_bytes(const Mesh& coarse);
+
+//! Heap bytes split4(coarse, stencil) allocates at most, the fine level included.
+std::uint64_t split4_step_bytes(const Level& coarse, const Split4Stencil& stencil);
 
 //! A Scheme made of the 1-to-4 host and one stencil.
 class Split4Scheme final : public Scheme {

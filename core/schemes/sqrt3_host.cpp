@@ -2,10 +2,12 @@
 // Copyright (c) 2026 stlrefine authors
 #include "core/schemes/sqrt3_host.h"
 
+#include <array>
 #include <atomic>
 
 #include "core/error.h"
 #include "core/parallel.h"
+#include "core/refine.h"
 #include "core/schemes/crease_rules.h"
 
 namespace stlrefine {
@@ -186,6 +188,27 @@ std::uint32_t rank_boundary_edges(const Mesh& m, const Features& features,
 }
 
 }  // namespace
+
+std::uint64_t sqrt3_step_bytes(const Level& coarse) {
+  const Mesh& m = coarse.mesh;
+  const std::size_t nv = m.num_vertices(), ne = m.num_edges(), nf = m.num_faces();
+  const bool trisects = coarse.step % 2 == 1;
+  std::size_t boundary_edges = 0;
+  if (trisects)
+    for (std::uint32_t e = 0; e < ne; ++e) boundary_edges += m.is_boundary(EdgeId(e));
+  const std::size_t fine_vertices = nv + nf + boundary_edges;
+  const std::size_t fine_edges = ne + 3 * nf + boundary_edges;
+  std::uint64_t bytes =
+      big_vector_bytes<Vec3>(fine_vertices) + 3 * big_vector_bytes<HalfedgeId>(9 * nf) +
+      big_vector_bytes<HalfedgeId>(fine_edges) + big_vector_bytes<HalfedgeId>(fine_vertices) +
+      big_vector_bytes<std::uint8_t>(fine_edges) + big_vector_bytes<VertexKind>(fine_vertices) +
+      big_vector_bytes<std::array<VertexId, 2>>(fine_vertices) +
+      // alpha, fine and initial, when the stencil blends per vertex
+      big_vector_bytes<double>(fine_vertices) + big_vector_bytes<double>(nv) +
+      32 * std::uint64_t(nv);  // stencil scratch
+  if (trisects) bytes += big_vector_bytes<std::uint8_t>(nf) + big_vector_bytes<std::uint32_t>(ne);
+  return bytes;
+}
 
 Level sqrt3_refine(const Level& coarse, const Sqrt3Stencil& stencil, StepStats& /*stats*/) {
   const Mesh& m = coarse.mesh;

@@ -79,6 +79,10 @@ class Sqrt3Stencil {
 //! level not made by this host with the step parity it claims).
 Level sqrt3_refine(const Level& coarse, const Sqrt3Stencil& stencil, StepStats& stats);
 
+//! Heap bytes sqrt3_refine(coarse, ...) allocates at most, the fine level included, for the
+//! built-in stencils (their scratch: at most 32 B per coarse vertex).
+std::uint64_t sqrt3_step_bytes(const Level& coarse);
+
 //! A Scheme made of the sqrt3 host and one stencil.
 class Sqrt3Scheme final : public Scheme {
  public:

@@ -132,10 +132,15 @@ TEST(MemoryBudgetRoute, ARequestThatCanNeverFitIs422NamingTheParameter) {
   EXPECT_EQ(metrics->body.find("stlrefine_refine_duration_seconds_count"), std::string::npos)
       << metrics->body;
 
-  // The adaptive mode is predicted at its bound and names its level cap.
-  j = problem_of(post(c, "/v1/refine?adaptive_angle=10&max_level=5", fandisk()), 422,
-                 "budget-exceeded");
+  // The adaptive mode reserves as its hierarchy grows (its worst case at max_level is not a
+  // reason to refuse one that stays small) and stops at the level that would not fit,
+  // naming its level cap.
+  j = problem_of(post(c, "/v1/refine?scheme=butterfly&adaptive_tol=1e-9&max_level=8", fandisk()),
+                 422, "budget-exceeded");
   EXPECT_EQ(j.value("field", ""), "max_level");
+  EXPECT_EQ(j.value("reason", ""), "memory_budget");
+  EXPECT_EQ(j.value("title", ""), "Memory budget exceeded");
+  EXPECT_GT(j.value("predicted_bytes", 0ull), capacity);
   // A slice whose contours alone are too many for the budget names the layer height.
   j = problem_of(post(c, "/v1/slice?layer_height=0.0001", fandisk()), 422, "budget-exceeded");
   EXPECT_EQ(j.value("field", ""), "layer_height");
