@@ -2,8 +2,9 @@
 // Copyright (c) 2026 stlrefine authors
 // stlrefine_fidelity: how close LSF, our butterfly and OpenMesh's modified butterfly come
 // to the true surface of coarse, irregularly triangulated known shapes (issue 4, item 6),
-// and the paper's section-curve undulation test on the cylinder. Hand-run
-// (bench/fidelity/README.md): Markdown tables to stdout, the plot to an SVG file.
+// and the paper's section-curve undulation test on the cylinder. With --cad-families: every
+// scheme on the CAD-like families of tests/support/cad_like.h over many seeds (issue 17).
+// Hand-run (bench/fidelity/README.md): Markdown tables to stdout, the plot to an SVG file.
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
@@ -16,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "bench/fidelity/cad_families.h"
 #include "bench/fidelity/metrics.h"
 #include "bench/fidelity/openmesh_butterfly.h"
 #include "bench/fidelity/runs.h"
@@ -211,7 +213,31 @@ int main(int argc, char** argv) {
   app.add_option("--plot-openmesh", o.plot_openmesh,
                  "also plot OpenMesh (no crease rules: its rounded rims dominate the scale)");
   app.add_option("--svg", o.svg, "where to write the undulation plot");
+  fid::CadOptions cad;
+  bool cad_mode = false;
+  app.add_flag("--cad-families", cad_mode,
+               "instead: every scheme on the CAD-like families over many seeds (issue 17)");
+  app.add_option("--families", cad.families,
+                 "CAD-like families (default all): cylinder cone torus tube sphere ellipsoid "
+                 "blob rounded-box plate");
+  app.add_option("--seeds", cad.seeds, "CAD-like families: seeds per family")
+      ->check(CLI::Range(1, 1000));
+  app.add_option("--seed-base", cad.seed_base, "CAD-like families: the first seed");
+  app.add_option("--coarseness", cad.coarseness, "CAD-like families: [0.25, 4]")
+      ->check(CLI::Range(0.25, 4.0));
+  app.add_option("--jobs", cad.jobs, "CAD-like families: seeds run in parallel")
+      ->check(CLI::Range(1, 64));
   CLI11_PARSE(app, argc, argv);
+
+  if (cad_mode) {
+    // The shared options keep their own defaults for this mode unless given.
+    if (app.count("--schemes")) cad.schemes = o.schemes;
+    if (app.count("--levels")) cad.levels = o.levels;
+    if (app.count("--samples")) cad.samples = o.samples;
+    cad.openmesh = o.openmesh;
+    cad.crease_angle_deg = o.run.crease_angle_deg;
+    return fid::run_cad_families(cad);
+  }
 
   // Our schemes that exist; the rest are noted and skipped.
   std::vector<std::string> schemes;

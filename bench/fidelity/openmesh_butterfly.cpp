@@ -4,8 +4,10 @@
 
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
 #include <OpenMesh/Tools/Subdivider/Uniform/ModifiedButterFlyT.hh>
+#include <OpenMesh/Tools/Subdivider/Uniform/Sqrt3InterpolatingSubdividerLabsikGreinerT.hh>
 #include <chrono>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "core/mesh/build_mesh.h"
@@ -20,13 +22,7 @@ struct Traits : OpenMesh::DefaultTraits {
 };
 using TriMesh = OpenMesh::TriMesh_ArrayKernelT<Traits>;
 
-}  // namespace
-
-bool have_openmesh() {
-  return true;
-}
-
-Mesh openmesh_butterfly(const Mesh& mesh, int levels, double& seconds) {
+TriMesh to_openmesh(const Mesh& mesh) {
   TriMesh om;
   std::vector<TriMesh::VertexHandle> vh;
   vh.reserve(mesh.num_vertices());
@@ -36,15 +32,10 @@ Mesh openmesh_butterfly(const Mesh& mesh, int levels, double& seconds) {
     if (!om.add_face(vh[v[0].idx], vh[v[1].idx], vh[v[2].idx]).is_valid())
       throw std::runtime_error("OpenMesh add_face rejected a face");
   }
+  return om;
+}
 
-  const auto t0 = std::chrono::steady_clock::now();
-  OpenMesh::Subdivider::Uniform::ModifiedButterflyT<TriMesh, double> butterfly;
-  butterfly.attach(om);
-  const bool ok = butterfly(static_cast<std::size_t>(levels));
-  butterfly.detach();
-  seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  if (!ok) throw std::runtime_error("OpenMesh ModifiedButterflyT returned false");
-
+Mesh from_openmesh(const TriMesh& om) {
   IndexedSoup soup;
   soup.positions.reserve(om.n_vertices());
   for (const auto v : om.vertices()) {
@@ -58,6 +49,36 @@ Mesh openmesh_butterfly(const Mesh& mesh, int levels, double& seconds) {
     soup.triangles.push_back(t);
   }
   return build_mesh(soup).mesh;
+}
+
+//! Converts (untimed), runs subdivider S `steps` times (timed), converts back.
+template <template <class, class> class S>
+Mesh run_openmesh(const Mesh& mesh, int steps, double& seconds, const char* name) {
+  TriMesh om = to_openmesh(mesh);
+  const auto t0 = std::chrono::steady_clock::now();
+  S<TriMesh, double> subdivider;
+  subdivider.attach(om);
+  const bool ok = subdivider(static_cast<std::size_t>(steps));
+  subdivider.detach();
+  seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (!ok) throw std::runtime_error(std::string("OpenMesh ") + name + " returned false");
+  return from_openmesh(om);
+}
+
+}  // namespace
+
+bool have_openmesh() {
+  return true;
+}
+
+Mesh openmesh_butterfly(const Mesh& mesh, int levels, double& seconds) {
+  return run_openmesh<OpenMesh::Subdivider::Uniform::ModifiedButterflyT>(mesh, levels, seconds,
+                                                                         "ModifiedButterflyT");
+}
+
+Mesh openmesh_sqrt3_lg(const Mesh& mesh, int steps, double& seconds) {
+  return run_openmesh<OpenMesh::Subdivider::Uniform::InterpolatingSqrt3LGT>(
+      mesh, steps, seconds, "InterpolatingSqrt3LGT");
 }
 
 }  // namespace stlrefine::fidelity

@@ -2,8 +2,9 @@
 // Copyright (c) 2026 stlrefine authors
 #pragma once
 
-// OpenMesh's ModifiedButterflyT as a peer row. Compiled from openmesh_butterfly.cpp when
-// CMake found OpenMesh, otherwise from openmesh_butterfly_missing.cpp.
+// OpenMesh's ModifiedButterflyT and InterpolatingSqrt3LGT as peer rows. Compiled from
+// openmesh_butterfly.cpp when CMake found OpenMesh, otherwise from
+// openmesh_butterfly_missing.cpp.
 
 #include "core/mesh/mesh.h"
 
@@ -16,5 +17,8 @@ bool have_openmesh();
 //! times (timed: `seconds`) and converts the result back through build_mesh.
 //! \throw std::runtime_error when OpenMesh is missing or fails.
 Mesh openmesh_butterfly(const Mesh& mesh, int levels, double& seconds);
+
+//! The same for InterpolatingSqrt3LGT (Labsik-Greiner interpolating sqrt3), `steps` steps.
+Mesh openmesh_sqrt3_lg(const Mesh& mesh, int steps, double& seconds);
 
 }  // namespace stlrefine::fidelity

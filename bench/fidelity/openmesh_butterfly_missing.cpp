@@ -15,4 +15,8 @@ Mesh openmesh_butterfly(const Mesh&, int, double&) {
   throw std::runtime_error("stlrefine_fidelity was built without OpenMesh");
 }
 
+Mesh openmesh_sqrt3_lg(const Mesh&, int, double&) {
+  throw std::runtime_error("stlrefine_fidelity was built without OpenMesh");
+}
+
 }  // namespace stlrefine::fidelity

@@ -34,6 +34,8 @@ std::string Variant::label() const {
       return scheme + " adaptive tol=" + fmt_tol(adaptive_tol);
     case Kind::OpenMeshButterfly:
       return "OpenMesh ModifiedButterflyT";
+    case Kind::OpenMeshSqrt3LG:
+      return "OpenMesh InterpolatingSqrt3LGT";
   }
   return {};
 }
@@ -45,6 +47,12 @@ RunOutput run_variant(const Variant& variant, const Mesh& input, const RunSettin
     if (variant.kind == Variant::Kind::OpenMeshButterfly) {
       double seconds = 0;
       out.mesh = openmesh_butterfly(input, variant.level, seconds);
+      times.push_back(seconds);
+      continue;
+    }
+    if (variant.kind == Variant::Kind::OpenMeshSqrt3LG) {
+      double seconds = 0;
+      out.mesh = openmesh_sqrt3_lg(input, variant.level, seconds);
       times.push_back(seconds);
       continue;
     }

@@ -4,7 +4,7 @@
 
 // The refinements the fidelity benchmark compares: our schemes through stlrefine::refine
 // (uniform levels, or the curvature-adaptive mode: RefineParams::adaptive_tol / max_level)
-// and OpenMesh's ModifiedButterflyT.
+// and OpenMesh's ModifiedButterflyT and InterpolatingSqrt3LGT.
 
 #include <cstddef>
 #include <string>
@@ -14,9 +14,9 @@
 namespace stlrefine::fidelity {
 
 struct Variant {
-  enum class Kind { Ours, OursAdaptive, OpenMeshButterfly } kind = Kind::Ours;
+  enum class Kind { Ours, OursAdaptive, OpenMeshButterfly, OpenMeshSqrt3LG } kind = Kind::Ours;
   std::string scheme;       //!< our scheme name (Ours, OursAdaptive)
-  int level = 1;            //!< uniform levels; the level cap in adaptive mode
+  int level = 1;            //!< uniform levels (sqrt3 steps); the level cap in adaptive mode
   double adaptive_tol = 0;  //!< mm, OursAdaptive only
 
   std::string label() const;
