@@ -603,7 +603,9 @@ class BlobSurface final : public TrueSurface {
     };
     double f = f_of(d);
     for (int it = 0; it < 100; ++it) {
-      const auto [e1, e2] = frame(d);
+      // Plain names, not a structured binding: clang 14 cannot capture those in a lambda.
+      const auto axes = frame(d);
+      const Vec3 e1 = axes.first, e2 = axes.second;
       // Gradient of f at chart coordinates (s, t); jtj: J^T J there.
       auto gradient = [&](double s, double t, std::array<double, 3>* jtj) {
         const Vec3 w = d + e1 * s + e2 * t;
