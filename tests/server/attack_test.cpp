@@ -445,7 +445,21 @@ std::uint64_t peak_rss_bytes(pid_t pid) {
   return 0;
 }
 
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define STLREFINE_UNDER_ASAN 1
+#endif
+#endif
+#if defined(__SANITIZE_ADDRESS__)
+#define STLREFINE_UNDER_ASAN 1
+#endif
+
 TEST(Attack, TheWorstAdaptiveRequestOfEveryHostStaysInsideTheMemoryBudget) {
+#ifdef STLREFINE_UNDER_ASAN
+  // ASan's shadow memory and quarantine are RSS the budget does not model (the load test is
+  // left out of the asan preset for the same reason); the Release run is the check.
+  GTEST_SKIP() << "peak RSS bounds are the Release build's";
+#endif
   constexpr std::uint64_t kBudget = std::uint64_t{640} << 20;
   Child child(daemon_argv({"--compute-slots", "1", "--memory-budget", "640M"}));
   const int port = start(child);
