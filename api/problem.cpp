@@ -102,6 +102,8 @@ Problem problem_from_error(const Error& error) {
     p.title = "Layer budget exceeded";
   if (error.code() == ErrorCode::BudgetExceeded && error.field() == "max_points")
     p.title = "Point budget exceeded";
+  if (error.code() == ErrorCode::BudgetExceeded && error.reason() == "memory_budget")
+    p.title = "Memory budget exceeded";
   if (const auto* budget = dynamic_cast<const FaceBudgetError*>(&error)) {
     p.extensions["predicted_faces"] = budget->predicted_faces();
     p.extensions["max_faces"] = budget->max_faces();
