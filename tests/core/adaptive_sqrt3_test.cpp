@@ -310,33 +310,11 @@ TEST(AdaptiveSqrt3, ToleranceGivesFewerFacesThanUniformAndStaysNearTheUniformLim
   }
 }
 
-// A binary STL of the shared corpus, bit-identical corners welded (read here so that the
-// test needs no io library).
+// A binary STL of the shared corpus, bit-identical corners welded.
 Level read_corpus_level(const std::string& name) {
-  const std::string path = std::string(STLREFINE_CORE_TEST_DATA_DIR) + "/" + name;
-  std::ifstream in(path, std::ios::binary);
-  EXPECT_TRUE(in.good()) << path;
-  char header[80];
-  std::uint32_t count = 0;
-  in.read(header, sizeof header);
-  in.read(reinterpret_cast<char*>(&count), sizeof count);
-  IndexedSoup soup;
-  std::map<std::array<float, 3>, std::uint32_t> index;
-  for (std::uint32_t f = 0; f < count && in; ++f) {
-    std::array<float, 12> v{};  // normal, three corners
-    std::uint16_t attribute = 0;
-    in.read(reinterpret_cast<char*>(v.data()), sizeof v);
-    in.read(reinterpret_cast<char*>(&attribute), sizeof attribute);
-    std::array<std::uint32_t, 3> tri{};
-    for (int k = 0; k < 3; ++k) {
-      const std::array<float, 3> p{v[3 + 3 * k], v[4 + 3 * k], v[5 + 3 * k]};
-      const auto [it, added] = index.emplace(p, static_cast<std::uint32_t>(index.size()));
-      if (added) soup.positions.push_back({p[0], p[1], p[2]});
-      tri[k] = it->second;
-    }
-    soup.triangles.push_back(tri);
-  }
-  EXPECT_EQ(soup.triangles.size(), count);
+  const IndexedSoup soup =
+      read_binary_stl_soup(std::string(STLREFINE_CORE_TEST_DATA_DIR) + "/" + name);
+  EXPECT_FALSE(soup.triangles.empty()) << name;
   return make_level(to_mesh(soup), 35);
 }
 

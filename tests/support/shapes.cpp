@@ -4,8 +4,10 @@
 
 #include <array>
 #include <cmath>
+#include <fstream>
 #include <map>
 #include <numbers>
+#include <string>
 #include <utility>
 
 #include "core/mesh/build_mesh.h"
@@ -262,6 +264,32 @@ IndexedSoup translated(IndexedSoup soup, Vec3 t) {
 
 Mesh to_mesh(const IndexedSoup& soup) {
   return build_mesh(soup).mesh;
+}
+
+IndexedSoup read_binary_stl_soup(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  char header[80];
+  std::uint32_t count = 0;
+  in.read(header, sizeof header);
+  in.read(reinterpret_cast<char*>(&count), sizeof count);
+  IndexedSoup soup;
+  std::map<std::array<float, 3>, std::uint32_t> index;
+  for (std::uint32_t f = 0; f < count && in; ++f) {
+    std::array<float, 12> v{};  // normal, three corners
+    std::uint16_t attribute = 0;
+    in.read(reinterpret_cast<char*>(v.data()), sizeof v);
+    in.read(reinterpret_cast<char*>(&attribute), sizeof attribute);
+    if (!in) break;
+    std::array<std::uint32_t, 3> tri{};
+    for (int k = 0; k < 3; ++k) {
+      const std::array<float, 3> p{v[3 + 3 * k], v[4 + 3 * k], v[5 + 3 * k]};
+      const auto [it, added] = index.emplace(p, static_cast<std::uint32_t>(index.size()));
+      if (added) soup.positions.push_back({p[0], p[1], p[2]});
+      tri[k] = it->second;
+    }
+    soup.triangles.push_back(tri);
+  }
+  return soup;
 }
 
 }  // namespace stlrefine::test

@@ -8,6 +8,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <string>
 
 #include "core/mesh/indexed_soup.h"
 #include "core/mesh/mesh.h"
@@ -16,6 +17,10 @@ namespace stlrefine::test {
 
 //! Regular tetrahedron with circumradius 1, centred at the origin.
 IndexedSoup tetrahedron_soup();
+//! The facets of a binary STL file (corners welded where they are bit-identical, as the
+//! daemon's default ingest does), read without the io library; empty when it cannot be read.
+IndexedSoup read_binary_stl_soup(const std::string& path);
+
 //! Unit octahedron: vertices +-e_x, +-e_y, +-e_z.
 IndexedSoup octahedron_soup();
 //! Regular icosahedron with circumradius 1, centred at the origin.
