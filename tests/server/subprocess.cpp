@@ -3,6 +3,7 @@
 #include "subprocess.h"
 
 #include <fcntl.h>
+#include <gtest/gtest.h>
 #include <poll.h>
 #include <signal.h>
 #include <spawn.h>
@@ -11,6 +12,7 @@
 
 #include <cstdlib>
 #include <fstream>
+#include <regex>
 #include <sstream>
 #include <stdexcept>
 #include <thread>
@@ -157,6 +159,17 @@ int Child::wait(std::chrono::milliseconds timeout) {
 
 std::string Child::stderr_text() const {
   return slurp(err_path_);
+}
+
+int listening_port(Child& child, std::chrono::milliseconds timeout) {
+  const std::string line = child.read_line(timeout);
+  std::smatch m;
+  const std::regex expected(R"(^listening on http://127\.0\.0\.1:([0-9]+)$)");
+  if (!std::regex_match(line, m, expected)) {
+    ADD_FAILURE() << "unexpected first line: '" << line << "'\n" << child.stderr_text();
+    return 0;
+  }
+  return std::stoi(m[1]);
 }
 
 }  // namespace stlrefine::test
