@@ -42,7 +42,9 @@ using Json = nlohmann::json;
 
 // Starts stlrefined on a free port; returns the port from its one stdout line.
 int start(Child& child) {
-  return listening_port(child, 20s);
+  const int port = listening_port(child, 20s);
+  if (port == 0) ADD_FAILURE() << "no `listening on` line\n" << child.stderr_text();
+  return port;
 }
 
 // Without --data-dir in `flags`, jobs are off (no directory in the working directory).

@@ -24,7 +24,9 @@ using namespace std::chrono_literals;
 
 // Starts stlrefined on a free port; returns the port from its one stdout line.
 int start(Child& child) {
-  return listening_port(child, 10s);
+  const int port = listening_port(child, 10s);
+  if (port == 0) ADD_FAILURE() << "no `listening on` line\n" << child.stderr_text();
+  return port;
 }
 
 TEST(Stlrefined, ServesAndStopsCleanlyOnSigterm) {

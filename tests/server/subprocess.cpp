@@ -3,7 +3,6 @@
 #include "subprocess.h"
 
 #include <fcntl.h>
-#include <gtest/gtest.h>
 #include <poll.h>
 #include <signal.h>
 #include <spawn.h>
@@ -165,11 +164,7 @@ int listening_port(Child& child, std::chrono::milliseconds timeout) {
   const std::string line = child.read_line(timeout);
   std::smatch m;
   const std::regex expected(R"(^listening on http://127\.0\.0\.1:([0-9]+)$)");
-  if (!std::regex_match(line, m, expected)) {
-    ADD_FAILURE() << "unexpected first line: '" << line << "'\n" << child.stderr_text();
-    return 0;
-  }
-  return std::stoi(m[1]);
+  return std::regex_match(line, m, expected) ? std::stoi(m[1]) : 0;
 }
 
 }  // namespace stlrefine::test

@@ -47,7 +47,7 @@ class Child {
 };
 
 //! The port of a child stlrefined started with --port 0, from its one `listening on` line on
-//! 127.0.0.1; 0 (and a test failure with the child's stderr) when the line is not that.
+//! 127.0.0.1; 0 when the line is not that. (No gtest here: bench/reliability links this too.)
 int listening_port(Child& child, std::chrono::milliseconds timeout = std::chrono::seconds(20));
 
 }  // namespace stlrefine::test
