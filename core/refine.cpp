@@ -252,6 +252,7 @@ RefineResult run_levels(Mesh mesh, const RefineParams& params, const Scheme& sch
     level = adaptive->result();
     r.levels = adaptive->stats().levels;
     r.faces_over_criterion = adaptive->stats().over_criterion_at_cap;
+    r.stop_reason = r.faces_over_criterion > 0 ? "max_level" : "tolerance";
   } else if (params.adaptive()) {
     const Split4Stencil& stencil = *adaptive_scheme(scheme);
     meter.set_level(1);
@@ -271,17 +272,19 @@ RefineResult run_levels(Mesh mesh, const RefineParams& params, const Scheme& sch
         break;
       made = i;
     }
-    level = adaptive->release();
-    adaptive.reset();  // its hierarchy is not needed for the count below
-    r.levels = made;
-    // At the cap some edges may still be over a criterion: say how many.
+    // At the cap some edges may still be over a criterion: say how many, how far, where
+    // (measured as the steps measure them).
     if (made == params.max_level) {
-      const std::uint64_t held = level_bytes(level);
-      std::function<void(std::uint64_t)> reserve;
-      if (meter.on()) reserve = [&](std::uint64_t bytes) { meter.need(held + bytes); };
-      r.edges_over_tolerance = count_edges_over_tolerance(level, stencil, params.adaptive_tol,
-                                                          params.adaptive_angle, reserve);
+      const EdgesOverTolerance over =
+          adaptive->remaining(stencil, params.adaptive_tol, params.adaptive_angle);
+      r.edges_over_tolerance = over.count;
+      r.max_over_tolerance = over.max_distance;
+      r.worst_over_tolerance_at = over.worst_at;
     }
+    level = adaptive->release();
+    adaptive.reset();
+    r.levels = made;
+    r.stop_reason = r.edges_over_tolerance > 0 ? "max_level" : "tolerance";
   }
   // Work per level grows 4x (3x for sqrt3), so weight progress by output faces.
   std::uint64_t total = 0;

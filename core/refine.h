@@ -123,6 +123,17 @@ struct RefineReport {
   double adaptive_angle = 0;
   std::size_t edges_over_tolerance = 0;
   std::size_t faces_over_criterion = 0;
+  //! Adaptive mode: why the refinement stopped. "tolerance": nothing is over a criterion
+  //! any more (the tolerance is reached everywhere); "max_level": the level cap was reached
+  //! with edges_over_tolerance edges (1-to-4) or faces_over_criterion faces (sqrt3) still
+  //! over a criterion. Empty in the uniform mode. (Past max_faces or the memory budget the
+  //! refinement throws instead, naming the field.)
+  std::string stop_reason;
+  //! 1-to-4 adaptive mode stopped at the cap: the largest distance (mm) of a remaining
+  //! edge's point from its chord midpoint (what adaptive_tol bounds), and where: that
+  //! edge's chord midpoint. 0 when nothing is over the tolerance.
+  double max_over_tolerance = 0;
+  Vec3 worst_over_tolerance_at{0, 0, 0};
   //! Largest distance any input vertex moved (0 for interpolating schemes).
   double max_input_displacement = 0;
   double seconds = 0;

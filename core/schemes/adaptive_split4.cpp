@@ -7,6 +7,7 @@
 #include <limits>
 #include <numbers>
 #include <string>
+#include <unordered_map>
 
 #include "core/error.h"
 #include "core/parallel.h"
@@ -63,17 +64,37 @@ std::vector<std::uint8_t> over_tolerance(const Level& level, const BigVector<Vec
 
 }  // namespace
 
-std::size_t count_edges_over_tolerance(const Level& level, const Split4Stencil& stencil,
-                                       double tolerance, double angle_deg,
-                                       const std::function<void(std::uint64_t)>& reserve) {
+EdgesOverTolerance edges_over_tolerance(const Level& level, const Split4Stencil& stencil,
+                                        double tolerance, double angle_deg,
+                                        const std::function<void(std::uint64_t)>& reserve) {
   StepStats ignored;
   const std::uint64_t marking = marking_bytes(level, stencil);
   if (reserve) reserve(marking);
   std::function<void(std::uint64_t)> guard_reserve;
   if (reserve) guard_reserve = [&](std::uint64_t work) { reserve(marking + work); };
-  const auto marked = over_tolerance(
-      level, candidate_points(level, stencil, ignored, guard_reserve), tolerance, angle_deg);
-  return static_cast<std::size_t>(std::count(marked.begin(), marked.end(), 1));
+  const BigVector<Vec3> pos = candidate_points(level, stencil, ignored, guard_reserve);
+  const auto marked = over_tolerance(level, pos, tolerance, angle_deg);
+  const Mesh& m = level.mesh;
+  const std::size_t nv = m.num_vertices();
+  EdgesOverTolerance out;
+  for (std::size_t e = 0; e < marked.size(); ++e) {
+    if (!marked[e]) continue;
+    ++out.count;
+    const HalfedgeId h = m.halfedge(EdgeId(static_cast<std::uint32_t>(e)));
+    const Vec3 mid = 0.5 * (pos[m.from(h).idx] + pos[m.to(h).idx]);
+    const double d = distance(pos[nv + e], mid);
+    if (d > out.max_distance) {
+      out.max_distance = d;
+      out.worst_at = mid;
+    }
+  }
+  return out;
+}
+
+std::size_t count_edges_over_tolerance(const Level& level, const Split4Stencil& stencil,
+                                       double tolerance, double angle_deg,
+                                       const std::function<void(std::uint64_t)>& reserve) {
+  return edges_over_tolerance(level, stencil, tolerance, angle_deg, reserve).count;
 }
 
 AdaptiveSplit4::AdaptiveSplit4(const Level& coarse, std::function<void(std::uint64_t)> reserve)
@@ -96,6 +117,26 @@ AdaptiveSplit4::AdaptiveSplit4(const Level& coarse, std::function<void(std::uint
       leaves_[f].e[k] = m.edge(h).idx;
     }
   }
+  // Edge points from the uniform levels need edges known by their end vertices: on a mesh
+  // where two edges join the same two vertices the points come from the conforming mesh.
+  // A simple mesh (no two edges on the same two vertices, no two faces on the same three)
+  // has simple uniform levels.
+  uniform_points_ = true;
+  try {
+    require_simple_mesh(m);
+  } catch (const Error&) {
+    uniform_points_ = false;
+  }
+  if (uniform_points_) {
+    UniformLevel u0;
+    u0.level.mesh = coarse.mesh;
+    u0.level.features = coarse.features;
+    u0.hierarchy_vertex.resize(nv);
+    for (std::uint32_t v = 0; v < nv; ++v) u0.hierarchy_vertex[v] = v;
+    u0.trusted.assign(nv, 1);
+    u0.cut.assign(ne, 0);
+    uniform_.push_back(std::move(u0));
+  }
   build_level();
 }
 
@@ -112,7 +153,255 @@ std::uint32_t AdaptiveSplit4::add_edge(std::uint32_t a, std::uint32_t b, bool sh
 std::uint64_t AdaptiveSplit4::held_bytes() const {
   return positions_.capacity() * sizeof(Vec3) + edges_.capacity() * sizeof(Edge) +
          leaves_.capacity() * sizeof(Leaf) + owner_.capacity() * sizeof(std::uint32_t) +
-         leaf_halfedge_.capacity() * sizeof(leaf_halfedge_[0]) + level_bytes(level_);
+         leaf_halfedge_.capacity() * sizeof(leaf_halfedge_[0]) + level_bytes(level_) +
+         uniform_bytes();
+}
+
+std::uint64_t AdaptiveSplit4::uniform_bytes() const {
+  std::uint64_t bytes = 0;
+  for (const UniformLevel& u : uniform_) {
+    bytes += level_bytes(u.level) + u.hierarchy_vertex.capacity() * sizeof(std::uint32_t) +
+             u.trusted.capacity() + u.cut.capacity() + u.edge_trusted.capacity() +
+             big_vector_bytes<Vec3>(u.points.capacity()) +
+             u.edge_of.size() * (sizeof(std::uint64_t) + sizeof(std::uint32_t) + 16) +
+             u.edge_of.bucket_count() * sizeof(void*);
+  }
+  return bytes;
+}
+
+namespace {
+
+// How far (in edges of a level) the points of an edge may depend on the level around its
+// two end vertices: the stencils read the 1-ring (butterfly, with its wings) or fit the
+// neighbourhood (lsf), and the fold guard looks at the faces around the edge.
+constexpr int kStencilReach = 3;
+// Rings of level k - 1 faces kept around the faces the hierarchy split, so that the leaves
+// of level k and those a closure may split are kStencilReach away from the region's cut.
+constexpr int kRegionMargin = kStencilReach + 2;
+
+// Per edge of `level`: whether its point depends only on trusted vertices of an uncut
+// neighbourhood (both end vertices kStencilReach edges or more away from an untrusted
+// vertex or a vertex on a cut edge).
+std::vector<std::uint8_t> trusted_edges(const Mesh& m, const std::vector<std::uint8_t>& trusted,
+                                        const std::vector<std::uint8_t>& cut) {
+  const std::size_t nv = m.num_vertices(), ne = m.num_edges();
+  std::vector<int> depth(nv, kStencilReach);
+  std::vector<std::uint32_t> frontier;
+  for (std::uint32_t v = 0; v < nv; ++v)
+    if (!trusted[v]) depth[v] = 0;
+  for (std::uint32_t e = 0; e < ne; ++e) {
+    if (!cut[e]) continue;
+    const HalfedgeId h = m.halfedge(EdgeId(e));
+    depth[m.from(h).idx] = depth[m.to(h).idx] = 0;
+  }
+  for (std::uint32_t v = 0; v < nv; ++v)
+    if (depth[v] == 0) frontier.push_back(v);
+  // Breadth first over the edges, kStencilReach rounds.
+  for (int d = 1; d < kStencilReach && !frontier.empty(); ++d) {
+    std::vector<std::uint32_t> next;
+    for (std::uint32_t e = 0; e < ne; ++e) {
+      const HalfedgeId h = m.halfedge(EdgeId(e));
+      const std::uint32_t a = m.from(h).idx, b = m.to(h).idx;
+      if (depth[a] == d - 1 && depth[b] > d) depth[b] = d, next.push_back(b);
+      if (depth[b] == d - 1 && depth[a] > d) depth[a] = d, next.push_back(a);
+    }
+    frontier = std::move(next);
+  }
+  std::vector<std::uint8_t> out(ne);
+  for (std::uint32_t e = 0; e < ne; ++e) {
+    const HalfedgeId h = m.halfedge(EdgeId(e));
+    out[e] = depth[m.from(h).idx] >= kStencilReach && depth[m.to(h).idx] >= kStencilReach;
+  }
+  return out;
+}
+
+}  // namespace
+
+void AdaptiveSplit4::evaluate_uniform(UniformLevel& u, const Split4Stencil& stencil) {
+  const Mesh& m = u.level.mesh;
+  StepStats ignored;
+  std::function<void(std::uint64_t)> guard_reserve;
+  const std::uint64_t held = held_bytes();
+  if (reserve_) guard_reserve = [&](std::uint64_t work) { need(held + work); };
+  need(held + marking_bytes(u.level, stencil) + m.num_edges() * 40);
+  u.points = candidate_points(u.level, stencil, ignored, guard_reserve);
+  u.edge_trusted = trusted_edges(m, u.trusted, u.cut);
+  u.edge_of.clear();
+  u.edge_of.reserve(m.num_edges());
+  for (std::uint32_t e = 0; e < m.num_edges(); ++e) {
+    const HalfedgeId h = m.halfedge(EdgeId(e));
+    const std::uint32_t a = u.hierarchy_vertex[m.from(h).idx], b = u.hierarchy_vertex[m.to(h).idx];
+    if (a != kNone && b != kNone) u.edge_of.emplace(pair_key(a, b), e);
+  }
+}
+
+void AdaptiveSplit4::update_uniform(const Split4Stencil& stencil) {
+  std::uint32_t finest = 0;
+  for (const Leaf& leaf : leaves_) finest = std::max(finest, leaf.level);
+  if (uniform_[0].points.empty()) evaluate_uniform(uniform_[0], stencil);
+  uniform_.resize(1);
+  // Split edges of the hierarchy by their end vertices.
+  std::unordered_map<std::uint64_t, std::uint32_t> mid_of;
+  for (const Edge& e : edges_)
+    if (e.mid != kNone) mid_of.emplace(pair_key(e.v[0], e.v[1]), e.mid);
+  auto mid = [&](std::uint32_t a, std::uint32_t b) {
+    if (a == kNone || b == kNone) return kNone;
+    const auto it = mid_of.find(pair_key(a, b));
+    return it == mid_of.end() ? kNone : it->second;
+  };
+  for (std::uint32_t k = 1; k <= finest; ++k) {
+    const UniformLevel& c = uniform_[k - 1];
+    const Mesh& cm = c.level.mesh;
+    const std::size_t cf = cm.num_faces(), cv = cm.num_vertices();
+    // The faces of level k - 1 the hierarchy split (all three edges split), and around them
+    // kRegionMargin rings.
+    std::vector<std::uint8_t> in_vertex(cv, 0), in_face(cf, 0);
+    for (std::uint32_t f = 0; f < cf; ++f) {
+      bool split = true;
+      for (std::uint32_t j = 0; j < 3 && split; ++j) {
+        const HalfedgeId h(3 * f + j);
+        split = c.hierarchy_vertex[cm.from(h).idx] != kNone &&
+                mid(c.hierarchy_vertex[cm.from(h).idx], c.hierarchy_vertex[cm.to(h).idx]) != kNone;
+      }
+      if (split)
+        for (std::uint32_t j = 0; j < 3; ++j) in_vertex[cm.from(HalfedgeId(3 * f + j)).idx] = 1;
+    }
+    for (int ring = 0; ring < kRegionMargin; ++ring) {
+      for (std::uint32_t f = 0; f < cf; ++f)
+        for (std::uint32_t j = 0; j < 3; ++j)
+          if (in_vertex[cm.from(HalfedgeId(3 * f + j)).idx]) in_face[f] = 1;
+      for (std::uint32_t f = 0; f < cf; ++f)
+        if (in_face[f])
+          for (std::uint32_t j = 0; j < 3; ++j) in_vertex[cm.from(HalfedgeId(3 * f + j)).idx] = 1;
+    }
+    // The region as a level of its own.
+    std::vector<std::uint32_t> local(cv, kNone), global_of;
+    std::vector<std::uint32_t> faces;
+    for (std::uint32_t f = 0; f < cf; ++f)
+      if (in_face[f]) faces.push_back(f);
+    BigVector<VertexId> corner(3 * faces.size());
+    for (std::uint32_t i = 0; i < faces.size(); ++i)
+      for (std::uint32_t j = 0; j < 3; ++j) {
+        const std::uint32_t v = cm.from(HalfedgeId(3 * faces[i] + j)).idx;
+        if (local[v] == kNone)
+          local[v] = static_cast<std::uint32_t>(global_of.size()), global_of.push_back(v);
+        corner[3 * i + j] = VertexId(local[v]);
+      }
+    BigVector<Vec3> positions(global_of.size());
+    for (std::uint32_t v = 0; v < global_of.size(); ++v)
+      positions[v] = cm.position(VertexId(global_of[v]));
+    BigVector<HalfedgeId> twin(3 * faces.size());
+    for (std::uint32_t h = 0; h < twin.size(); ++h) {
+      const HalfedgeId ct = cm.twin(HalfedgeId(3 * faces[h / 3] + h % 3));
+      twin[h] = ct.valid() && in_face[ct.idx / 3]
+                    ? HalfedgeId(3 * static_cast<std::uint32_t>(
+                                         std::lower_bound(faces.begin(), faces.end(), ct.idx / 3) -
+                                         faces.begin()) +
+                                 ct.idx % 3)
+                    : HalfedgeId();
+    }
+    const std::uint64_t held = held_bytes();
+    need(held + mesh_bytes(cm));
+    Level region;
+    region.mesh = Mesh::from_parts(std::move(positions), std::move(corner), std::move(twin));
+    region.step = static_cast<int>(k) - 1;
+    const Mesh& rm = region.mesh;
+    BigVector<std::uint8_t> sharp(rm.num_edges());
+    std::vector<std::uint8_t> region_cut(rm.num_edges(), 0);
+    for (std::uint32_t h = 0; h < rm.num_halfedges(); ++h) {
+      const HalfedgeId ch(3 * faces[h / 3] + h % 3);
+      const EdgeId e = rm.edge(HalfedgeId(h));
+      sharp[e.idx] = c.level.features.is_sharp(cm.edge(ch));
+      if (!rm.twin(HalfedgeId(h)).valid())
+        region_cut[e.idx] = cm.twin(ch).valid() || c.cut[cm.edge(ch).idx];
+    }
+    region.features = Features(rm, std::move(sharp));
+    std::vector<std::uint8_t> region_trusted(rm.num_vertices());
+    for (std::uint32_t v = 0; v < rm.num_vertices(); ++v)
+      region_trusted[v] = c.trusted[global_of[v]];
+    const std::vector<std::uint8_t> region_edge_trusted =
+        trusted_edges(rm, region_trusted, region_cut);
+    need(held + level_bytes(region) + split4_step_bytes(region, stencil));
+    StepStats ignored;
+    UniformLevel u;
+    u.level = split4(region, stencil, ignored);
+    const Mesh& um = u.level.mesh;
+    const std::size_t rv = rm.num_vertices();
+    u.hierarchy_vertex.resize(um.num_vertices());
+    u.trusted.resize(um.num_vertices());
+    for (std::uint32_t v = 0; v < rv; ++v) {
+      u.hierarchy_vertex[v] = c.hierarchy_vertex[global_of[v]];
+      u.trusted[v] = region_trusted[v];
+    }
+    for (std::uint32_t e = 0; e < rm.num_edges(); ++e) {
+      const HalfedgeId h = rm.halfedge(EdgeId(e));
+      u.hierarchy_vertex[rv + e] =
+          mid(u.hierarchy_vertex[rm.from(h).idx], u.hierarchy_vertex[rm.to(h).idx]);
+      u.trusted[rv + e] = region_edge_trusted[e];
+    }
+    u.cut.assign(um.num_edges(), 0);
+    for (std::uint32_t e = 0; e < um.num_edges(); ++e) {
+      const HalfedgeId h = um.halfedge(EdgeId(e));
+      if (um.twin(h).valid()) continue;
+      const std::uint32_t m = std::max(um.from(h).idx, um.to(h).idx);
+      u.cut[e] = m >= rv && region_cut[m - rv];
+    }
+    uniform_.push_back(std::move(u));
+    evaluate_uniform(uniform_.back(), stencil);
+  }
+}
+
+Vec3 AdaptiveSplit4::uniform_point(std::uint32_t leaf, std::uint32_t k) const {
+  const Leaf& l = leaves_[leaf];
+  const UniformLevel& u = uniform_.at(l.level);
+  const auto it = u.edge_of.find(pair_key(l.v[k], l.v[(k + 1) % 3]));
+  if (it == u.edge_of.end() || !u.edge_trusted[it->second])
+    throw Error(ErrorCode::Internal, "adaptive_stencil_margin",
+                "adaptive refinement: the uniform level " + std::to_string(l.level) +
+                    " around an edge to split is not wide enough for the stencil");
+  return u.points[u.level.mesh.num_vertices() + it->second];
+}
+
+bool AdaptiveSplit4::uniform_over(std::uint32_t leaf, std::uint32_t k, double tolerance,
+                                  double cos_limit, bool angle_on, double& dist) const {
+  const Leaf& l = leaves_[leaf];
+  const Vec3 p = uniform_point(leaf, k);
+  const Vec3 mid = 0.5 * (positions_[l.v[k]] + positions_[l.v[(k + 1) % 3]]);
+  dist = distance(p, mid);
+  if (tolerance > 0 && dist > tolerance) return true;
+  if (!angle_on || edges_[l.e[k]].sharp) return false;
+  const UniformLevel& u = uniform_[l.level];
+  const Mesh& m = u.level.mesh;
+  const HalfedgeId h = m.halfedge(EdgeId(u.edge_of.at(pair_key(l.v[k], l.v[(k + 1) % 3]))));
+  const HalfedgeId t = m.twin(h);
+  if (!t.valid()) return false;
+  const Vec3 n1 = m.face_normal(Mesh::face(h)), n2 = m.face_normal(Mesh::face(t));
+  const double scale = std::sqrt(dot(n1, n1) * dot(n2, n2));
+  return scale > 0 && dot(n1, n2) < cos_limit * scale;
+}
+
+EdgesOverTolerance AdaptiveSplit4::remaining(const Split4Stencil& stencil, double tolerance,
+                                             double angle_deg) {
+  if (!uniform_points_)
+    return edges_over_tolerance(level_, stencil, tolerance, angle_deg, reserve_);
+  update_uniform(stencil);
+  EdgesOverTolerance out;
+  const double cos_limit = std::cos(angle_deg * std::numbers::pi / 180.0);
+  std::vector<std::uint8_t> seen(edges_.size(), 0);
+  for (std::uint32_t f = 0; f < leaves_.size(); ++f)
+    for (std::uint32_t k = 0; k < 3; ++k) {
+      const std::uint32_t e = leaves_[f].e[k];
+      if (edges_[e].mid != kNone || seen[e]) continue;
+      seen[e] = 1;
+      double dist = 0;
+      if (!uniform_over(f, k, tolerance, cos_limit, angle_deg > 0, dist)) continue;
+      ++out.count;
+      if (tolerance > 0 && dist > tolerance && dist > out.max_distance) {
+        out.max_distance = dist;
+        out.worst_at = 0.5 * (positions_[edges_[e].v[0]] + positions_[edges_[e].v[1]]);
+      }
+    }
+  return out;
 }
 
 std::uint64_t AdaptiveSplit4::build_bytes(std::uint64_t faces, std::uint64_t greens,
@@ -232,26 +521,52 @@ bool AdaptiveSplit4::step(const Split4Stencil& stencil, double tolerance, std::u
                           StepStats& stats, AdaptiveStepStats& step, double angle_deg) {
   const Mesh& m = level_.mesh;
   const std::size_t nv = m.num_vertices();
-  const std::uint64_t held = held_bytes();
-  const std::uint64_t marking = marking_bytes(level_, stencil);
-  need(held + marking);
-  std::function<void(std::uint64_t)> guard_reserve;
-  if (reserve_) guard_reserve = [&](std::uint64_t work) { need(held + marking + work); };
-  BigVector<Vec3> pos = candidate_points(level_, stencil, stats, guard_reserve);
-  std::vector<std::uint8_t> marked = over_tolerance(level_, pos, tolerance, angle_deg);
-  step.marked_by_tolerance = static_cast<std::size_t>(std::count(marked.begin(), marked.end(), 1));
-  if (step.marked_by_tolerance == 0) return false;
-
   const std::size_t num_leaves = leaves_.size(), num_edges = edges_.size();
+  BigVector<Vec3> pos;
+  std::vector<std::uint8_t> marked;
+  std::vector<std::uint8_t> red(num_leaves, 0);
+  if (uniform_points_) {
+    // Every leaf is a face of a uniform level: its edges are measured with the points
+    // uniform refinement puts there (the stencil on that level, not on the conforming
+    // mesh, whose green triangles and mixed levels are not what the stencil is made for),
+    // so a leaf split here has the children uniform refinement gives it, and a smaller
+    // tolerance marks a superset.
+    update_uniform(stencil);
+    const double cos_limit = std::cos(angle_deg * std::numbers::pi / 180.0);
+    std::vector<std::uint8_t> seen(num_edges, 0);
+    for (std::uint32_t f = 0; f < num_leaves; ++f)
+      for (std::uint32_t k = 0; k < 3; ++k) {
+        const std::uint32_t e = leaves_[f].e[k];
+        if (edges_[e].mid != kNone) continue;
+        double dist = 0;
+        if (!uniform_over(f, k, tolerance, cos_limit, angle_deg > 0, dist)) continue;
+        red[f] = 1;
+        if (!seen[e]) seen[e] = 1, ++step.marked_by_tolerance;
+      }
+    if (step.marked_by_tolerance == 0) return false;
+  }
+  const std::uint64_t held = held_bytes();
+  if (!uniform_points_) {
+    const std::uint64_t marking = marking_bytes(level_, stencil);
+    need(held + marking);
+    std::function<void(std::uint64_t)> guard_reserve;
+    if (reserve_) guard_reserve = [&](std::uint64_t work) { need(held + marking + work); };
+    pos = candidate_points(level_, stencil, stats, guard_reserve);
+    marked = over_tolerance(level_, pos, tolerance, angle_deg);
+    step.marked_by_tolerance =
+        static_cast<std::size_t>(std::count(marked.begin(), marked.end(), 1));
+    if (step.marked_by_tolerance == 0) return false;
+  }
+
   const std::uint64_t points = big_vector_bytes<Vec3>(pos.capacity()) + marked.capacity();
   need(held + points + num_leaves);
 
   // A leaf is split red when any edge of its conforming faces is over tolerance; that
   // includes a green's bisector and the halves of a split edge (the finer neighbour
   // needs refining, which needs this leaf at its level first).
-  std::vector<std::uint8_t> red(num_leaves, 0);
-  for (std::uint32_t h = 0; h < m.num_halfedges(); ++h)
-    if (marked[m.edge(HalfedgeId(h)).idx]) red[owner_[h / 3]] = 1;
+  if (!uniform_points_)
+    for (std::uint32_t h = 0; h < m.num_halfedges(); ++h)
+      if (marked[m.edge(HalfedgeId(h)).idx]) red[owner_[h / 3]] = 1;
   step.red_by_tolerance = static_cast<std::size_t>(std::count(red.begin(), red.end(), 1));
   // A red leaf makes at least four faces, any other at least one: over the budget already,
   // the closure need not run.
@@ -370,7 +685,8 @@ bool AdaptiveSplit4::step(const Split4Stencil& stencil, double tolerance, std::u
       const std::uint32_t e = leaves_[f].e[k];
       if (edges_[e].mid != kNone) continue;
       const std::uint32_t mid = static_cast<std::uint32_t>(positions_.size());
-      positions_.push_back(pos[nv + m.edge(leaf_halfedge_[f][k]).idx]);
+      positions_.push_back(uniform_points_ ? uniform_point(f, k)
+                                           : pos[nv + m.edge(leaf_halfedge_[f][k]).idx]);
       const auto [a, b] = edges_[e].v;
       const bool sharp = edges_[e].sharp;
       const std::uint32_t first = add_edge(a, mid, sharp, e);
@@ -398,9 +714,10 @@ bool AdaptiveSplit4::step(const Split4Stencil& stencil, double tolerance, std::u
     for (std::uint32_t k = 0; k < 3; ++k) {
       const std::uint32_t km1 = (k + 2) % 3;
       next.push_back({{leaf.v[k], mid[k], mid[km1]},
-                      {half_at(leaf.e[k], leaf.v[k]), inner[k], half_at(leaf.e[km1], leaf.v[k])}});
+                      {half_at(leaf.e[k], leaf.v[k]), inner[k], half_at(leaf.e[km1], leaf.v[k])},
+                      leaf.level + 1});
     }
-    next.push_back({{mid[0], mid[1], mid[2]}, {inner[1], inner[2], inner[0]}});
+    next.push_back({{mid[0], mid[1], mid[2]}, {inner[1], inner[2], inner[0]}, leaf.level + 1});
   }
   free_array(red);
   leaves_ = std::move(next);

@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <unordered_map>
 #include <vector>
 
 #include "core/schemes/split4_host.h"
@@ -29,6 +30,18 @@ struct AdaptiveStepStats {
 std::size_t count_edges_over_tolerance(const Level& level, const Split4Stencil& stencil,
                                        double tolerance, double angle_deg = 0,
                                        const std::function<void(std::uint64_t)>& reserve = {});
+
+//! The edges count_edges_over_tolerance counts, and the worst of them: the largest distance
+//! of an edge point from its chord midpoint among them (0 when only the angle marks them),
+//! and that edge's chord midpoint.
+struct EdgesOverTolerance {
+  std::size_t count = 0;
+  double max_distance = 0;
+  Vec3 worst_at{0, 0, 0};
+};
+EdgesOverTolerance edges_over_tolerance(const Level& level, const Split4Stencil& stencil,
+                                        double tolerance, double angle_deg = 0,
+                                        const std::function<void(std::uint64_t)>& reserve = {});
 
 //! Curvature-adaptive 1-to-4 refinement with red-green closure (spec 5 gap 4).
 //!
@@ -68,6 +81,15 @@ class AdaptiveSplit4 {
   //! Bytes of the arrays this object holds now, the conforming level included.
   std::uint64_t held_bytes() const;
 
+  //! The leaf edges a step would still find over a criterion now (count, worst distance
+  //! and where), measured as step() measures them.
+  EdgesOverTolerance remaining(const Split4Stencil& stencil, double tolerance,
+                               double angle_deg = 0);
+
+  //! Whether edge points come from the uniform levels (simple meshes: no two edges join
+  //! the same two vertices) rather than from the conforming mesh.
+  bool uniform_points() const { return uniform_points_; }
+
   //! The current conforming mesh and its features.
   const Level& level() const { return level_; }
   Level release() { return std::move(level_); }
@@ -84,7 +106,33 @@ class AdaptiveSplit4 {
   struct Leaf {
     std::array<std::uint32_t, 3> v;  // corners, oriented like the input
     std::array<std::uint32_t, 3> e;  // e[k] joins v[k] and v[k+1]
+    std::uint32_t level = 0;         // a face of the uniform level `level`
   };
+  //! A region of the uniform level k (every leaf of level k lies inside it, with a margin),
+  //! made by the stencil's own 1-to-4 step from a region of level k - 1, so its points are
+  //! bit for bit those of uniform refinement wherever the region's cut is farther than the
+  //! stencil reaches.
+  struct UniformLevel {
+    Level level;
+    std::vector<std::uint32_t> hierarchy_vertex;  // per vertex: positions_ index, or kNone
+    std::vector<std::uint8_t> trusted;            // per vertex: the uniform level's position
+    std::vector<std::uint8_t> cut;                // per edge: a boundary made by the cut
+    BigVector<Vec3> points;                       // vertex points then edge points (V + e)
+    std::vector<std::uint8_t> edge_trusted;       // per edge: its point is the uniform one
+    std::unordered_map<std::uint64_t, std::uint32_t> edge_of;  // vertex pair -> edge
+  };
+  //! Rebuilds uniform_[1..K] for the leaves' finest level K (uniform_[0] is the input).
+  void update_uniform(const Split4Stencil& stencil);
+  void evaluate_uniform(UniformLevel& u, const Split4Stencil& stencil);
+  //! Per leaf edge of level k: its uniform edge point; throws when the margin fell short.
+  Vec3 uniform_point(std::uint32_t leaf, std::uint32_t k) const;
+  //! Whether leaf edge k of `leaf` is over a criterion (uniform points); `dist` its distance.
+  bool uniform_over(std::uint32_t leaf, std::uint32_t k, double tolerance, double cos_limit,
+                    bool angle_on, double& dist) const;
+  std::uint64_t uniform_bytes() const;
+  static std::uint64_t pair_key(std::uint32_t a, std::uint32_t b) {
+    return a < b ? (std::uint64_t(a) << 32 | b) : (std::uint64_t(b) << 32 | a);
+  }
   void build_level();
   //! What build_level() allocates at most for a hierarchy of `leaves` leaves (`greens` of
   //! them green), `edges` edges and `vertices` vertices, whose conforming mesh has `faces`.
@@ -108,6 +156,8 @@ class AdaptiveSplit4 {
   std::vector<std::uint32_t> owner_;
   std::vector<std::array<HalfedgeId, 3>> leaf_halfedge_;
   std::function<void(std::uint64_t)> reserve_;
+  bool uniform_points_ = false;
+  std::vector<UniformLevel> uniform_;
 };
 
 }  // namespace stlrefine
