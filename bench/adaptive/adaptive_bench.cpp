@@ -132,7 +132,7 @@ Run run_butterfly(const Level& input, double angle, int cap) {
   r.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
   r.faces = adaptive.level().mesh.num_faces();
   if (r.levels == cap)
-    r.over_at_cap = count_edges_over_tolerance(adaptive.level(), stencil, 0, angle);
+    r.over_at_cap = adaptive.remaining(stencil, 0, angle).count;
   return r;
 }
 

@@ -6,8 +6,10 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <span>
 #include <string>
 #include <unordered_map>
+#include <vector>
 
 #include "core/error.h"
 #include "core/parallel.h"
@@ -219,12 +221,20 @@ std::vector<std::uint8_t> trusted_edges(const Mesh& m, const std::vector<std::ui
 
 void AdaptiveSplit4::evaluate_uniform(UniformLevel& u, const Split4Stencil& stencil) {
   const Mesh& m = u.level.mesh;
-  StepStats ignored;
   std::function<void(std::uint64_t)> guard_reserve;
   const std::uint64_t held = held_bytes();
   if (reserve_) guard_reserve = [&](std::uint64_t work) { need(held + work); };
-  need(held + marking_bytes(u.level, stencil) + m.num_edges() * 40);
-  u.points = candidate_points(u.level, stencil, ignored, guard_reserve);
+  // Points, the stencil's scratch, the guard's flags, the unguarded copy, trust, edge map.
+  need(held + marking_bytes(u.level, stencil) + m.num_edges() * (sizeof(Vec3) + 48));
+  // candidate_points, keeping which edge points the fold guard moved.
+  const std::size_t nv = m.num_vertices(), ne = m.num_edges();
+  u.points = BigVector<Vec3>(nv + ne);
+  stencil.vertex_points(u.level, std::span<Vec3>(u.points.data(), nv));
+  stencil.edge_points(u.level, std::span<Vec3>(u.points.data() + nv, ne));
+  const std::vector<Vec3> raw(u.points.begin() + static_cast<std::ptrdiff_t>(nv), u.points.end());
+  guard_folds(m, u.level.features, u.points, guard_reserve);
+  u.edge_guarded.resize(ne);
+  for (std::size_t e = 0; e < ne; ++e) u.edge_guarded[e] = !(u.points[nv + e] == raw[e]);
   u.edge_trusted = trusted_edges(m, u.trusted, u.cut);
   u.edge_of.clear();
   u.edge_of.reserve(m.num_edges());
@@ -351,7 +361,7 @@ void AdaptiveSplit4::update_uniform(const Split4Stencil& stencil) {
   }
 }
 
-Vec3 AdaptiveSplit4::uniform_point(std::uint32_t leaf, std::uint32_t k) const {
+Vec3 AdaptiveSplit4::uniform_point(std::uint32_t leaf, std::uint32_t k, bool* guarded) const {
   const Leaf& l = leaves_[leaf];
   const UniformLevel& u = uniform_.at(l.level);
   const auto it = u.edge_of.find(pair_key(l.v[k], l.v[(k + 1) % 3]));
@@ -359,6 +369,7 @@ Vec3 AdaptiveSplit4::uniform_point(std::uint32_t leaf, std::uint32_t k) const {
     throw Error(ErrorCode::Internal, "adaptive_stencil_margin",
                 "adaptive refinement: the uniform level " + std::to_string(l.level) +
                     " around an edge to split is not wide enough for the stencil");
+  if (guarded) *guarded = u.edge_guarded[it->second];
   return u.points[u.level.mesh.num_vertices() + it->second];
 }
 
@@ -685,8 +696,10 @@ bool AdaptiveSplit4::step(const Split4Stencil& stencil, double tolerance, std::u
       const std::uint32_t e = leaves_[f].e[k];
       if (edges_[e].mid != kNone) continue;
       const std::uint32_t mid = static_cast<std::uint32_t>(positions_.size());
-      positions_.push_back(uniform_points_ ? uniform_point(f, k)
+      bool guarded = false;
+      positions_.push_back(uniform_points_ ? uniform_point(f, k, &guarded)
                                            : pos[nv + m.edge(leaf_halfedge_[f][k]).idx]);
+      stats.fold_fallbacks += guarded;  // (the conforming evaluation counted its own)
       const auto [a, b] = edges_[e].v;
       const bool sharp = edges_[e].sharp;
       const std::uint32_t first = add_edge(a, mid, sharp, e);

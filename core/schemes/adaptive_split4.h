@@ -22,7 +22,8 @@ struct AdaptiveStepStats {
   std::size_t green_faces = 0;          //!< faces of the result bisected to close a hanging node
 };
 
-//! Edges of `level` whose edge point (the stencil's, after the fold guard) lies more than
+//! Edges of `level` whose edge point (the stencil's on `level` itself, after the fold
+//! guard; AdaptiveSplit4::remaining() measures the adaptive hierarchy) lies more than
 //! `tolerance` from the edge's chord midpoint (spec 5 gap 4), or, when angle_deg > 0,
 //! non-sharp edges whose two faces' normals differ by more than angle_deg. A criterion is
 //! off when it is 0.
@@ -49,16 +50,29 @@ EdgesOverTolerance edges_over_tolerance(const Level& level, const Split4Stencil&
 //! at most one hanging midpoint. The conforming mesh `level()` bisects each triangle with a
 //! hanging midpoint (green); greens are never refined themselves: when a green pair needs
 //! refinement its parent is split red instead, so repeated steps do not make slivers.
-//! A step evaluates the stencil on the conforming mesh, splits red every triangle with an
-//! edge whose edge point leaves the chord by more than the tolerance, then closes: a
-//! triangle that would get two hanging midpoints, or a midpoint on a half of its own split
-//! edge, is split red too. Vertices are never moved or renumbered (the schemes are
+//! Every red leaf of level k is a face of the uniform level k. A step splits red every leaf
+//! with an edge whose edge point leaves the chord by more than the tolerance, then closes:
+//! a triangle that would get two hanging midpoints, or a midpoint on a half of its own
+//! split edge, is split red too. Vertices are never moved or renumbered (the schemes are
 //! interpolating), so input vertex v is output vertex v; watertight in, watertight out.
 //!
+//! Edge points (issue 17): on a simple mesh (require_simple_mesh) a leaf's edges are
+//! measured and split with the points uniform refinement puts there, the stencil and the
+//! fold guard evaluated on a region of the uniform level (the faces the hierarchy split
+//! plus kRegionMargin rings, made by split4 from the level below), and only where the
+//! region's cut and every point not known to be uniform are kStencilReach edges or more
+//! away (else Error(Internal, "adaptive_stencil_margin")). So a split leaf has the children
+//! uniform refinement gives it, the measure of an edge does not depend on the tolerance,
+//! and a smaller tolerance splits a superset of the leaves. The stencil is not evaluated on
+//! the conforming mesh, whose green triangles and mixed levels it is not made for (there
+//! butterfly's points left their chords by more at each level and never converged).
+//!
 //! Edges are known by identity (the input's EdgeIds, then one entry per half and per inner
-//! edge of a split), never by their end vertices, so meshes that are not simple work as
-//! they do in uniform refinement: two edges between the same two vertices (ingest cuts a
-//! non-manifold edge apart that way) and a facet with its reverse (a two-face pillow).
+//! edge of a split), so meshes that are not simple work as they do in uniform refinement:
+//! two edges between the same two vertices (ingest cuts a non-manifold edge apart that way)
+//! and a facet with its reverse (a two-face pillow). On those the uniform regions (which
+//! know edges by their end vertices) are not used: the points come from the stencil on the
+//! conforming mesh, as before issue 17, without the guarantees above.
 //!
 //! Memory: `reserve`, when set, is called with the bytes this object will hold at most
 //! until its next call (its arrays, the conforming level, and the work arrays of the phase
@@ -119,13 +133,14 @@ class AdaptiveSplit4 {
     std::vector<std::uint8_t> cut;                // per edge: a boundary made by the cut
     BigVector<Vec3> points;                       // vertex points then edge points (V + e)
     std::vector<std::uint8_t> edge_trusted;       // per edge: its point is the uniform one
+    std::vector<std::uint8_t> edge_guarded;       // per edge: the fold guard moved its point
     std::unordered_map<std::uint64_t, std::uint32_t> edge_of;  // vertex pair -> edge
   };
   //! Rebuilds uniform_[1..K] for the leaves' finest level K (uniform_[0] is the input).
   void update_uniform(const Split4Stencil& stencil);
   void evaluate_uniform(UniformLevel& u, const Split4Stencil& stencil);
   //! Per leaf edge of level k: its uniform edge point; throws when the margin fell short.
-  Vec3 uniform_point(std::uint32_t leaf, std::uint32_t k) const;
+  Vec3 uniform_point(std::uint32_t leaf, std::uint32_t k, bool* guarded = nullptr) const;
   //! Whether leaf edge k of `leaf` is over a criterion (uniform points); `dist` its distance.
   bool uniform_over(std::uint32_t leaf, std::uint32_t k, double tolerance, double cos_limit,
                     bool angle_on, double& dist) const;
