@@ -284,6 +284,23 @@ void AdaptiveSplit4::update_uniform(const Split4Stencil& stencil) {
         if (in_face[f])
           for (std::uint32_t j = 0; j < 3; ++j) in_vertex[cm.from(HalfedgeId(3 * f + j)).idx] = 1;
     }
+    // No vertex may pinch the region (two or more fans of region faces meeting only at
+    // it): fill the ring of such a vertex, until none is left.
+    for (bool pinched = true; pinched;) {
+      pinched = false;
+      std::vector<std::uint32_t> fans(cv, 0);  // region faces at v minus region edges at v
+      for (std::uint32_t h = 0; h < cm.num_halfedges(); ++h) {
+        if (!in_face[h / 3]) continue;
+        const std::uint32_t v = cm.from(HalfedgeId(h)).idx;
+        ++fans[v];
+        const HalfedgeId t = cm.twin(HalfedgeId(h));
+        if (t.valid() && in_face[t.idx / 3]) --fans[v];
+      }
+      for (std::uint32_t h = 0; h < cm.num_halfedges(); ++h) {
+        const std::uint32_t v = cm.from(HalfedgeId(h)).idx;
+        if (fans[v] >= 2 && !in_face[h / 3]) in_face[h / 3] = 1, pinched = true;
+      }
+    }
     // The region as a level of its own.
     std::vector<std::uint32_t> local(cv, kNone), global_of;
     std::vector<std::uint32_t> faces;
