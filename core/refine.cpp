@@ -280,6 +280,7 @@ RefineResult run_levels(Mesh mesh, const RefineParams& params, const Scheme& sch
       r.edges_over_tolerance = over.count;
       r.max_over_tolerance = over.max_distance;
       r.worst_over_tolerance_at = over.worst_at;
+      r.edges_not_converging = over.not_shrinking;
     }
     level = adaptive->release();
     adaptive.reset();

@@ -134,6 +134,11 @@ struct RefineReport {
   //! edge's chord midpoint. 0 when nothing is over the tolerance.
   double max_over_tolerance = 0;
   Vec3 worst_over_tolerance_at{0, 0, 0};
+  //! ... and of edges_over_tolerance, the halves of a split edge whose point leaves the
+  //! chord by more than half as far as the split edge's midpoint did: there the scheme's
+  //! own levels are not converging (about four times less per level where they do), so a
+  //! higher max_level would not reach the tolerance there either.
+  std::size_t edges_not_converging = 0;
   //! Largest distance any input vertex moved (0 for interpolating schemes).
   double max_input_displacement = 0;
   double seconds = 0;

@@ -121,7 +121,7 @@ int main(int argc, char** argv) {
 
   std::size_t runs = 0, breaches = 0, failures = 0, unexplained = 0;
   std::cout << "| scheme | shape | seed | tol/diag | faces | levels | RMS/diag | folded | "
-               "stopped | over tol at stop | worst over tol/diag "
+               "stopped | over tol at stop (not converging) | worst over tol/diag "
                "|\n|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const std::string& scheme : schemes) {
     const bool sqrt3 = scheme.rfind("sqrt3", 0) == 0;
@@ -150,7 +150,8 @@ int main(int argc, char** argv) {
           std::cout << "| " << scheme << " | " << c.name << " | " << c.seed << " | " << sci(t)
                     << " | " << r.faces << " | " << rep.levels << " | " << sci(r.rms) << " | "
                     << r.folded << " | " << (rep.stop_reason.empty() ? "-" : rep.stop_reason)
-                    << " | " << over << " | " << sci(rep.max_over_tolerance / diag) << " |\n";
+                    << " | " << over << " (" << rep.edges_not_converging << ") | "
+                    << sci(rep.max_over_tolerance / diag) << " |\n";
       }
       for (std::size_t i = 1; i < rows.size(); ++i) {
         const Row &a = rows[i - 1], &b = rows[i];

@@ -424,6 +424,12 @@ EdgesOverTolerance AdaptiveSplit4::remaining(const Split4Stencil& stencil, doubl
       double dist = 0;
       if (!uniform_over(f, k, tolerance, cos_limit, angle_deg > 0, dist)) continue;
       ++out.count;
+      if (const std::uint32_t parent = edges_[e].parent; parent != kNone && tolerance > 0) {
+        const Edge& p = edges_[parent];
+        const double parent_dist =
+            distance(positions_[p.mid], 0.5 * (positions_[p.v[0]] + positions_[p.v[1]]));
+        out.not_shrinking += dist > tolerance && dist > 0.5 * parent_dist;
+      }
       if (tolerance > 0 && dist > tolerance && dist > out.max_distance) {
         out.max_distance = dist;
         out.worst_at = 0.5 * (positions_[edges_[e].v[0]] + positions_[edges_[e].v[1]]);

@@ -39,6 +39,10 @@ struct EdgesOverTolerance {
   std::size_t count = 0;
   double max_distance = 0;
   Vec3 worst_at{0, 0, 0};
+  //! AdaptiveSplit4::remaining() only: of `count`, the halves of a split edge whose point
+  //! leaves the chord by more than half as far as the split edge's midpoint left its chord
+  //! (a converging scheme shrinks it about four times per level).
+  std::size_t not_shrinking = 0;
 };
 EdgesOverTolerance edges_over_tolerance(const Level& level, const Split4Stencil& stencil,
                                         double tolerance, double angle_deg = 0,
