@@ -249,7 +249,6 @@ void AdaptiveSplit4::update_uniform(const Split4Stencil& stencil) {
   std::uint32_t finest = 0;
   for (const Leaf& leaf : leaves_) finest = std::max(finest, leaf.level);
   if (uniform_[0].points.empty()) evaluate_uniform(uniform_[0], stencil);
-  uniform_.resize(1);
   // Split edges of the hierarchy by their end vertices.
   std::unordered_map<std::uint64_t, std::uint32_t> mid_of;
   for (const Edge& e : edges_)
@@ -259,6 +258,7 @@ void AdaptiveSplit4::update_uniform(const Split4Stencil& stencil) {
     const auto it = mid_of.find(pair_key(a, b));
     return it == mid_of.end() ? kNone : it->second;
   };
+  bool rebuilt = false;  // a level below was made anew (its vertex numbers changed)
   for (std::uint32_t k = 1; k <= finest; ++k) {
     const UniformLevel& c = uniform_[k - 1];
     const Mesh& cm = c.level.mesh;
@@ -266,6 +266,7 @@ void AdaptiveSplit4::update_uniform(const Split4Stencil& stencil) {
     // The faces of level k - 1 the hierarchy split (all three edges split), and around them
     // kRegionMargin rings.
     std::vector<std::uint8_t> in_vertex(cv, 0), in_face(cf, 0);
+    std::size_t num_split = 0;
     for (std::uint32_t f = 0; f < cf; ++f) {
       bool split = true;
       for (std::uint32_t j = 0; j < 3 && split; ++j) {
@@ -273,9 +274,16 @@ void AdaptiveSplit4::update_uniform(const Split4Stencil& stencil) {
         split = c.hierarchy_vertex[cm.from(h).idx] != kNone &&
                 mid(c.hierarchy_vertex[cm.from(h).idx], c.hierarchy_vertex[cm.to(h).idx]) != kNone;
       }
-      if (split)
-        for (std::uint32_t j = 0; j < 3; ++j) in_vertex[cm.from(HalfedgeId(3 * f + j)).idx] = 1;
+      if (!split) continue;
+      ++num_split;
+      for (std::uint32_t j = 0; j < 3; ++j) in_vertex[cm.from(HalfedgeId(3 * f + j)).idx] = 1;
     }
+    // The hierarchy only ever splits more faces: the same count is the same faces, and the
+    // region made from them last time is still this level's (with the same hierarchy
+    // vertices: a vertex of level k gets one only when a face of level k - 1 is split).
+    if (!rebuilt && k < uniform_.size() && uniform_[k].source_split == num_split) continue;
+    rebuilt = true;
+    uniform_.resize(k);
     for (int ring = 0; ring < kRegionMargin; ++ring) {
       for (std::uint32_t f = 0; f < cf; ++f)
         for (std::uint32_t j = 0; j < 3; ++j)
@@ -373,6 +381,7 @@ void AdaptiveSplit4::update_uniform(const Split4Stencil& stencil) {
       const std::uint32_t m = std::max(um.from(h).idx, um.to(h).idx);
       u.cut[e] = m >= rv && region_cut[m - rv];
     }
+    u.source_split = num_split;
     uniform_.push_back(std::move(u));
     evaluate_uniform(uniform_.back(), stencil);
   }

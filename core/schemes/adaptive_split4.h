@@ -139,6 +139,7 @@ class AdaptiveSplit4 {
     std::vector<std::uint8_t> edge_trusted;       // per edge: its point is the uniform one
     std::vector<std::uint8_t> edge_guarded;       // per edge: the fold guard moved its point
     std::unordered_map<std::uint64_t, std::uint32_t> edge_of;  // vertex pair -> edge
+    std::size_t source_split = 0;  // faces of level k - 1 split when it was made
   };
   //! Rebuilds uniform_[1..K] for the leaves' finest level K (uniform_[0] is the input).
   void update_uniform(const Split4Stencil& stencil);
