@@ -175,6 +175,22 @@ TEST(Adaptive, AtTheLevelCapItSaysHowManyEdgesAreOverTheToleranceHowFarAndWhere)
   }
 }
 
+TEST(Adaptive, TheIssuesIcosphereTighterToleranceNoLongerGivesFewerFaces) {
+  // Issue 17's case: butterfly on an icosphere of 1,280 faces (radius 10), max_level 4, at
+  // 3e-4 and 1e-4 of the bbox diagonal. Before the fix: 156,080 faces with 66,660 edges
+  // over tolerance, then 114,680 faces (bench/results-issue17-adaptive.md). Now the looser
+  // one reaches its tolerance at level 3 and the tighter one makes more faces.
+  const Mesh coarse = to_mesh(icosphere_soup(3, 10.0));
+  const double diag = bbox_diagonal(coarse);
+  const RefineResult loose = refine(coarse, adaptive("butterfly", 3e-4 * diag, 4));
+  const RefineResult tight = refine(coarse, adaptive("butterfly", 1e-4 * diag, 4));
+  EXPECT_EQ(loose.report.stop_reason, "tolerance");
+  EXPECT_EQ(loose.report.levels, 3);
+  EXPECT_LT(loose.mesh.num_faces(), 20'000u);
+  EXPECT_GT(tight.mesh.num_faces(), loose.mesh.num_faces());
+  expect_watertight_manifold(tight.mesh);
+}
+
 TEST(Adaptive, SaysWhereTheSchemesOwnLevelsDoNotConverge) {
   // lsf on a coarse zipped cylinder (coarseness 2, seed 3): its uniform level 2 is further
   // from the cylinder than level 1 (RMS 2.3e-2 against 3.1e-3 of the diagonal, measured
