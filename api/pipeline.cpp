@@ -3,6 +3,8 @@
 #include "api/pipeline.h"
 
 #include <chrono>
+#include <memory>
+#include <optional>
 #include <utility>
 
 #include "api/ingest.h"
@@ -15,6 +17,8 @@
 #include "core/mesh/mesh_stats.h"
 #include "core/schemes/lsf_curvature.h"
 #include "core/schemes/scheme.h"
+#include "primitives/post_pass.h"
+#include "primitives/regions.h"
 #include "slicer/writers.h"
 
 namespace stlrefine::api {
@@ -73,7 +77,22 @@ RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineReques
   // the bounds a little; the refined mesh is planned again by the slicer itself.)
   if (request.slice) slicer::plan_layers(in.result.mesh, request.slice->params);
 
+  // The post-pass keeps what it needs of the input (its triangles in an AABB tree, the
+  // recognised regions) before the mesh is moved into refine.
   auto phase = Clock::now();
+  const PrimitiveOptions& prim = request.primitives;
+  std::optional<primitives::RegionMap> regions;
+  std::unique_ptr<primitives::InputSurface> surface;
+  if (prim.post_pass()) {
+    const Features features = detect_features(in.result.mesh, request.refine.features);
+    if (prim.enabled)
+      regions = primitives::detect_regions(in.result.mesh, features, {prim.tolerance});
+    surface = std::make_unique<primitives::InputSurface>(in.result.mesh, features,
+                                                         regions ? &*regions : nullptr);
+  }
+  const double detect_seconds = seconds_since(phase);
+
+  phase = Clock::now();
   const std::size_t input_faces = in.result.mesh.num_faces();
   // refine's figures are its own: the body is held beside them for the whole request.
   MemoryGrowFn refine_grow;
@@ -87,6 +106,19 @@ RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineReques
     }
   }();
   times.refine = seconds_since(phase);
+  std::optional<primitives::PostPassReport> post;
+  // An approximating scheme moves the input vertices on purpose (loop, sqrt3 with alpha < 1):
+  // the default post-pass would undo that, so it runs there only when max_deviation is given.
+  const bool approximating = refined.report.max_input_displacement > 0;
+  if (approximating && !prim.max_deviation_given) surface.reset();
+  if (surface) {
+    primitives::PostPassParams pp;
+    pp.snap = prim.enabled;
+    pp.max_deviation = prim.max_deviation;
+    post = surface->apply(refined.mesh, pp);
+    post->seconds += detect_seconds;
+    surface.reset();
+  }
   if (grow) {
     // The hierarchy is gone; the mesh, its STL (and contours) are what the rest holds.
     const std::uint64_t rest = refined_memory_bytes(
@@ -105,6 +137,16 @@ RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineReques
     out.contours = slice_to_string(refined.mesh, *request.slice, &slice_stats, progress, cancel);
   times.total = seconds_since(start);
   out.report = refine_report(in, refined.report, request, out.stl.size(), times);
+  if (post) {
+    out.report["primitives"] =
+        primitives_report_json(regions ? &*regions : nullptr, *post, request.primitives);
+    out.report["deviation"] = deviation_report_json(*post, request.primitives);
+  } else {
+    out.report["primitives"] = primitives_report_json(nullptr, {}, request.primitives);
+    if (prim.post_pass())
+      out.report["primitives"]["skipped"] =
+          "approximating scheme (input vertices moved); give max_deviation to bound it";
+  }
   if (request.slice)
     out.report["slice"] = slice_stats_json(slice_stats, *request.slice, out.contours->size());
   return out;

@@ -1,0 +1,367 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#include "primitives/post_pass.h"
+
+#include <CGAL/AABB_traits.h>
+#include <CGAL/AABB_tree.h>
+#include <CGAL/AABB_triangle_primitive.h>
+#include <CGAL/Simple_cartesian.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <iterator>
+#include <limits>
+#include <numbers>
+
+#include "core/geometry/point_triangle.h"
+
+namespace stlrefine::primitives {
+
+namespace {
+
+// The default bound over the sagitta estimate: the arc across a face is only estimated from
+// its neighbours' normals (measured on the blob family: 4 covers the true surface over 95%
+// of the faces' centroids).
+constexpr double kSagittaFactor = 4;
+
+using K = CGAL::Simple_cartesian<double>;
+using Triangles = std::vector<K::Triangle_3>;
+using AabbPrimitive = CGAL::AABB_triangle_primitive<K, Triangles::const_iterator>;
+using Tree = CGAL::AABB_tree<CGAL::AABB_traits<K, AabbPrimitive>>;
+
+K::Point_3 point3(const Vec3& p) {
+  return {p.x, p.y, p.z};
+}
+Vec3 vec3(const K::Point_3& p) {
+  return {p.x(), p.y(), p.z()};
+}
+
+// What one output vertex ends as.
+struct Outcome {
+  Vec3 position;
+  double distance_before = 0, distance_after = 0, snap_move = 0, pull_back = 0, bound = 0,
+         allowance = 0;
+  std::uint8_t is_new = 0, snapped = 0, to_curve = 0, refused = 0, pulled = 0;
+};
+
+}  // namespace
+
+struct InputSurface::Impl {
+  std::vector<Vec3> positions;
+  std::vector<std::array<std::uint32_t, 3>> faces;
+  std::vector<Vec3> normals;  // unit (zero for a degenerate face)
+  std::vector<double> bound;
+  // Per face of a recognised region, the bound of a vertex snapped onto its primitive:
+  // 1.5 times the farthest the primitive is from the face (at its centroid and edge
+  // midpoints), plus the recognition tolerance (a plane's faces: the tolerance).
+  std::vector<double> snap_bound;
+  std::vector<std::int32_t> face_region;  // empty without regions
+  // Per face and edge k (corner k to k + 1): the face across when the edge is sharp, else -1.
+  std::vector<std::array<std::int32_t, 3>> across_crease;
+  std::vector<Region> regions;
+  double diagonal = 0, tolerance = 0;
+  Triangles triangles;
+  Tree tree;
+
+  std::size_t face_of(const Tree::Primitive_id& id) const {
+    return static_cast<std::size_t>(id - triangles.begin());
+  }
+};
+
+InputSurface::InputSurface(const Mesh& mesh, const Features& features, const RegionMap* regions)
+    : impl_(std::make_unique<Impl>()) {
+  Impl& m = *impl_;
+  m.positions.assign(mesh.positions().begin(), mesh.positions().end());
+  const std::size_t nf = mesh.num_faces();
+  m.faces.resize(nf);
+  m.across_crease.assign(nf, {-1, -1, -1});
+  m.normals.resize(nf);
+  m.triangles.reserve(nf);
+  std::vector<Vec3> centroid(nf);
+  std::vector<double> area(nf);
+  for (std::size_t f = 0; f < nf; ++f) {
+    const auto vs = mesh.face_vertices(FaceId(static_cast<std::uint32_t>(f)));
+    m.faces[f] = {vs[0].idx, vs[1].idx, vs[2].idx};
+    const Vec3 &a = mesh.position(vs[0]), &b = mesh.position(vs[1]), &c = mesh.position(vs[2]);
+    m.triangles.emplace_back(point3(a), point3(b), point3(c));
+    const Vec3 n = cross(b - a, c - a);
+    area[f] = norm(n) / 2;
+    m.normals[f] = area[f] > 0 ? normalized(n) : Vec3{};
+    centroid[f] = (a + b + c) * (1.0 / 3);
+    for (int k = 0; k < 3; ++k) {
+      const HalfedgeId h = Mesh::halfedge(FaceId(static_cast<std::uint32_t>(f)), k);
+      if (!mesh.is_boundary(h) && features.is_sharp(mesh, h))
+        m.across_crease[f][std::size_t(k)] =
+            static_cast<std::int32_t>(Mesh::face(mesh.twin(h)).idx);
+    }
+  }
+  Vec3 lo, hi;
+  if (!m.positions.empty()) lo = hi = m.positions[0];
+  for (const Vec3& p : m.positions) {
+    lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
+    hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
+  }
+  m.diagonal = distance(lo, hi);
+  m.tolerance = regions ? regions->tolerance : 1e-6 * m.diagonal;
+  if (regions) {
+    m.face_region = regions->face_region;
+    m.regions = regions->regions;
+  }
+  // The default bound: kSagittaFactor times the sagitta over f of an arc across f (of chord f's
+  // height over a smooth edge) that turns by the edge's dihedral angle (at least 1e-12 of the
+  // diagonal, for rounding: a flat face's vertices are pulled onto it).
+  m.bound.assign(nf, 1e-12 * m.diagonal);
+  for (std::size_t f = 0; f < nf; ++f) {
+    for (int k = 0; k < 3; ++k) {
+      const HalfedgeId h = Mesh::halfedge(FaceId(static_cast<std::uint32_t>(f)), k);
+      if (mesh.is_boundary(h) || features.is_sharp(mesh, h)) continue;
+      const double phi = dihedral_angle_deg(mesh, mesh.edge(h)) * std::numbers::pi / 180;
+      const double len = distance(mesh.position(mesh.from(h)), mesh.position(mesh.to(h)));
+      if (!(len > 0)) continue;
+      const double height = 2 * area[f] / len;
+      // An arc across f, of chord `height`, turning by phi: sagitta (height / 2) tan(phi / 4).
+      m.bound[f] = std::max(m.bound[f], kSagittaFactor * (height / 2) * std::tan(phi / 4));
+    }
+  }
+  m.snap_bound = m.bound;
+  for (std::size_t f = 0; f < nf && !m.face_region.empty(); ++f) {
+    if (m.face_region[f] < 0) continue;
+    const Primitive& prim = m.regions[std::size_t(m.face_region[f])].primitive;
+    const auto& t = m.faces[f];
+    const Vec3 &a = m.positions[t[0]], &b = m.positions[t[1]], &c = m.positions[t[2]];
+    double gap = prim.distance(centroid[f]);
+    for (const Vec3& mid : {(a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5})
+      gap = std::max(gap, prim.distance(mid));
+    m.snap_bound[f] = 1.5 * gap + m.tolerance;
+  }
+  m.tree.insert(m.triangles.begin(), m.triangles.end());
+  m.tree.build();
+  m.tree.accelerate_distance_queries();
+}
+
+InputSurface::~InputSurface() = default;
+
+double InputSurface::default_bound(std::size_t face) const {
+  return impl_->bound[face];
+}
+
+PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) const {
+  const auto start = std::chrono::steady_clock::now();
+  const Impl& m = *impl_;
+  PostPassReport report;
+  const std::size_t nv = refined.num_vertices();
+  if (m.faces.empty() || nv == 0) return report;
+  const bool snap = params.snap && !m.regions.empty();
+  const bool user_bound = params.max_deviation && *params.max_deviation > 0;
+  const bool bound_on = !params.max_deviation || *params.max_deviation > 0;
+  const double curve_tol = 1e-12 * m.diagonal;
+  std::vector<Outcome> out(nv);
+
+  auto closest = [&](const Vec3& p, std::size_t& face) {
+    const auto hit = m.tree.closest_point_and_primitive(point3(p));
+    face = m.face_of(hit.second);
+    return vec3(hit.first);
+  };
+
+  auto snap_target = [&](VertexId v, const Vec3& p, double d, Outcome& o) -> std::optional<Vec3> {
+    // Input faces near p (a quarter of its longest edge farther than the nearest: a vertex
+    // of a crease may lie on one side's face, inside the other side's chord), each incident
+    // refined face voting for the one whose normal it agrees with best.
+    double longest = 0;
+    const Vec3 self = refined.position(v);
+    for_each_outgoing(refined, v, [&](HalfedgeId h) {
+      longest = std::max(longest, distance(self, refined.position(refined.to(h))));
+    });
+    const double r = d + 0.25 * longest + 1e-9 * m.diagonal;
+    const CGAL::Bbox_3 box(p.x - r, p.y - r, p.z - r, p.x + r, p.y + r, p.z + r);
+    std::vector<Tree::Primitive_id> ids;
+    m.tree.all_intersected_primitives(box, std::back_inserter(ids));
+    std::vector<std::size_t> near;
+    for (const auto& id : ids) {
+      const std::size_t f = m.face_of(id);
+      const auto& t = m.faces[f];
+      if (point_triangle_distance(p, m.positions[t[0]], m.positions[t[1]], m.positions[t[2]]) <= r)
+        near.push_back(f);
+    }
+    if (near.empty()) return std::nullopt;
+    std::array<std::int32_t, 8> region{};
+    std::array<int, 8> votes{};
+    int kinds = 0;
+    for_each_outgoing(refined, v, [&](HalfedgeId h) {
+      const Vec3 n = refined.face_normal(Mesh::face(h));
+      const double len = norm(n);
+      if (!(len > 0)) return;
+      // The best agreeing normal; among faces that agree as well (parallel planes, an
+      // embossed letter's top), the nearest.
+      double best = -2;
+      for (std::size_t f : near) best = std::max(best, dot(n, m.normals[f]) / len);
+      std::size_t pick = near[0];
+      double nearest = INFINITY;
+      for (std::size_t f : near) {
+        if (dot(n, m.normals[f]) / len < best - 1e-6) continue;
+        const auto& t = m.faces[f];
+        const double dist =
+            point_triangle_distance(p, m.positions[t[0]], m.positions[t[1]], m.positions[t[2]]);
+        if (dist < nearest) {
+          nearest = dist;
+          pick = f;
+        }
+      }
+      const std::int32_t id = m.face_region[pick];
+      for (int i = 0; i < kinds; ++i)
+        if (region[std::size_t(i)] == id) {
+          ++votes[std::size_t(i)];
+          return;
+        }
+      if (kinds < 8) {
+        region[std::size_t(kinds)] = id;
+        votes[std::size_t(kinds)] = 1;
+        ++kinds;
+      }
+    });
+    // Recognised regions among the votes, most votes first.
+    std::vector<std::pair<int, std::int32_t>> found;
+    for (int i = 0; i < kinds; ++i)
+      if (region[std::size_t(i)] >= 0)
+        found.emplace_back(-votes[std::size_t(i)], region[std::size_t(i)]);
+    if (found.empty()) return std::nullopt;
+    std::sort(found.begin(), found.end());
+    // The snapped bound of the voted regions' faces nearby (a rim vertex is nearest to the
+    // cap, whose bound is flat, but lies on the side's circle).
+    for (std::size_t f : near)
+      for (const auto& e : found)
+        if (m.face_region[f] == e.second) o.allowance = std::max(o.allowance, m.snap_bound[f]);
+    const double reach = 0.5 * longest;
+    auto accept = [&](const std::optional<Vec3>& t) {
+      return t && is_finite(*t) && distance(*t, p) <= reach;
+    };
+    // A vertex within 15% of its longest edge of an input crease between two recognised
+    // regions is a vertex of that crease, whatever its faces say (a folded face may vote
+    // for the wrong side).
+    double crease_gap = 0.15 * longest;
+    std::int32_t crease_a = -1, crease_b = -1;
+    double crease_allowance = 0;
+    for (std::size_t f : near)
+      for (int k = 0; k < 3; ++k) {
+        const std::int32_t g = m.across_crease[f][std::size_t(k)];
+        if (g < 0) continue;
+        const std::int32_t ra = m.face_region[f], rb = m.face_region[std::size_t(g)];
+        if (ra < 0 || rb < 0 || ra == rb) continue;
+        const Vec3& e0 = m.positions[m.faces[f][std::size_t(k)]];
+        const Vec3& e1 = m.positions[m.faces[f][std::size_t((k + 1) % 3)]];
+        const double gap = point_triangle_distance(p, e0, e1, e1);
+        if (gap < crease_gap) {
+          crease_gap = gap;
+          crease_a = ra;
+          crease_b = rb;
+          crease_allowance = std::max(m.snap_bound[f], m.snap_bound[std::size_t(g)]);
+        }
+      }
+    if (crease_a >= 0) {
+      const std::optional<Vec3> t =
+          project_to_intersection(m.regions[std::size_t(crease_a)].primitive,
+                                  m.regions[std::size_t(crease_b)].primitive, p, curve_tol);
+      if (accept(t)) {
+        o.to_curve = 1;
+        o.allowance = std::max(o.allowance, crease_allowance);
+        return t;
+      }
+    }
+    std::vector<std::optional<Vec3>> tries;
+    if (found.size() == 2) {
+      const Primitive& a = m.regions[std::size_t(found[0].second)].primitive;
+      const Primitive& b = m.regions[std::size_t(found[1].second)].primitive;
+      const std::optional<Vec3> t = project_to_intersection(a, b, p, curve_tol);
+      if (accept(t)) {
+        o.to_curve = 1;
+        return t;
+      }
+      // The curve is out of reach: keep planes planar.
+      if (a.type == PrimitiveType::Plane) tries.push_back(a.project(p));
+      if (b.type == PrimitiveType::Plane) tries.push_back(b.project(p));
+    } else if (found.size() == 1) {
+      tries.push_back(m.regions[std::size_t(found[0].second)].primitive.project(p));
+    }
+    for (const std::optional<Vec3>& t : tries)
+      if (accept(t)) return t;
+    o.refused = 1;
+    return std::nullopt;
+  };
+
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nv), [&](const auto& range) {
+    for (std::size_t i = range.begin(); i != range.end(); ++i) {
+      Outcome& o = out[i];
+      const VertexId v(static_cast<std::uint32_t>(i));
+      Vec3 p = refined.position(v);
+      o.position = p;
+      std::size_t face = 0;
+      Vec3 q = closest(p, face);
+      const auto& t = m.faces[face];
+      if (p == m.positions[t[0]] || p == m.positions[t[1]] || p == m.positions[t[2]]) continue;
+      o.is_new = 1;
+      double d = distance(p, q);
+      o.distance_before = d;
+      if (snap) {
+        if (const std::optional<Vec3> target = snap_target(v, p, d, o)) {
+          // A snap that takes the vertex farther from the input than its primitive is from
+          // the input's chords there is a wrong region: refused.
+          std::size_t to_face = 0;
+          const Vec3 to_q = closest(*target, to_face);
+          const double to_d = distance(*target, to_q);
+          if (to_d <= std::max({d, m.snap_bound[to_face], o.allowance})) {
+            o.snapped = 1;
+            o.snap_move = distance(*target, p);
+            p = *target;
+            q = to_q;
+            d = to_d;
+            face = to_face;
+          } else {
+            o.refused = 1;
+          }
+        }
+      }
+      if (bound_on) {
+        const double bound = user_bound  ? *params.max_deviation
+                             : o.snapped ? std::max(m.snap_bound[face], o.allowance)
+                                         : m.bound[face];
+        o.bound = bound;
+        if (d > bound) {
+          const Vec3 back = q + (p - q) * (bound / d);
+          o.pulled = 1;
+          o.pull_back = distance(back, p);
+          p = back;
+          d = distance(p, closest(p, face));
+        }
+      }
+      o.distance_after = d;
+      o.position = p;
+    }
+  });
+
+  BigVector<Vec3>& positions = refined.mutable_positions();
+  for (std::size_t i = 0; i < nv; ++i) {
+    const Outcome& o = out[i];
+    if (!o.is_new) continue;
+    positions[i] = o.position;
+    ++report.vertices_checked;
+    report.snapped += o.snapped && !o.to_curve;
+    report.snapped_to_curve += o.to_curve;
+    report.snap_refused += o.refused;
+    report.pulled_back += o.pulled;
+    report.max_snap_move = std::max(report.max_snap_move, o.snap_move);
+    report.max_pull_back = std::max(report.max_pull_back, o.pull_back);
+    report.max_distance_before = std::max(report.max_distance_before, o.distance_before);
+    report.max_distance = std::max(report.max_distance, o.distance_after);
+    report.max_bound = std::max(report.max_bound, o.bound);
+  }
+  report.default_bound = bound_on && !user_bound;
+  if (user_bound) report.max_bound = *params.max_deviation;
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return report;
+}
+
+}  // namespace stlrefine::primitives

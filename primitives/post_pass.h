@@ -1,0 +1,83 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "core/features/features.h"
+#include "core/mesh/mesh.h"
+#include "primitives/regions.h"
+
+namespace stlrefine::primitives {
+
+//! What the post-pass does after refinement.
+struct PostPassParams {
+  //! Move new vertices onto the recognised primitives (primitives=auto).
+  bool snap = true;
+  //! The deviation bound (mm) every output vertex is pulled back within, towards its
+  //! closest point on the input surface:
+  //! - nullopt: the default, per input face f, max over its smooth edges e of
+  //!   4 (h_e / 2) tan(dihedral(e) / 4), h_e the height of f over e (4 times the sagitta of
+  //!   an arc across f turning by the angle between f's normal and its neighbour's: the
+  //!   input's chordal error the adjacent normals allow), at least 1e-12 of the diagonal;
+  //!   for a vertex snapped onto a recognised primitive, 1.5 times the farthest the
+  //!   primitive is from f (at its centroid and edge midpoints) plus the recognition
+  //!   tolerance: the input's own chordal error there (a snap that ends farther from the
+  //!   input than that and than the vertex was before is refused);
+  //! - 0: off;
+  //! - > 0: this bound for every output vertex, snapped or not.
+  std::optional<double> max_deviation;
+};
+
+//! What the post-pass did, for the report.
+struct PostPassReport {
+  std::size_t vertices_checked = 0;  //!< output vertices that are not input vertices
+  std::size_t snapped = 0;           //!< moved onto one primitive
+  std::size_t snapped_to_curve = 0;  //!< moved onto the intersection of two primitives
+  std::size_t snap_refused = 0;      //!< whose snap would have moved them too far
+  double max_snap_move = 0;          //!< mm
+  std::size_t pulled_back = 0;       //!< moved back within the deviation bound
+  double max_pull_back = 0;          //!< mm
+  double max_distance_before = 0;    //!< from the input surface, before this pass (mm)
+  double max_distance = 0;           //!< from the input surface, after it (mm)
+  double max_bound = 0;        //!< the largest deviation bound applied to a vertex (mm); 0 = off
+  bool default_bound = false;  //!< the bound is the local default
+  double seconds = 0;
+};
+
+//! The input surface as the post-pass needs it after the input mesh is gone: its triangles
+//! (a CGAL AABB tree, built once), their regions and default deviation bounds.
+class InputSurface {
+ public:
+  //! Keeps what it needs of mesh (positions and triangles), regions (may be null: no
+  //! snapping) and the per-face default bounds from features.
+  InputSurface(const Mesh& mesh, const Features& features, const RegionMap* regions);
+  ~InputSurface();
+  InputSurface(const InputSurface&) = delete;
+  InputSurface& operator=(const InputSurface&) = delete;
+
+  //! Snaps the new vertices of `refined` (those that are not, bit for bit, input vertices)
+  //! onto their recognised primitives, then pulls every new vertex within the deviation
+  //! bound of the input surface. Input vertices are never moved. Parallel (TBB).
+  //! Which region a new vertex derives from: its nearest input faces (those within a quarter of
+  //! its longest incident edge beyond its distance to the input), each incident refined face taking
+  //! the one whose normal it agrees with best (the nearest among equals); one region: its
+  //! primitive; two: their intersection curve (or, if the curve is not reached, the plane among
+  //! them, so planes stay planar); three or more: none. A vertex within 15% of its longest edge of
+  //! an input crease between two recognised regions goes onto their curve first. A snap is refused
+  //! when it would move a vertex farther than half its longest incident edge, or farther from the
+  //! input than both its distance before and the snapped bound above.
+  PostPassReport apply(Mesh& refined, const PostPassParams& params) const;
+
+  //! The default deviation bound of input face f (mm).
+  double default_bound(std::size_t face) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace stlrefine::primitives

@@ -1,0 +1,418 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+//
+// Issue 17 items 4 and 6: with primitives=auto the new vertices of a recognised region lie on
+// its primitive (measured against the generator's true surface, not against our own fits),
+// crease vertices on the intersection curve, planes stay planar, max_deviation holds, input
+// vertices are never moved; with primitives=off the output is what it was before.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <fstream>
+#include <iterator>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "api/ingest.h"
+#include "api/params.h"
+#include "api/pipeline.h"
+#include "core/error.h"
+#include "core/features/features.h"
+#include "core/geometry/point_triangle.h"
+#include "core/io/stl.h"
+#include "core/mesh/build_mesh.h"
+#include "core/refine.h"
+#include "primitives/post_pass.h"
+#include "primitives/regions.h"
+#include "tests/support/cad_like.h"
+
+namespace stlrefine::primitives {
+namespace {
+
+using test::CadFamily;
+
+double diagonal(const Mesh& mesh) {
+  Vec3 lo = mesh.position(VertexId(0)), hi = lo;
+  for (const Vec3& p : mesh.positions()) {
+    lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
+    hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
+  }
+  return distance(lo, hi);
+}
+
+struct Refined {
+  Mesh input, output;
+  RegionMap regions;
+  PostPassReport post;
+};
+
+// The api's path, on a mesh in double precision (so the generator's vertices are on its
+// true surface to rounding): detect, refine, post-pass.
+Refined refine_with(const Mesh& input, const std::string& scheme, int levels,
+                    const PostPassParams& post = {}, bool detect = true) {
+  Refined r;
+  r.input = input;
+  RefineParams params;
+  params.scheme = scheme;
+  params.levels = levels;
+  const Features features = detect_features(input, params.features);
+  if (detect) r.regions = detect_regions(input, features, {});
+  const InputSurface surface(input, features, detect ? &r.regions : nullptr);
+  r.output = refine(input, params).mesh;
+  r.post = surface.apply(r.output, post);
+  return r;
+}
+
+Mesh cad_mesh(CadFamily family, std::uint64_t seed) {
+  return build_mesh(test::make_cad_shape(family, {seed, 1.0}).soup).mesh;
+}
+
+void expect_inputs_unmoved(const Refined& r) {
+  for (std::size_t i = 0; i < r.input.num_vertices(); ++i) {
+    const VertexId v(static_cast<std::uint32_t>(i));
+    ASSERT_EQ(r.output.position(v), r.input.position(v)) << "input vertex " << i << " moved";
+  }
+}
+
+std::size_t count_type(const RegionMap& map, PrimitiveType type) {
+  return static_cast<std::size_t>(
+      std::count_if(map.regions.begin(), map.regions.end(),
+                    [&](const Region& r) { return r.primitive.type == type; }));
+}
+
+// Every output vertex on the true surface to 1e-9 of the diagonal; those at the true creases
+// (the rims) on them.
+void expect_on_truth(CadFamily family, std::uint64_t seed, const std::string& scheme) {
+  const test::CadShape shape = test::make_cad_shape(family, {seed, 1.0});
+  const Mesh input = build_mesh(shape.soup).mesh;
+  const Refined r = refine_with(input, scheme, 2);
+  const double diag = diagonal(input);
+  SCOPED_TRACE(shape.name + " seed " + std::to_string(seed) + " " + scheme);
+  EXPECT_GE(count_type(r.regions, PrimitiveType::Cylinder), 1u);
+  EXPECT_GE(count_type(r.regions, PrimitiveType::Plane), 2u);
+  expect_inputs_unmoved(r);
+  double worst = 0, worst_rim = 0;
+  std::size_t rim = 0;
+  for (const Vec3& p : r.output.positions()) {
+    worst = std::max(worst, distance(p, shape.surface->closest_point(p).point));
+    const std::optional<test::SurfacePoint> c = shape.surface->closest_crease_point(p);
+    ASSERT_TRUE(c);
+    const double to_crease = distance(p, c->point);
+    // Rim vertices: the new vertices of the rims' edges, within a small fraction of an edge
+    // of the rim (a vertex off the rim is at least a quarter of an input edge away).
+    if (to_crease < 1e-4 * diag) {
+      ++rim;
+      worst_rim = std::max(worst_rim, to_crease);
+    }
+  }
+  EXPECT_LE(worst, 1e-9 * diag);
+  EXPECT_LE(worst_rim, 1e-9 * diag);
+  // Every rim edge was split twice: 3 new rim vertices per input rim edge.
+  EXPECT_GE(rim, shape.crease_edges.size() * 4);
+  EXPECT_EQ(r.post.snap_refused, 0u);
+}
+
+TEST(PrimitivesTruth, CappedCylinderButterfly) {
+  for (std::uint64_t seed : {1, 2, 3})
+    expect_on_truth(CadFamily::CappedCylinder, seed, "butterfly");
+}
+TEST(PrimitivesTruth, CappedCylinderLsf) {
+  for (std::uint64_t seed : {1, 2, 3}) expect_on_truth(CadFamily::CappedCylinder, seed, "lsf");
+}
+TEST(PrimitivesTruth, TubeButterfly) {
+  for (std::uint64_t seed : {1, 2, 3}) expect_on_truth(CadFamily::Tube, seed, "butterfly");
+}
+TEST(PrimitivesTruth, TubeLsf) {
+  for (std::uint64_t seed : {1, 2, 3}) expect_on_truth(CadFamily::Tube, seed, "lsf");
+}
+
+TEST(PrimitivesTruth, OffIsFarFromTheTruth) {
+  // The check above can fail: without the post-pass the same output is not on the cylinder.
+  const test::CadShape shape = test::make_cad_shape(CadFamily::CappedCylinder, {1, 1.0});
+  const Mesh input = build_mesh(shape.soup).mesh;
+  RefineParams params;
+  params.levels = 2;
+  const Mesh out = refine(input, params).mesh;
+  double worst = 0;
+  for (const Vec3& p : out.positions())
+    worst = std::max(worst, distance(p, shape.surface->closest_point(p).point));
+  EXPECT_GT(worst, 1e-6 * diagonal(input));
+}
+
+TEST(PrimitivesDetect, RecognisesSphereConeTorus) {
+  const RegionMap sphere = detect_regions(cad_mesh(CadFamily::Sphere, 4),
+                                          detect_features(cad_mesh(CadFamily::Sphere, 4), {}), {});
+  EXPECT_EQ(count_type(sphere, PrimitiveType::Sphere), 1u);
+  const Mesh cone = cad_mesh(CadFamily::Cone, 4);
+  const RegionMap cones = detect_regions(cone, detect_features(cone, {}), {});
+  EXPECT_EQ(count_type(cones, PrimitiveType::Cone), 1u);
+  EXPECT_EQ(count_type(cones, PrimitiveType::Plane), 2u);
+  const Mesh torus = cad_mesh(CadFamily::Torus, 4);
+  FeatureParams smooth;
+  smooth.crease_angle_deg = 60;  // the coarse torus has edges over 35 degrees (issue 17)
+  const RegionMap tori = detect_regions(torus, detect_features(torus, smooth), {});
+  EXPECT_EQ(count_type(tori, PrimitiveType::Torus), 1u);
+  // The blob fits nothing.
+  const Mesh blob = cad_mesh(CadFamily::Blob, 4);
+  const RegionMap none = detect_regions(blob, detect_features(blob, {}), {});
+  EXPECT_TRUE(none.regions.empty());
+  for (const RegionMap* m : {&sphere, &cones, &tori})
+    for (const Region& r : m->regions) EXPECT_LE(r.max_residual, m->tolerance);
+}
+
+// For every recognised plane: the output faces that lie over one of its input faces (their
+// centroid seen along the normal 1e-3 of the diagonal in from its edges (5e-2 for a grown
+// plane), within 1e-3 of the plane) and face its way (within 10 degrees) have their three vertices
+// on it to 1e-9 of the diagonal. Returns how many faces were checked.
+std::size_t expect_planes_planar(const Refined& r) {
+  const double diag = diagonal(r.input);
+  std::size_t checked = 0;
+  std::vector<Vec3> centroid(r.output.num_faces()), normal(r.output.num_faces());
+  for (std::size_t g = 0; g < r.output.num_faces(); ++g) {
+    const auto vs = r.output.face_vertices(FaceId(static_cast<std::uint32_t>(g)));
+    centroid[g] = (r.output.position(vs[0]) + r.output.position(vs[1]) + r.output.position(vs[2])) *
+                  (1.0 / 3);
+    normal[g] = normalized(r.output.face_normal(FaceId(static_cast<std::uint32_t>(g))));
+  }
+  for (std::size_t k = 0; k < r.regions.regions.size(); ++k) {
+    const Primitive& plane = r.regions.regions[k].primitive;
+    if (plane.type != PrimitiveType::Plane) continue;
+    for (std::size_t f = 0; f < r.input.num_faces(); ++f) {
+      if (r.regions.face_region[f] != static_cast<std::int32_t>(k)) continue;
+      const auto vs = r.input.face_vertices(FaceId(static_cast<std::uint32_t>(f)));
+      const Vec3 corners[3] = {r.input.position(vs[0]), r.input.position(vs[1]),
+                               r.input.position(vs[2])};
+      const Vec3 n = normalized(cross(corners[1] - corners[0], corners[2] - corners[0]));
+      for (std::size_t g = 0; g < r.output.num_faces(); ++g) {
+        const Vec3& c = centroid[g];
+        if (std::abs(dot(c - corners[0], plane.axis)) > 1e-3 * diag) continue;
+        if (std::abs(dot(normal[g], n)) < std::cos(10 * 3.14159265358979 / 180)) continue;
+        // A grown plane meets a fillet tangentially: the fillet's first faces lie over the
+        // plane's border, so only faces 5% of the diagonal in are checked there.
+        const double margin = r.regions.regions[k].grown ? 5e-2 * diag : 1e-3 * diag;
+        bool inside = true;
+        for (int e = 0; e < 3 && inside; ++e) {
+          const Vec3& u = corners[e];
+          const Vec3& w = corners[(e + 1) % 3];
+          inside = dot(c - u, normalized(cross(n, w - u))) > margin;
+        }
+        if (!inside) continue;
+        ++checked;
+        for (VertexId v : r.output.face_vertices(FaceId(static_cast<std::uint32_t>(g))))
+          EXPECT_LE(std::abs(dot(r.output.position(v) - plane.point, plane.axis)), 1e-9 * diag)
+              << "a vertex of a face of a plane region is off its plane";
+      }
+    }
+  }
+  return checked;
+}
+
+TEST(PrimitivesPlanar, PlateAndRoundedBox) {
+  for (CadFamily family : {CadFamily::Plate, CadFamily::RoundedBox})
+    for (std::uint64_t seed : {1, 2})
+      for (const char* scheme : {"butterfly", "lsf"}) {
+        SCOPED_TRACE(std::string(test::cad_family_name(family)) + " " + scheme);
+        const Refined r = refine_with(cad_mesh(family, seed), scheme, 2);
+        EXPECT_GE(count_type(r.regions, PrimitiveType::Plane), 2u);
+        expect_inputs_unmoved(r);
+        EXPECT_GT(expect_planes_planar(r), 0u);
+      }
+}
+
+TEST(PrimitivesPlanar, PlaneIsBentWithoutThePostPass) {
+  // The plate's flat faces are bent by butterfly when nothing puts them back (issue 17).
+  Refined r = refine_with(cad_mesh(CadFamily::Plate, 1), "butterfly", 2, {}, true);
+  Refined off = r;
+  RefineParams params;
+  params.levels = 2;
+  off.output = refine(r.input, params).mesh;
+  const double diag = diagonal(r.input);
+  double worst = 0;
+  for (std::size_t k = 0; k < r.regions.regions.size(); ++k) {
+    const Primitive& plane = r.regions.regions[k].primitive;
+    if (plane.type != PrimitiveType::Plane) continue;
+    for (const Vec3& p : off.output.positions()) {
+      const double d = std::abs(dot(p - plane.point, plane.axis));
+      if (d < 1e-3 * diag) worst = std::max(worst, d);
+    }
+  }
+  EXPECT_GT(worst, 1e-9 * diag);
+}
+
+Mesh load(const std::string& name) {
+  std::ifstream in(std::string(STLREFINE_TEST_DATA_DIR) + "/" + name, std::ios::binary);
+  const std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)),
+                                        std::istreambuf_iterator<char>());
+  return api::ingest_stl(bytes, 0).result.mesh;
+}
+
+TEST(PrimitivesPlanar, SharedCadMeshes) {
+  for (const char* name : {"xyz_cube_20mm.stl", "round.stl", "gearwheel.stl", "tray_bottom.stl"})
+    for (const char* scheme : {"butterfly", "lsf"}) {
+      SCOPED_TRACE(std::string(name) + " " + scheme);
+      const Mesh input = load(name);
+      ASSERT_GT(input.num_faces(), 0u);
+      const Refined r = refine_with(input, scheme, 2);
+      EXPECT_GE(count_type(r.regions, PrimitiveType::Plane), 2u);
+      expect_inputs_unmoved(r);
+      EXPECT_GT(expect_planes_planar(r), 0u);
+      // The default bound holds.
+      EXPECT_LE(r.post.max_distance, r.post.max_bound * (1 + 1e-9));
+    }
+}
+
+// Distance of p from the input, brute force (independent of the AABB tree).
+double distance_to(const Mesh& mesh, const Vec3& p) {
+  double best = INFINITY;
+  for (std::size_t f = 0; f < mesh.num_faces(); ++f) {
+    const auto vs = mesh.face_vertices(FaceId(static_cast<std::uint32_t>(f)));
+    best = std::min(best, point_triangle_distance(p, mesh.position(vs[0]), mesh.position(vs[1]),
+                                                  mesh.position(vs[2])));
+  }
+  return best;
+}
+
+TEST(PrimitivesDeviation, UserBoundNeverExceeded) {
+  for (CadFamily family : {CadFamily::Plate, CadFamily::RoundedBox, CadFamily::Blob})
+    for (const char* scheme : {"butterfly", "lsf", "loop"}) {
+      SCOPED_TRACE(std::string(test::cad_family_name(family)) + " " + scheme);
+      const Mesh input = cad_mesh(family, 7);
+      // A bound below what the refinement does without one.
+      PostPassParams off;
+      off.max_deviation = 0;
+      const double free = refine_with(input, scheme, 2, off).post.max_distance;
+      ASSERT_GT(free, 0);
+      PostPassParams pp;
+      pp.max_deviation = 0.3 * free;
+      const Refined r = refine_with(input, scheme, 2, pp);
+      double worst = 0;
+      for (const Vec3& p : r.output.positions()) worst = std::max(worst, distance_to(input, p));
+      EXPECT_LE(worst, *pp.max_deviation * (1 + 1e-9));
+      EXPECT_LE(r.post.max_distance, *pp.max_deviation * (1 + 1e-9));
+      // The bound was needed: something was pulled back.
+      EXPECT_GT(r.post.pulled_back, 0u);
+      EXPECT_GT(r.post.max_distance_before, *pp.max_deviation);
+    }
+}
+
+TEST(PrimitivesDeviation, DefaultBoundIsTheInputsChordalError) {
+  // On a smooth shape nothing is recognised; the default bound is the local sagitta, so the
+  // output stays within it, while the true surface (the ideal refinement) is within it too.
+  const test::CadShape shape = test::make_cad_shape(CadFamily::Blob, {5, 1.0});
+  const Mesh input = build_mesh(shape.soup).mesh;
+  const Refined r = refine_with(input, "lsf", 2);
+  const Features features = detect_features(input, {});
+  const InputSurface surface(input, features, nullptr);
+  EXPECT_TRUE(r.post.default_bound);
+  EXPECT_LE(r.post.max_distance, r.post.max_bound * (1 + 1e-9));
+  // The truth at the input's face centroids is within the face's bound (it is not pulled).
+  std::size_t within = 0;
+  for (std::size_t f = 0; f < input.num_faces(); ++f) {
+    const auto vs = input.face_vertices(FaceId(static_cast<std::uint32_t>(f)));
+    const Vec3 c =
+        (input.position(vs[0]) + input.position(vs[1]) + input.position(vs[2])) * (1.0 / 3);
+    const Vec3 t = shape.surface->closest_point(c).point;
+    within += distance(c, t) <= surface.default_bound(f);
+  }
+  EXPECT_GE(double(within), 0.95 * double(input.num_faces()));
+}
+
+// --- the api: parameters, the report, primitives=off
+
+std::string stl_of(const Mesh& mesh) {
+  return write_stl(mesh, StlFormat::Binary);
+}
+
+api::RefineOutcome run(const std::string& stl, const api::RawParams& raw) {
+  const api::RefineRequest request = api::parse_refine_params(raw, {});
+  const auto* data = reinterpret_cast<const std::uint8_t*>(stl.data());
+  return api::run_refine(std::span<const std::uint8_t>(data, stl.size()), request);
+}
+
+TEST(PrimitivesApi, ReportListsRegions) {
+  const std::string stl = stl_of(cad_mesh(CadFamily::CappedCylinder, 1));
+  const api::RefineOutcome out = run(stl, {{"scheme", "lsf"}, {"levels", "2"}});
+  const auto& prim = out.report.at("primitives");
+  EXPECT_EQ(prim.at("mode"), "auto");
+  ASSERT_EQ(prim.at("regions_found"), 3u);
+  std::vector<std::string> types;
+  for (const auto& r : prim.at("regions")) {
+    types.push_back(r.at("type"));
+    EXPECT_LE(r.at("max_residual").get<double>(), prim.at("tolerance_mm").get<double>());
+    EXPECT_GT(r.at("faces").get<std::size_t>(), 0u);
+  }
+  std::sort(types.begin(), types.end());
+  EXPECT_EQ(types, (std::vector<std::string>{"cylinder", "plane", "plane"}));
+  EXPECT_GT(prim.at("snapped").get<std::size_t>(), 0u);
+  EXPECT_GT(prim.at("snapped_to_curve").get<std::size_t>(), 0u);
+  const auto& dev = out.report.at("deviation");
+  EXPECT_EQ(dev.at("bound"), "auto");
+  EXPECT_GT(dev.at("max_distance_from_input").get<double>(), 0);
+  EXPECT_TRUE(dev.contains("pulled_back"));
+}
+
+TEST(PrimitivesApi, OffIsTheOldOutput) {
+  const Mesh input = cad_mesh(CadFamily::Tube, 2);
+  const std::string stl = stl_of(input);
+  const api::RefineOutcome out =
+      run(stl, {{"scheme", "butterfly"}, {"levels", "2"}, {"primitives", "off"}});
+  const Mesh reread =
+      api::ingest_stl(std::span<const std::uint8_t>(
+                          reinterpret_cast<const std::uint8_t*>(stl.data()), stl.size()),
+                      0)
+          .result.mesh;
+  RefineParams params;
+  params.levels = 2;
+  EXPECT_EQ(out.stl, stl_of(refine(reread, params).mesh));
+  EXPECT_FALSE(out.report.contains("deviation"));
+  EXPECT_EQ(out.report.at("primitives").at("mode"), "off");
+  const api::RefineOutcome on = run(stl, {{"scheme", "butterfly"}, {"levels", "2"}});
+  EXPECT_NE(on.stl, out.stl);
+}
+
+TEST(PrimitivesApi, MaxDeviationWithPrimitivesOff) {
+  const std::string stl = stl_of(cad_mesh(CadFamily::Plate, 3));
+  const api::RefineOutcome out = run(
+      stl, {{"scheme", "lsf"}, {"levels", "2"}, {"primitives", "off"}, {"max_deviation", "0.05"}});
+  const auto& dev = out.report.at("deviation");
+  EXPECT_EQ(dev.at("bound"), 0.05);
+  EXPECT_LE(dev.at("max_distance_from_input").get<double>(), 0.05 * (1 + 1e-9));
+  EXPECT_GT(dev.at("pulled_back").get<std::size_t>(), 0u);
+}
+
+void expect_rejected(const api::RawParams& raw, const std::string& field,
+                     const std::string& reason) {
+  try {
+    api::parse_refine_params(raw, {});
+    ADD_FAILURE() << "accepted " << raw[0].first << "=" << raw[0].second;
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::InvalidParameter);
+    EXPECT_EQ(e.field(), field);
+    EXPECT_EQ(e.reason(), reason);
+  }
+}
+
+TEST(PrimitivesApi, Parameters) {
+  expect_rejected({{"primitives", "on"}}, "primitives", "unknown_value");
+  expect_rejected({{"primitive_tol", "0"}}, "primitive_tol", "out_of_range");
+  expect_rejected({{"primitive_tol", "0.5"}}, "primitive_tol", "out_of_range");
+  expect_rejected({{"primitive_tol", "x"}}, "primitive_tol", "not_a_number");
+  expect_rejected({{"max_deviation", "-1"}}, "max_deviation", "out_of_range");
+  expect_rejected({{"max_deviation", "nan"}}, "max_deviation", "not_a_number");
+  const api::RefineRequest a = api::parse_refine_params(
+      {{"primitives", "off"}, {"primitive_tol", "1e-5"}, {"max_deviation", "auto"}}, {});
+  EXPECT_FALSE(a.primitives.enabled);
+  EXPECT_EQ(a.primitives.tolerance, 1e-5);
+  EXPECT_FALSE(a.primitives.max_deviation);
+  EXPECT_TRUE(a.primitives.post_pass());
+  const api::RefineRequest b = api::parse_refine_params({{"max_deviation", "0"}}, {});
+  EXPECT_EQ(b.primitives.max_deviation, 0.0);
+  EXPECT_TRUE(api::parse_refine_params({}, {}).primitives.enabled);
+}
+
+}  // namespace
+}  // namespace stlrefine::primitives
