@@ -18,15 +18,11 @@
 #include <numbers>
 
 #include "core/geometry/point_triangle.h"
+#include "primitives/chordal.h"
 
 namespace stlrefine::primitives {
 
 namespace {
-
-// The default bound over the sagitta estimate: the arc across a face is only estimated from
-// its neighbours' normals (measured on the blob family: 4 covers the true surface over 95%
-// of the faces' centroids).
-constexpr double kSagittaFactor = 4;
 
 using K = CGAL::Simple_cartesian<double>;
 using Triangles = std::vector<K::Triangle_3>;
@@ -54,11 +50,8 @@ struct InputSurface::Impl {
   std::vector<Vec3> positions;
   std::vector<std::array<std::uint32_t, 3>> faces;
   std::vector<Vec3> normals;  // unit (zero for a degenerate face)
+  // Per face: the default deviation bound, the input's chordal error there (chordal_bounds).
   std::vector<double> bound;
-  // Per face of a recognised region, the bound of a vertex snapped onto its primitive:
-  // 1.5 times the farthest the primitive is from the face (at its centroid and edge
-  // midpoints), plus the recognition tolerance (a plane's faces: the tolerance).
-  std::vector<double> snap_bound;
   std::vector<std::int32_t> face_region;  // empty without regions
   // Per face and edge k (corner k to k + 1): the face across when the edge is sharp, else -1.
   std::vector<std::array<std::int32_t, 3>> across_crease;
@@ -81,17 +74,13 @@ InputSurface::InputSurface(const Mesh& mesh, const Features& features, const Reg
   m.across_crease.assign(nf, {-1, -1, -1});
   m.normals.resize(nf);
   m.triangles.reserve(nf);
-  std::vector<Vec3> centroid(nf);
-  std::vector<double> area(nf);
   for (std::size_t f = 0; f < nf; ++f) {
     const auto vs = mesh.face_vertices(FaceId(static_cast<std::uint32_t>(f)));
     m.faces[f] = {vs[0].idx, vs[1].idx, vs[2].idx};
     const Vec3 &a = mesh.position(vs[0]), &b = mesh.position(vs[1]), &c = mesh.position(vs[2]);
     m.triangles.emplace_back(point3(a), point3(b), point3(c));
     const Vec3 n = cross(b - a, c - a);
-    area[f] = norm(n) / 2;
-    m.normals[f] = area[f] > 0 ? normalized(n) : Vec3{};
-    centroid[f] = (a + b + c) * (1.0 / 3);
+    m.normals[f] = norm(n) > 0 ? normalized(n) : Vec3{};
     for (int k = 0; k < 3; ++k) {
       const HalfedgeId h = Mesh::halfedge(FaceId(static_cast<std::uint32_t>(f)), k);
       if (!mesh.is_boundary(h) && features.is_sharp(mesh, h))
@@ -111,32 +100,22 @@ InputSurface::InputSurface(const Mesh& mesh, const Features& features, const Reg
     m.face_region = regions->face_region;
     m.regions = regions->regions;
   }
-  // The default bound: kSagittaFactor times the sagitta over f of an arc across f (of chord f's
-  // height over a smooth edge) that turns by the edge's dihedral angle (at least 1e-12 of the
-  // diagonal, for rounding: a flat face's vertices are pulled onto it).
-  m.bound.assign(nf, 1e-12 * m.diagonal);
-  for (std::size_t f = 0; f < nf; ++f) {
-    for (int k = 0; k < 3; ++k) {
-      const HalfedgeId h = Mesh::halfedge(FaceId(static_cast<std::uint32_t>(f)), k);
-      if (mesh.is_boundary(h) || features.is_sharp(mesh, h)) continue;
-      const double phi = dihedral_angle_deg(mesh, mesh.edge(h)) * std::numbers::pi / 180;
-      const double len = distance(mesh.position(mesh.from(h)), mesh.position(mesh.to(h)));
-      if (!(len > 0)) continue;
-      const double height = 2 * area[f] / len;
-      // An arc across f, of chord `height`, turning by phi: sagitta (height / 2) tan(phi / 4).
-      m.bound[f] = std::max(m.bound[f], kSagittaFactor * (height / 2) * std::tan(phi / 4));
-    }
-  }
-  m.snap_bound = m.bound;
+  // The default bound: the input's own chordal error (at least 1e-12 of the diagonal, for
+  // rounding: a flat face's vertices are pulled onto it). On a recognised region, at least
+  // the farthest its primitive is from the face (sampled at the centroid, the edge midpoints
+  // and quarter points) plus the recognition tolerance: detect_regions only recognises a
+  // primitive within twice the chordal estimate of every face's chords, and a vertex snapped
+  // onto it is then within the face's bound.
+  m.bound = chordal_bounds(mesh, features, 1e-12 * m.diagonal);
   for (std::size_t f = 0; f < nf && !m.face_region.empty(); ++f) {
     if (m.face_region[f] < 0) continue;
     const Primitive& prim = m.regions[std::size_t(m.face_region[f])].primitive;
     const auto& t = m.faces[f];
     const Vec3 &a = m.positions[t[0]], &b = m.positions[t[1]], &c = m.positions[t[2]];
-    double gap = prim.distance(centroid[f]);
-    for (const Vec3& mid : {(a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5})
-      gap = std::max(gap, prim.distance(mid));
-    m.snap_bound[f] = 1.5 * gap + m.tolerance;
+    double gap = prim.distance((a + b + c) * (1.0 / 3));
+    for (const auto& [u, w] : {std::pair{a, b}, std::pair{b, c}, std::pair{c, a}})
+      for (double s : {0.25, 0.5, 0.75}) gap = std::max(gap, prim.distance(u + (w - u) * s));
+    m.bound[f] = std::max(m.bound[f], gap + m.tolerance);
   }
   m.tree.insert(m.triangles.begin(), m.triangles.end());
   m.tree.build();
@@ -230,11 +209,11 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
         found.emplace_back(-votes[std::size_t(i)], region[std::size_t(i)]);
     if (found.empty()) return std::nullopt;
     std::sort(found.begin(), found.end());
-    // The snapped bound of the voted regions' faces nearby (a rim vertex is nearest to the
-    // cap, whose bound is flat, but lies on the side's circle).
+    // The bound of the voted regions' faces nearby (a rim vertex is nearest to the cap, whose
+    // bound is flat, but lies on the side's circle, within the side's chordal error).
     for (std::size_t f : near)
       for (const auto& e : found)
-        if (m.face_region[f] == e.second) o.allowance = std::max(o.allowance, m.snap_bound[f]);
+        if (m.face_region[f] == e.second) o.allowance = std::max(o.allowance, m.bound[f]);
     const double reach = 0.5 * longest;
     auto accept = [&](const std::optional<Vec3>& t) {
       return t && is_finite(*t) && distance(*t, p) <= reach;
@@ -258,7 +237,7 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
           crease_gap = gap;
           crease_a = ra;
           crease_b = rb;
-          crease_allowance = std::max(m.snap_bound[f], m.snap_bound[std::size_t(g)]);
+          crease_allowance = std::max(m.bound[f], m.bound[std::size_t(g)]);
         }
       }
     if (crease_a >= 0) {
@@ -307,12 +286,13 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
       o.distance_before = d;
       if (snap) {
         if (const std::optional<Vec3> target = snap_target(v, p, d, o)) {
-          // A snap that takes the vertex farther from the input than its primitive is from
-          // the input's chords there is a wrong region: refused.
+          // A snap that takes the vertex farther from the input than the input's chordal
+          // error there is a wrong region: refused (a snapped vertex is never pulled back,
+          // so the bound it is held to is the one it must already meet).
           std::size_t to_face = 0;
           const Vec3 to_q = closest(*target, to_face);
           const double to_d = distance(*target, to_q);
-          if (to_d <= std::max({d, m.snap_bound[to_face], o.allowance})) {
+          if (to_d <= std::max(m.bound[to_face], o.allowance)) {
             o.snapped = 1;
             o.snap_move = distance(*target, p);
             p = *target;
@@ -326,7 +306,7 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
       }
       if (bound_on) {
         const double bound = user_bound  ? *params.max_deviation
-                             : o.snapped ? std::max(m.snap_bound[face], o.allowance)
+                             : o.snapped ? std::max(m.bound[face], o.allowance)
                                          : m.bound[face];
         o.bound = bound;
         if (d > bound) {

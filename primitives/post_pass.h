@@ -19,14 +19,12 @@ struct PostPassParams {
   bool snap = true;
   //! The deviation bound (mm) every output vertex is pulled back within, towards its
   //! closest point on the input surface:
-  //! - nullopt: the default, per input face f, max over its smooth edges e of
-  //!   4 (h_e / 2) tan(dihedral(e) / 4), h_e the height of f over e (4 times the sagitta of
-  //!   an arc across f turning by the angle between f's normal and its neighbour's: the
-  //!   input's chordal error the adjacent normals allow), at least 1e-12 of the diagonal;
-  //!   for a vertex snapped onto a recognised primitive, 1.5 times the farthest the
-  //!   primitive is from f (at its centroid and edge midpoints) plus the recognition
-  //!   tolerance: the input's own chordal error there (a snap that ends farther from the
-  //!   input than that and than the vertex was before is refused);
+  //! - nullopt: the default, the input's own chordal error at the vertex: chordal_bounds
+  //!   (primitives/chordal.h) of its closest input face, at least 1e-12 of the diagonal (and
+  //!   the recognition tolerance on a recognised region); a vertex snapped onto a primitive
+  //!   is held to the largest such bound of the recognised faces near it (a rim vertex lies
+  //!   on the side's circle, next to the cap's flat faces), and a snap that would end
+  //!   farther than that is refused;
   //! - 0: off;
   //! - > 0: this bound for every output vertex, snapped or not.
   std::optional<double> max_deviation;
@@ -49,7 +47,8 @@ struct PostPassReport {
 };
 
 //! The input surface as the post-pass needs it after the input mesh is gone: its triangles
-//! (a CGAL AABB tree, built once), their regions and default deviation bounds.
+//! (a CGAL AABB tree, built once), their regions and default deviation bounds (see
+//! predict_bytes for the memory it holds).
 class InputSurface {
  public:
   //! Keeps what it needs of mesh (positions and triangles), regions (may be null: no
@@ -69,7 +68,8 @@ class InputSurface {
   //! them, so planes stay planar); three or more: none. A vertex within 15% of its longest edge of
   //! an input crease between two recognised regions goes onto their curve first. A snap is refused
   //! when it would move a vertex farther than half its longest incident edge, or farther from the
-  //! input than both its distance before and the snapped bound above.
+  //! input than the bound it is held to (see PostPassParams::max_deviation). Every new vertex
+  //! ends within its bound: report.max_distance <= report.max_bound.
   PostPassReport apply(Mesh& refined, const PostPassParams& params) const;
 
   //! The default deviation bound of input face f (mm).

@@ -26,6 +26,7 @@
 #include "core/io/stl.h"
 #include "core/mesh/build_mesh.h"
 #include "core/refine.h"
+#include "primitives/chordal.h"
 #include "primitives/post_pass.h"
 #include "primitives/regions.h"
 #include "tests/support/cad_like.h"
@@ -283,6 +284,7 @@ TEST(PrimitivesDeviation, UserBoundNeverExceeded) {
       const Mesh input = cad_mesh(family, 7);
       // A bound below what the refinement does without one.
       PostPassParams off;
+      off.snap = false;
       off.max_deviation = 0;
       const double free = refine_with(input, scheme, 2, off).post.max_distance;
       ASSERT_GT(free, 0);
@@ -415,4 +417,37 @@ TEST(PrimitivesApi, Parameters) {
 }
 
 }  // namespace
+}  // namespace stlrefine::primitives
+namespace stlrefine::primitives {
+using test::CadFamily;
+TEST(DebugChord, Cyl) {
+  for (CadFamily fam : test::cad_families())
+    for (std::uint64_t seed = 1; seed <= 10; ++seed) {
+      const test::CadShape shape = test::make_cad_shape(fam, {seed, 1.0});
+      const Mesh input = build_mesh(shape.soup).mesh;
+      const Features features = detect_features(input, {});
+      const std::vector<double> b = chordal_bounds(input, features, 0);
+      double worst = 0;
+      std::size_t over = 0, n = 0;
+      for (std::size_t f = 0; f < input.num_faces(); ++f) {
+        const auto vs = input.face_vertices(FaceId(static_cast<std::uint32_t>(f)));
+        const Vec3 &a = input.position(vs[0]), &bb = input.position(vs[1]),
+                   &c = input.position(vs[2]);
+        double gap = 0;
+        for (const Vec3& q :
+             {(a + bb + c) * (1.0 / 3), (a + bb) * 0.5, (bb + c) * 0.5, (c + a) * 0.5})
+          gap = std::max(gap, distance(q, shape.surface->closest_point(q).point));
+        if (gap > b[f] + 1e-9)
+          std::printf("  over f %zu gap/diag %g bound/diag %g\n", f, gap / diagonal(input),
+                      b[f] / diagonal(input));
+        if (gap > 1e-9) {
+          worst = std::max(worst, gap / b[f]);
+          ++n;
+          over += gap > b[f];
+        }
+      }
+      std::printf("%s %d worst ratio %g over %zu of %zu\n", shape.name.c_str(), int(seed), worst,
+                  over, n);
+    }
+}
 }  // namespace stlrefine::primitives
