@@ -78,12 +78,19 @@ RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineReques
   if (request.slice) slicer::plan_layers(in.result.mesh, request.slice->params);
 
   // The post-pass keeps what it needs of the input (its triangles in an AABB tree, the
-  // recognised regions) before the mesh is moved into refine.
+  // recognised regions) before the mesh is moved into refine. Its memory is asked for first,
+  // as refine asks before its arrays grow (whole-request figures: the body, the input mesh,
+  // the surface and region detection's peak); refused: MemoryBudgetError on `primitives`.
   auto phase = Clock::now();
   const PrimitiveOptions& prim = request.primitives;
   std::optional<primitives::RegionMap> regions;
   std::unique_ptr<primitives::InputSurface> surface;
+  std::uint64_t surface_bytes = 0;
   if (prim.post_pass()) {
+    surface_bytes = primitives::InputSurface::predict_bytes(
+        in.result.mesh.num_vertices(), in.result.mesh.num_faces(), prim.enabled);
+    const std::uint64_t need = bytes.size() + mesh_bytes(in.result.mesh) + surface_bytes;
+    if (grow && !grow(need)) throw MemoryBudgetError("primitives", 0, need);
     const Features features = detect_features(in.result.mesh, request.refine.features);
     if (prim.enabled)
       regions = primitives::detect_regions(in.result.mesh, features, {prim.tolerance});
@@ -94,15 +101,20 @@ RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineReques
 
   phase = Clock::now();
   const std::size_t input_faces = in.result.mesh.num_faces();
-  // refine's figures are its own: the body is held beside them for the whole request.
+  // refine's figures are its own: the body (and the post-pass's surface) are held beside
+  // them for the whole request.
   MemoryGrowFn refine_grow;
-  if (grow) refine_grow = [&](std::uint64_t refining) { return grow(bytes.size() + refining); };
+  if (grow)
+    refine_grow = [&](std::uint64_t refining) {
+      return grow(bytes.size() + surface_bytes + refining);
+    };
   // The input mesh is not needed afterwards (the report only uses counters): move it in.
   RefineResult refined = [&] {
     try {
       return refine(std::move(in.result.mesh), request.refine, progress, cancel, refine_grow);
     } catch (const MemoryBudgetError& e) {
-      throw MemoryBudgetError(e.field(), e.level(), bytes.size() + e.needed_bytes());
+      throw MemoryBudgetError(e.field(), e.level(),
+                              bytes.size() + surface_bytes + e.needed_bytes());
     }
   }();
   times.refine = seconds_since(phase);
@@ -115,6 +127,10 @@ RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineReques
     primitives::PostPassParams pp;
     pp.snap = prim.enabled;
     pp.max_deviation = prim.max_deviation;
+    const std::uint64_t need =
+        bytes.size() + surface_bytes + mesh_bytes(refined.mesh) +
+        primitives::InputSurface::predict_apply_bytes(refined.mesh.num_vertices());
+    if (grow && !grow(need)) throw MemoryBudgetError("primitives", refined.report.levels, need);
     post = surface->apply(refined.mesh, pp);
     post->seconds += detect_seconds;
     surface.reset();

@@ -101,11 +101,11 @@ InputSurface::InputSurface(const Mesh& mesh, const Features& features, const Reg
     m.regions = regions->regions;
   }
   // The default bound: the input's own chordal error (at least 1e-12 of the diagonal, for
-  // rounding: a flat face's vertices are pulled onto it). On a recognised region, at least
-  // the farthest its primitive is from the face (sampled at the centroid, the edge midpoints
-  // and quarter points) plus the recognition tolerance: detect_regions only recognises a
-  // primitive within twice the chordal estimate of every face's chords, and a vertex snapped
-  // onto it is then within the face's bound.
+  // rounding: a flat face's vertices are pulled onto it). On a recognised region the primitive
+  // is the surface the face was cut from: the bound is the farthest the primitive is from the
+  // face (sampled at the centroid, the edge midpoints and quarter points) plus the
+  // recognition tolerance (a plane's faces: the tolerance). detect_regions only recognises a
+  // primitive within twice the chordal estimate of every face's chords.
   m.bound = chordal_bounds(mesh, features, 1e-12 * m.diagonal);
   for (std::size_t f = 0; f < nf && !m.face_region.empty(); ++f) {
     if (m.face_region[f] < 0) continue;
@@ -115,7 +115,7 @@ InputSurface::InputSurface(const Mesh& mesh, const Features& features, const Reg
     double gap = prim.distance((a + b + c) * (1.0 / 3));
     for (const auto& [u, w] : {std::pair{a, b}, std::pair{b, c}, std::pair{c, a}})
       for (double s : {0.25, 0.5, 0.75}) gap = std::max(gap, prim.distance(u + (w - u) * s));
-    m.bound[f] = std::max(m.bound[f], gap + m.tolerance);
+    m.bound[f] = gap + m.tolerance;
   }
   m.tree.insert(m.triangles.begin(), m.triangles.end());
   m.tree.build();
@@ -123,6 +123,26 @@ InputSurface::InputSurface(const Mesh& mesh, const Features& features, const Reg
 }
 
 InputSurface::~InputSurface() = default;
+
+std::uint64_t InputSurface::predict_bytes(std::uint64_t input_vertices, std::uint64_t input_faces,
+                                          bool regions) {
+  // Per vertex: positions (24). Per face: corner indices (12), normal (24), bound (8), region
+  // (4), crease links (12), the CGAL triangle (72), the tree's primitive (8) and node (64 per
+  // face: n - 1 nodes of a box and two pointers), the search tree's point and id (32) and its
+  // kd nodes; vectors grown by doubling may hold up to twice their size.
+  const std::uint64_t held = 2 * (24 * input_vertices) +
+                             2 * (12 + 24 + 8 + 4 + 12 + 72) * input_faces +
+                             (8 + 64 + 2 * 32 + 48) * input_faces;
+  // detect_regions, before the surface exists: components, patches (a copy of every vertex per
+  // face it touches, normals and centroids), stamps, bounds and face flags.
+  const std::uint64_t detect =
+      regions ? (3 * 24 + 2 * 24 + 8 + 4 + 4 + 16 + 16) * 2 * input_faces + 8 * input_vertices : 0;
+  return held + detect + (std::uint64_t{1} << 16);
+}
+
+std::uint64_t InputSurface::predict_apply_bytes(std::uint64_t output_vertices) {
+  return sizeof(Outcome) * output_vertices + (std::uint64_t{1} << 20);
+}
 
 double InputSurface::default_bound(std::size_t face) const {
   return impl_->bound[face];

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -71,6 +72,17 @@ class InputSurface {
   //! input than the bound it is held to (see PostPassParams::max_deviation). Every new vertex
   //! ends within its bound: report.max_distance <= report.max_bound.
   PostPassReport apply(Mesh& refined, const PostPassParams& params) const;
+
+  //! Bytes the input surface holds from its construction to its destruction (its copy of the
+  //! positions and triangles, per-face normals, bounds, regions and crease links, the AABB
+  //! tree with its distance-query search tree), plus the transient peak of detect_regions
+  //! when `regions` (run before it, on the same input): an upper bound, checked against the
+  //! heap by tests/primitives (PrimitivesMemory).
+  static std::uint64_t predict_bytes(std::uint64_t input_vertices, std::uint64_t input_faces,
+                                     bool regions);
+  //! Bytes apply() allocates for a refined mesh of `output_vertices` (one outcome per vertex,
+  //! each worker's query buffers).
+  static std::uint64_t predict_apply_bytes(std::uint64_t output_vertices);
 
   //! The default deviation bound of input face f (mm).
   double default_bound(std::size_t face) const;

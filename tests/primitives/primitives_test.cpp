@@ -29,6 +29,7 @@
 #include "primitives/chordal.h"
 #include "primitives/post_pass.h"
 #include "primitives/regions.h"
+#include "tests/primitives/heap_meter.h"
 #include "tests/support/cad_like.h"
 
 namespace stlrefine::primitives {
@@ -418,36 +419,111 @@ TEST(PrimitivesApi, Parameters) {
 
 }  // namespace
 }  // namespace stlrefine::primitives
+
 namespace stlrefine::primitives {
-using test::CadFamily;
-TEST(DebugChord, Cyl) {
-  for (CadFamily fam : test::cad_families())
-    for (std::uint64_t seed = 1; seed <= 10; ++seed) {
-      const test::CadShape shape = test::make_cad_shape(fam, {seed, 1.0});
-      const Mesh input = build_mesh(shape.soup).mesh;
-      const Features features = detect_features(input, {});
-      const std::vector<double> b = chordal_bounds(input, features, 0);
-      double worst = 0;
-      std::size_t over = 0, n = 0;
-      for (std::size_t f = 0; f < input.num_faces(); ++f) {
-        const auto vs = input.face_vertices(FaceId(static_cast<std::uint32_t>(f)));
-        const Vec3 &a = input.position(vs[0]), &bb = input.position(vs[1]),
-                   &c = input.position(vs[2]);
-        double gap = 0;
-        for (const Vec3& q :
-             {(a + bb + c) * (1.0 / 3), (a + bb) * 0.5, (bb + c) * 0.5, (c + a) * 0.5})
-          gap = std::max(gap, distance(q, shape.surface->closest_point(q).point));
-        if (gap > b[f] + 1e-9)
-          std::printf("  over f %zu gap/diag %g bound/diag %g\n", f, gap / diagonal(input),
-                      b[f] / diagonal(input));
-        if (gap > 1e-9) {
-          worst = std::max(worst, gap / b[f]);
-          ++n;
-          over += gap > b[f];
-        }
-      }
-      std::printf("%s %d worst ratio %g over %zu of %zu\n", shape.name.c_str(), int(seed), worst,
-                  over, n);
+namespace {
+
+// The post-pass's memory (issue 16's admission): what detect_regions, the input surface and
+// apply allocate on the heap stays within the prediction, and the prediction is not far above
+// it (within 4 times), on CAD-like meshes and a shared CAD mesh.
+TEST(PrimitivesMemory, PredictionBoundsTheHeap) {
+  std::vector<std::pair<std::string, Mesh>> inputs;
+  for (CadFamily family : {CadFamily::Plate, CadFamily::Torus, CadFamily::Tube})
+    inputs.emplace_back(test::cad_family_name(family), cad_mesh(family, 3));
+  inputs.emplace_back("gearwheel", load("gearwheel.stl"));
+  for (const auto& named : inputs) {
+    const Mesh& input = named.second;
+    SCOPED_TRACE(named.first);
+    RefineParams params;
+    params.levels = 2;
+    Mesh output = refine(input, params).mesh;
+    const Features features = detect_features(input, params.features);
+    const std::uint64_t base = test::heap_reset_peak();
+    std::uint64_t held = 0, peak_build = 0;
+    {
+      const RegionMap regions = detect_regions(input, features, {});
+      const InputSurface surface(input, features, &regions);
+      peak_build = test::heap_peak_bytes() - base;
+      held = test::heap_live_bytes() - base;
+      const std::uint64_t before_apply = test::heap_reset_peak();
+      surface.apply(output, {});
+      const std::uint64_t apply = test::heap_peak_bytes() - before_apply;
+      EXPECT_LE(apply, InputSurface::predict_apply_bytes(output.num_vertices()));
+      EXPECT_GE(4 * apply, InputSurface::predict_apply_bytes(output.num_vertices()) -
+                               (std::uint64_t{1} << 20));
     }
+    const std::uint64_t predicted =
+        InputSurface::predict_bytes(input.num_vertices(), input.num_faces(), true);
+    std::printf("%s: faces %zu build peak %llu held %llu predicted %llu\n", named.first.c_str(),
+                input.num_faces(), static_cast<unsigned long long>(peak_build),
+                static_cast<unsigned long long>(held), static_cast<unsigned long long>(predicted));
+    EXPECT_LE(peak_build, predicted);
+    EXPECT_GE(4 * peak_build, predicted);
+  }
 }
+
+}  // namespace
+}  // namespace stlrefine::primitives
+
+namespace stlrefine::primitives {
+namespace {
+
+// run_refine asks for the post-pass's memory as refine asks for its own: before the surface
+// is built (whole-request figure: body + input mesh + predict_bytes), and the surface is
+// counted in every figure refine reports after that; a refusal is a MemoryBudgetError naming
+// `primitives` with the refused figure.
+TEST(PrimitivesMemory, RunRefineAsksBeforeTheSurface) {
+  const Mesh mesh = cad_mesh(CadFamily::Tube, 2);
+  const std::string stl = write_stl(mesh, StlFormat::Binary);
+  const auto* data = reinterpret_cast<const std::uint8_t*>(stl.data());
+  const std::span<const std::uint8_t> body(data, stl.size());
+  api::RawParams raw{{"scheme", "butterfly"}, {"levels", "2"}};
+  const api::RefineRequest request = api::parse_refine_params(raw, {});
+  const std::uint64_t surface =
+      InputSurface::predict_bytes(mesh.num_vertices(), mesh.num_faces(), true);
+
+  std::vector<std::uint64_t> asked;
+  const MemoryGrowFn refuse_first = [&](std::uint64_t b) {
+    asked.push_back(b);
+    return false;
+  };
+  try {
+    api::run_refine(body, request, {}, nullptr, refuse_first);
+    ADD_FAILURE() << "not refused";
+  } catch (const MemoryBudgetError& e) {
+    EXPECT_EQ(e.field(), "primitives");
+    ASSERT_EQ(asked.size(), 1u);
+    EXPECT_EQ(e.needed_bytes(), asked[0]);
+    EXPECT_GE(asked[0], stl.size() + surface);
+  }
+
+  // Granted: every figure after the first holds the surface beside refine's own.
+  std::vector<std::uint64_t> with, without;
+  api::run_refine(body, request, {}, nullptr, [&](std::uint64_t b) {
+    with.push_back(b);
+    return true;
+  });
+  raw.emplace_back("primitives", "off");
+  api::run_refine(body, api::parse_refine_params(raw, {}), {}, nullptr, [&](std::uint64_t b) {
+    without.push_back(b);
+    return true;
+  });
+  // with: the surface, refine's figures, the post-pass's, the rest; without: refine's, the
+  // rest.
+  ASSERT_EQ(with.size(), without.size() + 2);
+  for (std::size_t i = 0; i + 1 < without.size(); ++i) EXPECT_EQ(with[i + 1], without[i] + surface);
+  EXPECT_GE(with[with.size() - 2], stl.size() + surface + InputSurface::predict_apply_bytes(0));
+  // A refusal of the post-pass's own figure, after refining.
+  std::size_t call = 0;
+  try {
+    api::run_refine(body, request, {}, nullptr,
+                    [&](std::uint64_t) { return ++call < with.size() - 1; });
+    ADD_FAILURE() << "not refused";
+  } catch (const MemoryBudgetError& e) {
+    EXPECT_EQ(e.field(), "primitives");
+    EXPECT_EQ(e.level(), 2);
+  }
+}
+
+}  // namespace
 }  // namespace stlrefine::primitives
