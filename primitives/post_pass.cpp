@@ -103,8 +103,9 @@ InputSurface::InputSurface(const Mesh& mesh, const Features& features, const Reg
   // The default bound: the input's own chordal error (at least 1e-12 of the diagonal, for
   // rounding: a flat face's vertices are pulled onto it). On a recognised region the primitive
   // is the surface the face was cut from: the bound is the farthest the primitive is from the
-  // face (sampled at the centroid, the edge midpoints and quarter points) plus the
-  // recognition tolerance (a plane's faces: the tolerance). detect_regions only recognises a
+  // face (sampled at the centroid, the edge midpoints and quarter points) plus its region's
+  // largest vertex residual (an exact plane's faces: 1e-12 of the diagonal, so a vertex
+  // pulled back onto one is on its plane). detect_regions only recognises a
   // primitive within twice the chordal estimate of every face's chords.
   m.bound = chordal_bounds(mesh, features, 1e-12 * m.diagonal);
   for (std::size_t f = 0; f < nf && !m.face_region.empty(); ++f) {
@@ -115,7 +116,7 @@ InputSurface::InputSurface(const Mesh& mesh, const Features& features, const Reg
     double gap = prim.distance((a + b + c) * (1.0 / 3));
     for (const auto& [u, w] : {std::pair{a, b}, std::pair{b, c}, std::pair{c, a}})
       for (double s : {0.25, 0.5, 0.75}) gap = std::max(gap, prim.distance(u + (w - u) * s));
-    m.bound[f] = gap + m.tolerance;
+    m.bound[f] = gap + m.regions[std::size_t(m.face_region[f])].max_residual + 1e-12 * m.diagonal;
   }
   m.tree.insert(m.triangles.begin(), m.triangles.end());
   m.tree.build();

@@ -206,7 +206,7 @@ std::size_t expect_planes_planar(const Refined& r) {
         ++checked;
         for (VertexId v : r.output.face_vertices(FaceId(static_cast<std::uint32_t>(g))))
           EXPECT_LE(std::abs(dot(r.output.position(v) - plane.point, plane.axis)), 1e-9 * diag)
-              << "a vertex of a face of a plane region is off its plane";
+              << "a vertex of a face of a plane region is off its plane " << v.idx;
       }
     }
   }
