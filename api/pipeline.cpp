@@ -122,17 +122,20 @@ RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineReques
   // An approximating scheme moves the input vertices on purpose (loop, sqrt3 with alpha < 1):
   // the default post-pass would undo that, so it runs there only when max_deviation is given.
   const bool approximating = refined.report.max_input_displacement > 0;
-  if (approximating && !prim.max_deviation_given) surface.reset();
+  // There it only measures (no snap, no bound), for the report's figures.
+  const bool measure_only = approximating && !prim.max_deviation_given;
+  PrimitiveOptions reported = prim;
+  if (measure_only) reported.max_deviation = 0;
   if (surface) {
     primitives::PostPassParams pp;
-    pp.snap = prim.enabled;
-    pp.max_deviation = prim.max_deviation;
+    pp.snap = prim.enabled && !measure_only;
+    pp.max_deviation = reported.max_deviation;
     const std::uint64_t need =
         bytes.size() + surface_bytes + mesh_bytes(refined.mesh) +
         primitives::InputSurface::predict_apply_bytes(refined.mesh.num_vertices());
     if (grow && !grow(need)) throw MemoryBudgetError("primitives", refined.report.levels, need);
     post = surface->apply(refined.mesh, pp);
-    post->seconds += detect_seconds;
+    post->detect_seconds = detect_seconds;
     surface.reset();
   }
   if (grow) {
@@ -153,16 +156,17 @@ RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineReques
     out.contours = slice_to_string(refined.mesh, *request.slice, &slice_stats, progress, cancel);
   times.total = seconds_since(start);
   out.report = refine_report(in, refined.report, request, out.stl.size(), times);
-  if (post) {
+  if (post && !measure_only) {
     out.report["primitives"] =
         primitives_report_json(regions ? &*regions : nullptr, *post, request.primitives);
-    out.report["deviation"] = deviation_report_json(*post, request.primitives);
   } else {
     out.report["primitives"] = primitives_report_json(nullptr, {}, request.primitives);
-    if (prim.post_pass())
+    if (measure_only)
       out.report["primitives"]["skipped"] =
-          "approximating scheme (input vertices moved); give max_deviation to bound it";
+          "approximating scheme (input vertices moved): nothing snapped or pulled back, the "
+          "deviation is only measured; give max_deviation to bound it";
   }
+  if (post) out.report["deviation"] = deviation_report_json(*post, reported);
   if (request.slice)
     out.report["slice"] = slice_stats_json(slice_stats, *request.slice, out.contours->size());
   return out;

@@ -225,6 +225,9 @@ Json deviation_report_json(const primitives::PostPassReport& post,
   j["max_distance_before"] = post.max_distance_before;
   j["pulled_back"] = post.pulled_back;
   j["max_pull_back"] = post.max_pull_back;
+  j["worst_normal_change_deg"] = post.worst_normal_change_deg;
+  j["faces_turned_over_60_deg"] = post.faces_turned_over_60_deg;
+  j["detect_seconds"] = post.detect_seconds;
   j["seconds"] = post.seconds;
   return j;
 }

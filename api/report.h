@@ -75,7 +75,11 @@ nlohmann::ordered_json primitives_report_json(const primitives::RegionMap* regio
 //! or the mm value; "off"), max_bound (mm), checked_vertices (output vertices that are not
 //! input vertices), max_distance_from_input (of any output vertex from the input surface,
 //! after the pass, mm), max_distance_before (before it), pulled_back (vertices moved back
-//! within the bound), max_pull_back (mm), seconds (detection and post-pass).
+//! within the bound), max_pull_back (mm), worst_normal_change_deg (largest angle between an
+//! output face and the closest input face of its best-agreeing corner), faces_turned_over_60_deg,
+//! detect_seconds (region detection and the input surface), seconds (the pass itself). The guard's
+//! folded faces are the report's `fold_fallbacks`. With an approximating scheme and no
+//! max_deviation the pass only measures (bound "off", nothing moved).
 nlohmann::ordered_json deviation_report_json(const primitives::PostPassReport& post,
                                              const PrimitiveOptions& options);
 

@@ -8,6 +8,7 @@
 #include <CGAL/Simple_cartesian.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <array>
@@ -41,6 +42,7 @@ struct Outcome {
   Vec3 position;
   double distance_before = 0, distance_after = 0, snap_move = 0, pull_back = 0, bound = 0,
          allowance = 0;
+  std::uint32_t face = 0;  // the closest input face at the end
   std::uint8_t is_new = 0, snapped = 0, to_curve = 0, refused = 0, pulled = 0;
 };
 
@@ -181,11 +183,16 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
     std::vector<Tree::Primitive_id> ids;
     m.tree.all_intersected_primitives(box, std::back_inserter(ids));
     std::vector<std::size_t> near;
+    std::vector<double> near_distance;
     for (const auto& id : ids) {
       const std::size_t f = m.face_of(id);
       const auto& t = m.faces[f];
-      if (point_triangle_distance(p, m.positions[t[0]], m.positions[t[1]], m.positions[t[2]]) <= r)
+      const double dist =
+          point_triangle_distance(p, m.positions[t[0]], m.positions[t[1]], m.positions[t[2]]);
+      if (dist <= r) {
         near.push_back(f);
+        near_distance.push_back(dist);
+      }
     }
     if (near.empty()) return std::nullopt;
     std::array<std::int32_t, 8> region{};
@@ -201,13 +208,11 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
       for (std::size_t f : near) best = std::max(best, dot(n, m.normals[f]) / len);
       std::size_t pick = near[0];
       double nearest = INFINITY;
-      for (std::size_t f : near) {
+      for (std::size_t j = 0; j < near.size(); ++j) {
+        const std::size_t f = near[j];
         if (dot(n, m.normals[f]) / len < best - 1e-6) continue;
-        const auto& t = m.faces[f];
-        const double dist =
-            point_triangle_distance(p, m.positions[t[0]], m.positions[t[1]], m.positions[t[2]]);
-        if (dist < nearest) {
-          nearest = dist;
+        if (near_distance[j] < nearest) {
+          nearest = near_distance[j];
           pick = f;
         }
       }
@@ -301,6 +306,7 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
       std::size_t face = 0;
       Vec3 q = closest(p, face);
       const auto& t = m.faces[face];
+      o.face = static_cast<std::uint32_t>(face);
       if (p == m.positions[t[0]] || p == m.positions[t[1]] || p == m.positions[t[2]]) continue;
       o.is_new = 1;
       double d = distance(p, q);
@@ -340,6 +346,7 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
       }
       o.distance_after = d;
       o.position = p;
+      o.face = static_cast<std::uint32_t>(face);
     }
   });
 
@@ -359,6 +366,41 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
     report.max_distance = std::max(report.max_distance, o.distance_after);
     report.max_bound = std::max(report.max_bound, o.bound);
   }
+  // The normal change: per output face, the angle between its normal and the normal of the
+  // closest input face of whichever of its corners agrees best (a corner on a crease is
+  // closest to either side; the face's own side is among its corners' closest faces).
+  struct Turn {
+    double worst = 0;
+    std::size_t over = 0;
+  };
+  const double cos_fold = std::cos(kFoldDegrees * std::numbers::pi / 180);
+  const Turn turn = tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, refined.num_faces()), Turn{},
+      [&](const auto& range, Turn acc) {
+        for (std::size_t g = range.begin(); g != range.end(); ++g) {
+          const FaceId face(static_cast<std::uint32_t>(g));
+          const Vec3 n = refined.face_normal(face);
+          const double len = norm(n);
+          if (!(len > 0)) continue;
+          double best = -2;  // corners whose closest input face is degenerate have no say
+          for (VertexId v : refined.face_vertices(face)) {
+            const Vec3& in = m.normals[out[v.idx].face];
+            if (in != Vec3{}) best = std::max(best, dot(n, in) / len);
+          }
+          if (best < -1.5) continue;
+          best = std::clamp(best, -1.0, 1.0);
+          acc.worst = std::max(acc.worst, std::acos(best) * 180 / std::numbers::pi);
+          acc.over += best < cos_fold;
+        }
+        return acc;
+      },
+      [](Turn a, const Turn& b) {
+        a.worst = std::max(a.worst, b.worst);
+        a.over += b.over;
+        return a;
+      });
+  report.worst_normal_change_deg = turn.worst;
+  report.faces_turned_over_60_deg = turn.over;
   report.default_bound = bound_on && !user_bound;
   if (user_bound) report.max_bound = *params.max_deviation;
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

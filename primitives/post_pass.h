@@ -14,6 +14,10 @@
 
 namespace stlrefine::primitives {
 
+//! The normal change over which an output face counts as turned (issue 17: a fold or a
+//! visible ridge).
+inline constexpr double kFoldDegrees = 60;
+
 //! What the post-pass does after refinement.
 struct PostPassParams {
   //! Move new vertices onto the recognised primitives (primitives=auto).
@@ -44,7 +48,13 @@ struct PostPassReport {
   double max_distance = 0;           //!< from the input surface, after it (mm)
   double max_bound = 0;        //!< the largest deviation bound applied to a vertex (mm); 0 = off
   bool default_bound = false;  //!< the bound is the local default
-  double seconds = 0;
+  //! The largest angle between an output face's normal and the normal of the closest input
+  //! face of whichever of its corners agrees best (degrees), after the pass.
+  double worst_normal_change_deg = 0;
+  //! Output faces whose normal change is over kFoldDegrees (a fold or a visible ridge).
+  std::size_t faces_turned_over_60_deg = 0;
+  double seconds = 0;         //!< apply()
+  double detect_seconds = 0;  //!< region detection and the surface's construction (the caller's)
 };
 
 //! The input surface as the post-pass needs it after the input mesh is gone: its triangles

@@ -69,6 +69,33 @@ double max_residual(const Primitive& prim, const std::vector<Vec3>& points) {
   return worst;
 }
 
+// A curved fit of a large patch, tried first on an evenly strided sample of its points,
+// normals and centroids (kSample each): a surface every vertex lies on is found from a
+// sample of them, and a patch no primitive fits (a freeform region of thousands of faces)
+// is then refused after one cheap fit whose residual over all points is far off, instead of
+// a Levenberg-Marquardt fit over every point for each type.
+constexpr std::size_t kSample = 64;
+
+std::vector<Vec3> strided(const std::vector<Vec3>& v) {
+  if (v.size() <= kSample) return v;
+  std::vector<Vec3> out;
+  out.reserve(kSample);
+  for (std::size_t i = 0; i < kSample; ++i) out.push_back(v[i * v.size() / kSample]);
+  return out;
+}
+
+std::optional<Primitive> fit_curved(PrimitiveType type, const Patch& patch, double tol) {
+  if (patch.points.size() > 2 * kSample) {
+    const std::optional<Primitive> quick = fit_primitive(
+        type, strided(patch.points), strided(patch.normals), strided(patch.centroids));
+    if (!quick) return std::nullopt;
+    if (max_residual(*quick, patch.points) <= tol) return quick;
+    // Far off (a hundred tolerances): no refit over every point will fit.
+    if (max_residual(*quick, patch.points) > 100 * tol) return std::nullopt;
+  }
+  return fit_primitive(type, patch.points, patch.normals, patch.centroids);
+}
+
 }  // namespace
 
 RegionMap detect_regions(const Mesh& mesh, const Features& features, const RegionParams& params) {
@@ -194,8 +221,7 @@ RegionMap detect_regions(const Mesh& mesh, const Features& features, const Regio
     std::vector<std::size_t> best_members;
     std::size_t best_faces = 0;
     for (PrimitiveType type : kCurved) {
-      const std::optional<Primitive> prim =
-          fit_primitive(type, patch.points, patch.normals, patch.centroids);
+      const std::optional<Primitive> prim = fit_curved(type, patch, tol);
       if (!prim || max_residual(*prim, patch.points) > tol || !chords_fit(*prim, faces)) continue;
       std::vector<std::size_t> members{c};
       std::vector<std::uint8_t> seen(nc, 0);
@@ -230,8 +256,7 @@ RegionMap detect_regions(const Mesh& mesh, const Features& features, const Regio
       // have missed it).
       Primitive use = *best;
       for (PrimitiveType type : kCurved) {
-        const std::optional<Primitive> refit =
-            fit_primitive(type, merged.points, merged.normals, merged.centroids);
+        const std::optional<Primitive> refit = fit_curved(type, merged, tol);
         if (refit && max_residual(*refit, merged.points) <= tol && chords_fit(*refit, all)) {
           use = *refit;
           break;
