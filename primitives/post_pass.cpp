@@ -312,7 +312,18 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
       double d = distance(p, q);
       o.distance_before = d;
       if (snap) {
-        if (const std::optional<Vec3> target = snap_target(v, p, d, o)) {
+        std::optional<Vec3> target = snap_target(v, p, d, o);
+        if (!target && o.refused && d > 0) {
+          // The scheme put the vertex far off (lsf on a zipped side: 2 mm): its region is
+          // decided, and it is projected, from its closest point on the input instead.
+          Outcome retry = o;
+          retry.refused = 0;
+          retry.allowance = 0;
+          retry.to_curve = 0;
+          target = snap_target(v, q, 0, retry);
+          if (target) o = retry;
+        }
+        if (target) {
           // A snap that takes the vertex farther from the input than the input's chordal
           // error there is a wrong region: refused (a snapped vertex is never pulled back,
           // so the bound it is held to is the one it must already meet).
