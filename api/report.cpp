@@ -205,6 +205,7 @@ Json primitives_report_json(const primitives::RegionMap* regions,
   j["snapped"] = post.snapped;
   j["snapped_to_curve"] = post.snapped_to_curve;
   j["snap_refused"] = post.snap_refused;
+  j["snaps_reverted"] = post.snaps_reverted;
   j["max_snap_move"] = post.max_snap_move;
   return j;
 }

@@ -63,7 +63,8 @@ nlohmann::ordered_json refine_report(const Ingested& in, const RefineReport& rep
 //! the bbox diagonal) and tolerance_mm, regions_found, faces_in_regions, and `regions`: the
 //! largest 100 (by faces), each {type, the primitive's parameters (point, axis, radius,
 //! minor_radius, half_angle_deg as the type has them), faces, vertices, max_residual (mm),
-//! grown}; then snapped, snapped_to_curve, snap_refused, max_snap_move (mm). Only mode and
+//! grown}; then snapped, snapped_to_curve, snap_refused, snaps_reverted (a snap that turned a
+//! face over, taken back), max_snap_move (mm). Only mode and
 //! tolerance when regions is null (primitives=off; or `skipped` with the reason: an
 //! approximating scheme without max_deviation, whose moved input vertices the default
 //! post-pass would undo).
@@ -76,10 +77,11 @@ nlohmann::ordered_json primitives_report_json(const primitives::RegionMap* regio
 //! input vertices), max_distance_from_input (of any output vertex from the input surface,
 //! after the pass, mm), max_distance_before (before it), pulled_back (vertices moved back
 //! within the bound), max_pull_back (mm), worst_normal_change_deg (largest angle between an
-//! output face and the closest input face of its best-agreeing corner), faces_turned_over_60_deg,
-//! detect_seconds (region detection and the input surface), seconds (the pass itself). The guard's
-//! folded faces are the report's `fold_fallbacks`. With an approximating scheme and no
-//! max_deviation the pass only measures (bound "off", nothing moved).
+//! output face and the input faces near it that agree best, see
+//! primitives::PostPassReport),
+//! faces_turned_over_60_deg, detect_seconds (region detection and the input surface), seconds (the
+//! pass itself). The guard's folded faces are the report's `fold_fallbacks`. With an approximating
+//! scheme and no max_deviation the pass only measures (bound "off", nothing moved).
 nlohmann::ordered_json deviation_report_json(const primitives::PostPassReport& post,
                                              const PrimitiveOptions& options);
 

@@ -43,6 +43,12 @@ struct Outcome {
   double distance_before = 0, distance_after = 0, snap_move = 0, pull_back = 0, bound = 0,
          allowance = 0;
   std::uint32_t face = 0;  // the closest input face at the end
+  // Where the vertex goes without its snap (pulled back within the default bound only), for a
+  // snap that turns a face over: its closest face and distance there.
+  Vec3 original, fallback;
+  std::uint32_t fallback_face = 0;
+  double fallback_distance = 0;
+  std::uint8_t reverted = 0;
   std::uint8_t is_new = 0, snapped = 0, to_curve = 0, refused = 0, pulled = 0;
 };
 
@@ -144,7 +150,10 @@ std::uint64_t InputSurface::predict_bytes(std::uint64_t input_vertices, std::uin
 }
 
 std::uint64_t InputSurface::predict_apply_bytes(std::uint64_t output_vertices) {
-  return sizeof(Outcome) * output_vertices + (std::uint64_t{1} << 20);
+  // One outcome per vertex; the list of snaps to take back (at most three corners of every
+  // face, about two faces per vertex, in a vector that may double).
+  return (sizeof(Outcome) + 2 * 3 * 2 * sizeof(std::uint32_t)) * output_vertices +
+         (std::uint64_t{1} << 20);
 }
 
 double InputSurface::default_bound(std::size_t face) const {
@@ -311,6 +320,18 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
       o.is_new = 1;
       double d = distance(p, q);
       o.distance_before = d;
+      o.original = o.fallback = p;
+      o.fallback_face = static_cast<std::uint32_t>(face);
+      o.fallback_distance = d;
+      if (bound_on) {
+        const double bound = user_bound ? *params.max_deviation : m.bound[face];
+        if (d > bound) {
+          std::size_t back_face = face;
+          o.fallback = q + (p - q) * (bound / d);
+          o.fallback_distance = distance(o.fallback, closest(o.fallback, back_face));
+          o.fallback_face = static_cast<std::uint32_t>(back_face);
+        }
+      }
       if (snap) {
         std::optional<Vec3> target = snap_target(v, p, d, o);
         if (!target && o.refused && d > 0) {
@@ -362,10 +383,81 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
   });
 
   BigVector<Vec3>& positions = refined.mutable_positions();
+  for (std::size_t i = 0; i < nv; ++i)
+    if (out[i].is_new) positions[i] = out[i].position;
+
+  // A snap must not turn a face over: where a face ends more than kFoldDegrees from the input
+  // (as measured below) and was not before the pass, its corners snapped onto one primitive
+  // go back to their fallback (pulled back within the default bound only). Up to three rounds.
+  const double cos_turn = std::cos(kFoldDegrees * std::numbers::pi / 180);
+  auto agreement = [&](FaceId face, bool before) {
+    const auto vs = refined.face_vertices(face);
+    auto at = [&](VertexId v) {
+      const Outcome& o = out[v.idx];
+      return before && o.is_new ? o.original : positions[v.idx];
+    };
+    const Vec3 n = cross(at(vs[1]) - at(vs[0]), at(vs[2]) - at(vs[0]));
+    const double len = norm(n);
+    double best = -2;
+    if (!(len > 0)) return best;
+    for (VertexId v : vs) {
+      const Vec3& in = m.normals[out[v.idx].face];
+      if (in != Vec3{}) best = std::max(best, dot(n, in) / len);
+    }
+    if (best >= cos_turn) return best;
+    // Its corners' closest faces disagree (corners on a crease, or just past it once snapped,
+    // are closest to the other side's chords): any input face within the face's own size of
+    // its centroid that it agrees with will do; a fold agrees with none.
+    const Vec3 a = at(vs[0]), b = at(vs[1]), c = at(vs[2]);
+    const Vec3 centre = (a + b + c) * (1.0 / 3);
+    std::size_t near_face = 0;
+    const double r = distance(centre, closest(centre, near_face)) +
+                     std::max({distance(a, b), distance(b, c), distance(c, a)});
+    const CGAL::Bbox_3 box(centre.x - r, centre.y - r, centre.z - r, centre.x + r, centre.y + r,
+                           centre.z + r);
+    std::vector<Tree::Primitive_id> ids;
+    m.tree.all_intersected_primitives(box, std::back_inserter(ids));
+    for (const auto& id : ids) {
+      const std::size_t f = m.face_of(id);
+      if (m.normals[f] == Vec3{}) continue;
+      const auto& t = m.faces[f];
+      if (point_triangle_distance(centre, m.positions[t[0]], m.positions[t[1]],
+                                  m.positions[t[2]]) <= r)
+        best = std::max(best, dot(n, m.normals[f]) / len);
+    }
+    return best;
+  };
+  for (int round = 0; round < 3 && snap; ++round) {
+    std::vector<std::uint32_t> revert;
+    for (std::size_t g = 0; g < refined.num_faces(); ++g) {
+      const FaceId face(static_cast<std::uint32_t>(g));
+      const double after = agreement(face, false);
+      if (after < -1.5 || after >= cos_turn) continue;
+      if (agreement(face, true) < cos_turn) continue;  // the scheme's, not the pass's
+      // A vertex snapped onto a crease curve stays: a face with its three corners on the
+      // curve (butterfly makes them along zipped rims) lies across the curve's chord, and no
+      // position of them both on the curve and unfolded exists.
+      for (VertexId v : refined.face_vertices(face))
+        if (out[v.idx].snapped && !out[v.idx].to_curve) revert.push_back(v.idx);
+    }
+    if (revert.empty()) break;
+    for (std::uint32_t i : revert) {
+      Outcome& o = out[i];
+      if (!o.snapped || o.to_curve) continue;
+      o.snapped = o.to_curve = 0;
+      o.reverted = 1;
+      o.position = positions[i] = o.fallback;
+      o.face = o.fallback_face;
+      o.distance_after = o.fallback_distance;
+      o.pulled = o.fallback != o.original;
+      o.pull_back = distance(o.fallback, o.original);
+      o.snap_move = 0;
+    }
+  }
+
   for (std::size_t i = 0; i < nv; ++i) {
     const Outcome& o = out[i];
     if (!o.is_new) continue;
-    positions[i] = o.position;
     ++report.vertices_checked;
     report.snapped += o.snapped && !o.to_curve;
     report.snapped_to_curve += o.to_curve;
@@ -376,32 +468,22 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
     report.max_distance_before = std::max(report.max_distance_before, o.distance_before);
     report.max_distance = std::max(report.max_distance, o.distance_after);
     report.max_bound = std::max(report.max_bound, o.bound);
+    report.snaps_reverted += o.reverted;
   }
-  // The normal change: per output face, the angle between its normal and the normal of the
-  // closest input face of whichever of its corners agrees best (a corner on a crease is
-  // closest to either side; the face's own side is among its corners' closest faces).
+  // The normal change (PostPassReport::worst_normal_change_deg).
   struct Turn {
     double worst = 0;
     std::size_t over = 0;
   };
-  const double cos_fold = std::cos(kFoldDegrees * std::numbers::pi / 180);
   const Turn turn = tbb::parallel_reduce(
       tbb::blocked_range<std::size_t>(0, refined.num_faces()), Turn{},
       [&](const auto& range, Turn acc) {
         for (std::size_t g = range.begin(); g != range.end(); ++g) {
-          const FaceId face(static_cast<std::uint32_t>(g));
-          const Vec3 n = refined.face_normal(face);
-          const double len = norm(n);
-          if (!(len > 0)) continue;
-          double best = -2;  // corners whose closest input face is degenerate have no say
-          for (VertexId v : refined.face_vertices(face)) {
-            const Vec3& in = m.normals[out[v.idx].face];
-            if (in != Vec3{}) best = std::max(best, dot(n, in) / len);
-          }
-          if (best < -1.5) continue;
+          double best = agreement(FaceId(static_cast<std::uint32_t>(g)), false);
+          if (best < -1.5) continue;  // degenerate, or no corner's closest face has a normal
           best = std::clamp(best, -1.0, 1.0);
           acc.worst = std::max(acc.worst, std::acos(best) * 180 / std::numbers::pi);
-          acc.over += best < cos_fold;
+          acc.over += best < cos_turn;
         }
         return acc;
       },

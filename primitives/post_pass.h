@@ -41,15 +41,19 @@ struct PostPassReport {
   std::size_t snapped = 0;           //!< moved onto one primitive
   std::size_t snapped_to_curve = 0;  //!< moved onto the intersection of two primitives
   std::size_t snap_refused = 0;      //!< whose snap would have moved them too far
-  double max_snap_move = 0;          //!< mm
-  std::size_t pulled_back = 0;       //!< moved back within the deviation bound
-  double max_pull_back = 0;          //!< mm
-  double max_distance_before = 0;    //!< from the input surface, before this pass (mm)
-  double max_distance = 0;           //!< from the input surface, after it (mm)
+  //! Snaps taken back because they turned a face more than kFoldDegrees from the input.
+  std::size_t snaps_reverted = 0;
+  double max_snap_move = 0;        //!< mm
+  std::size_t pulled_back = 0;     //!< moved back within the deviation bound
+  double max_pull_back = 0;        //!< mm
+  double max_distance_before = 0;  //!< from the input surface, before this pass (mm)
+  double max_distance = 0;         //!< from the input surface, after it (mm)
   double max_bound = 0;        //!< the largest deviation bound applied to a vertex (mm); 0 = off
   bool default_bound = false;  //!< the bound is the local default
-  //! The largest angle between an output face's normal and the normal of the closest input
-  //! face of whichever of its corners agrees best (degrees), after the pass.
+  //! The largest angle between an output face's normal and the input's (degrees), after the
+  //! pass: per output face, the best agreeing of its corners' closest input faces and, when
+  //! none agrees within kFoldDegrees, of the input faces within the face's longest edge of
+  //! its centroid (beyond the closest one's distance).
   double worst_normal_change_deg = 0;
   //! Output faces whose normal change is over kFoldDegrees (a fold or a visible ridge).
   std::size_t faces_turned_over_60_deg = 0;
