@@ -179,7 +179,9 @@ Json primitives_report_json(const primitives::RegionMap* regions,
   std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
     return regions->regions[a].faces > regions->regions[b].faces;
   });
-  constexpr std::size_t kListed = 100;
+  // The report travels in a response header (X-Stlrefine-Report, at most 8 KiB a line in
+  // cpp-httplib): the largest regions only.
+  constexpr std::size_t kListed = 10;
   if (order.size() > kListed) order.resize(kListed);
   Json list = Json::array();
   for (std::size_t i : order) {

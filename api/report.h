@@ -61,13 +61,12 @@ nlohmann::ordered_json refine_report(const Ingested& in, const RefineReport& rep
 
 //! The `primitives` member of the refine report: mode (auto/off), tolerance (fraction of
 //! the bbox diagonal) and tolerance_mm, regions_found, faces_in_regions, and `regions`: the
-//! largest 100 (by faces), each {type, the primitive's parameters (point, axis, radius,
-//! minor_radius, half_angle_deg as the type has them), faces, vertices, max_residual (mm),
-//! grown}; then snapped, snapped_to_curve, snap_refused, snaps_reverted (a snap that turned a
-//! face over, taken back), max_snap_move (mm). Only mode and
-//! tolerance when regions is null (primitives=off; or `skipped` with the reason: an
-//! approximating scheme without max_deviation, whose moved input vertices the default
-//! post-pass would undo).
+//! largest 10 (by faces; the report is a response header), each {type, the primitive's parameters
+//! (point, axis, radius, minor_radius, half_angle_deg as the type has them), faces, vertices,
+//! max_residual (mm), grown}; then snapped, snapped_to_curve, snap_refused, snaps_reverted (a snap
+//! that turned a face over, taken back), max_snap_move (mm). Only mode and tolerance when regions
+//! is null (primitives=off; or `skipped` with the reason: an approximating scheme without
+//! max_deviation, whose moved input vertices the default post-pass would undo).
 nlohmann::ordered_json primitives_report_json(const primitives::RegionMap* regions,
                                               const primitives::PostPassReport& post,
                                               const PrimitiveOptions& options);
