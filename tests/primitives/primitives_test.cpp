@@ -12,6 +12,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <fstream>
 #include <iterator>
 #include <map>
@@ -620,6 +621,47 @@ TEST(PrimitivesMeasure, DISABLED_CylinderTubeResiduals) {
                   std::string(test::cad_family_name(family)).c_str(), scheme, worst_off, worst,
                   worst_rim, refused, turned);
     }
+}
+
+}  // namespace
+}  // namespace stlrefine::primitives
+
+namespace stlrefine::primitives {
+namespace {
+
+// The heap of detection + surface and of apply against the predictions, on the shared CAD
+// meshes in $STLREFINE_CAD_DIR (butterfly, 2 levels).
+TEST(PrimitivesMeasure, DISABLED_SharedMeshMemory) {
+  const char* dir = std::getenv("STLREFINE_CAD_DIR");
+  if (!dir) GTEST_SKIP() << "set STLREFINE_CAD_DIR";
+  for (const char* name :
+       {"fandisk", "featuretype_open", "gearwheel", "round", "tray_bottom", "xyz_cube_20mm"}) {
+    std::ifstream in(std::string(dir) + "/" + name + ".stl", std::ios::binary);
+    const std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)),
+                                          std::istreambuf_iterator<char>());
+    const Mesh input = api::ingest_stl(bytes, 0).result.mesh;
+    RefineParams params;
+    params.levels = 2;
+    Mesh output = refine(input, params).mesh;
+    const Features features = detect_features(input, params.features);
+    const std::uint64_t base = test::heap_reset_peak();
+    std::uint64_t build = 0, apply = 0;
+    {
+      const RegionMap regions = detect_regions(input, features, {});
+      const InputSurface surface(input, features, &regions);
+      build = test::heap_peak_bytes() - base;
+      const std::uint64_t before = test::heap_reset_peak();
+      surface.apply(output, {});
+      apply = test::heap_peak_bytes() - before;
+    }
+    std::printf(
+        "| %s | %zu | %llu | %llu | %llu | %llu |\n", name, input.num_faces(),
+        static_cast<unsigned long long>(build),
+        static_cast<unsigned long long>(
+            InputSurface::predict_bytes(input.num_vertices(), input.num_faces(), true)),
+        static_cast<unsigned long long>(apply),
+        static_cast<unsigned long long>(InputSurface::predict_apply_bytes(output.num_vertices())));
+  }
 }
 
 }  // namespace
