@@ -282,7 +282,7 @@ Mesh load(const std::string& name) {
 
 TEST(PrimitivesPlanar, SharedCadMeshes) {
   for (const char* name : {"xyz_cube_20mm.stl", "round.stl", "gearwheel.stl", "tray_bottom.stl"})
-    for (const char* scheme : {"butterfly", "lsf"}) {
+    for (const char* scheme : {"butterfly", "lsf", "sqrt3-interp", "butterfly-g1"}) {
       SCOPED_TRACE(std::string(name) + " " + scheme);
       const Mesh input = load(name);
       ASSERT_GT(input.num_faces(), 0u);
