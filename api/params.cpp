@@ -173,9 +173,10 @@ const std::vector<std::string_view>& info_param_names() {
 
 std::vector<std::string_view> refine_param_names(const RequestLimits& limits) {
   std::vector<std::string_view> names{
-      "scheme",         "levels",    "crease_angle", "max_faces",     "weld_tolerance",
-      "adaptive_tol",   "max_level", "slice",        "slice_format",  "alpha",
-      "alpha_features", "kappa",     "ramp_steps",   "adaptive_angle"};
+      "scheme",         "levels",       "crease_angle", "max_faces",      "weld_tolerance",
+      "adaptive_tol",   "max_level",    "slice",        "slice_format",   "alpha",
+      "alpha_features", "kappa",        "ramp_steps",   "adaptive_angle", "primitives",
+      "primitive_tol",  "max_deviation"};
   if (limits.accept_threads) names.push_back("threads");
   return names;
 }
@@ -270,6 +271,28 @@ RefineRequest parse_refine_params(const RawParams& params, const RequestLimits& 
       p.kappa = parse_number(name, value);
     } else if (name == "ramp_steps") {
       p.ramp_steps = parse_int(name, value);
+    } else if (name == "primitives") {
+      if (value != "auto" && value != "off")
+        throw invalid(name, "unknown_value",
+                      "primitives = " + shown(value) + " is not one of auto, off");
+      request.primitives.enabled = value == "auto";
+    } else if (name == "primitive_tol") {
+      const double t = parse_number(name, value);
+      if (!(t > 0 && t <= 1e-2))
+        throw invalid(name, "out_of_range",
+                      "primitive_tol = " + shown(value) +
+                          " is outside (0, 0.01] (a fraction of the bounding box diagonal)");
+      request.primitives.tolerance = t;
+    } else if (name == "max_deviation") {
+      request.primitives.max_deviation_given = true;
+      if (value != "auto") {
+        const double d = parse_number(name, value);
+        if (!(d >= 0 && d <= 1e6))
+          throw invalid(name, "out_of_range",
+                        "max_deviation = " + shown(value) +
+                            " is outside [0, 1e6] mm (0 = off; auto = the local default)");
+        request.primitives.max_deviation = d;
+      }
     } else if (name == "slice") {
       if (!request.slice) request.slice.emplace();
       request.slice->params.layer_height = parse_number(name, value);

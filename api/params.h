@@ -12,6 +12,7 @@
 #include "core/features/features.h"
 #include "core/io/stl.h"
 #include "core/refine.h"
+#include "primitives/post_pass.h"
 #include "slicer/slice.h"
 #include "slicer/writers.h"
 
@@ -56,6 +57,25 @@ struct SliceRequest {
   double weld_tolerance = 0;  //!< as in InfoRequest
 };
 
+//! The post-pass after refinement (issue 17 items 4 and 6): recognised primitives and the
+//! deviation bound (primitives/).
+struct PrimitiveOptions {
+  //! `primitives`: auto (default) recognises planes, spheres, cylinders, cones and tori on
+  //! the input and puts the new vertices of their regions on them; off does not.
+  bool enabled = true;
+  //! `primitive_tol`: a region is recognised when every input vertex of it lies within this
+  //! fraction of the bounding box diagonal of the primitive, (0, 1e-2], default 1e-6.
+  double tolerance = 1e-6;
+  //! `max_deviation`: mm, [0, 1e6], or `auto` (the default: the local sagitta of the input,
+  //! see primitives::PostPassParams); 0 = off. With primitives=off and no max_deviation
+  //! there is no post-pass at all (the behaviour before it existed).
+  std::optional<double> max_deviation;
+  bool max_deviation_given = false;  //!< `max_deviation` was given (`auto` included)
+
+  //! True when the post-pass runs.
+  bool post_pass() const { return enabled || max_deviation_given; }
+};
+
 //! What `refine` needs besides the STL bytes.
 struct RefineRequest {
   //! `scheme`, `levels`, `crease_angle`, `max_faces`, `threads`, `adaptive_tol`,
@@ -66,6 +86,8 @@ struct RefineRequest {
   StlFormat output_format = StlFormat::Binary;  //!< not a parameter: the CLI's --ascii
   //! `slice` (layer height, mm) and `slice_format`: also slice the refined mesh.
   std::optional<SliceOptions> slice;
+  //! `primitives`, `primitive_tol`, `max_deviation`.
+  PrimitiveOptions primitives;
 };
 
 //! The parameters of a URL query string ("scheme=loop&levels=%32"), in arrival order with

@@ -3,6 +3,8 @@
 #include "api/pipeline.h"
 
 #include <chrono>
+#include <memory>
+#include <optional>
 #include <utility>
 
 #include "api/ingest.h"
@@ -15,6 +17,8 @@
 #include "core/mesh/mesh_stats.h"
 #include "core/schemes/lsf_curvature.h"
 #include "core/schemes/scheme.h"
+#include "primitives/post_pass.h"
+#include "primitives/regions.h"
 #include "slicer/writers.h"
 
 namespace stlrefine::api {
@@ -73,20 +77,67 @@ RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineReques
   // the bounds a little; the refined mesh is planned again by the slicer itself.)
   if (request.slice) slicer::plan_layers(in.result.mesh, request.slice->params);
 
+  // The post-pass keeps what it needs of the input (its triangles in an AABB tree, the
+  // recognised regions) before the mesh is moved into refine. Its memory is asked for first,
+  // as refine asks before its arrays grow (whole-request figures: the body, the input mesh,
+  // the surface and region detection's peak); refused: MemoryBudgetError on `primitives`.
   auto phase = Clock::now();
+  const PrimitiveOptions& prim = request.primitives;
+  std::optional<primitives::RegionMap> regions;
+  std::unique_ptr<primitives::InputSurface> surface;
+  std::uint64_t surface_bytes = 0;
+  if (prim.post_pass()) {
+    surface_bytes = primitives::InputSurface::predict_bytes(
+        in.result.mesh.num_vertices(), in.result.mesh.num_faces(), prim.enabled);
+    const std::uint64_t need = bytes.size() + mesh_bytes(in.result.mesh) + surface_bytes;
+    if (grow && !grow(need)) throw MemoryBudgetError("primitives", 0, need);
+    const Features features = detect_features(in.result.mesh, request.refine.features);
+    if (prim.enabled)
+      regions = primitives::detect_regions(in.result.mesh, features, {prim.tolerance});
+    surface = std::make_unique<primitives::InputSurface>(in.result.mesh, features,
+                                                         regions ? &*regions : nullptr);
+  }
+  const double detect_seconds = seconds_since(phase);
+
+  phase = Clock::now();
   const std::size_t input_faces = in.result.mesh.num_faces();
-  // refine's figures are its own: the body is held beside them for the whole request.
+  // refine's figures are its own: the body (and the post-pass's surface) are held beside
+  // them for the whole request.
   MemoryGrowFn refine_grow;
-  if (grow) refine_grow = [&](std::uint64_t refining) { return grow(bytes.size() + refining); };
+  if (grow)
+    refine_grow = [&](std::uint64_t refining) {
+      return grow(bytes.size() + surface_bytes + refining);
+    };
   // The input mesh is not needed afterwards (the report only uses counters): move it in.
   RefineResult refined = [&] {
     try {
       return refine(std::move(in.result.mesh), request.refine, progress, cancel, refine_grow);
     } catch (const MemoryBudgetError& e) {
-      throw MemoryBudgetError(e.field(), e.level(), bytes.size() + e.needed_bytes());
+      throw MemoryBudgetError(e.field(), e.level(),
+                              bytes.size() + surface_bytes + e.needed_bytes());
     }
   }();
   times.refine = seconds_since(phase);
+  std::optional<primitives::PostPassReport> post;
+  // An approximating scheme moves the input vertices on purpose (loop, sqrt3 with alpha < 1):
+  // the default post-pass would undo that, so it runs there only when max_deviation is given.
+  const bool approximating = refined.report.max_input_displacement > 0;
+  // There it only measures (no snap, no bound), for the report's figures.
+  const bool measure_only = approximating && !prim.max_deviation_given;
+  PrimitiveOptions reported = prim;
+  if (measure_only) reported.max_deviation = 0;
+  if (surface) {
+    primitives::PostPassParams pp;
+    pp.snap = prim.enabled && !measure_only;
+    pp.max_deviation = reported.max_deviation;
+    const std::uint64_t need =
+        bytes.size() + surface_bytes + mesh_bytes(refined.mesh) +
+        primitives::InputSurface::predict_apply_bytes(refined.mesh.num_vertices());
+    if (grow && !grow(need)) throw MemoryBudgetError("primitives", refined.report.levels, need);
+    post = surface->apply(refined.mesh, pp);
+    post->detect_seconds = detect_seconds;
+    surface.reset();
+  }
   if (grow) {
     // The hierarchy is gone; the mesh, its STL (and contours) are what the rest holds.
     const std::uint64_t rest = refined_memory_bytes(
@@ -105,6 +156,17 @@ RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineReques
     out.contours = slice_to_string(refined.mesh, *request.slice, &slice_stats, progress, cancel);
   times.total = seconds_since(start);
   out.report = refine_report(in, refined.report, request, out.stl.size(), times);
+  if (post && !measure_only) {
+    out.report["primitives"] =
+        primitives_report_json(regions ? &*regions : nullptr, *post, request.primitives);
+  } else {
+    out.report["primitives"] = primitives_report_json(nullptr, {}, request.primitives);
+    if (measure_only)
+      out.report["primitives"]["skipped"] =
+          "approximating scheme (input vertices moved): nothing snapped or pulled back, the "
+          "deviation is only measured; give max_deviation to bound it";
+  }
+  if (post) out.report["deviation"] = deviation_report_json(*post, reported);
   if (request.slice)
     out.report["slice"] = slice_stats_json(slice_stats, *request.slice, out.contours->size());
   return out;

@@ -54,7 +54,11 @@ struct RefineOutcome {
 //! figures comparable with estimate_refine_memory's peak_bytes: the body (`bytes`) plus,
 //! while refining, what refine holds (the input mesh, the hierarchy or levels, its slack),
 //! then, before the STL is written, refined_memory_bytes (the refined mesh, the STL, and the
-//! slice's contours predicted from the faces made). Ingest is not metered: the up-front
+//! slice's contours predicted from the faces made). With the post-pass (primitives=auto or
+//! max_deviation), first the body, the input mesh and InputSurface::predict_bytes before it
+//! is built, that surface held beside refine's figures, and before it is applied the refined
+//! mesh and predict_apply_bytes (refused: MemoryBudgetError, field "primitives", level 0 before
+//! refining, the levels made after). Ingest is not metered: the up-front
 //! estimate covers it. When grow says no: MemoryBudgetError (BudgetExceeded, reason
 //! "memory_budget", field "max_level" or "levels") whose needed_bytes() is the refused
 //! whole-request figure; compare it with what one request may hold to tell 422 from 503.

@@ -2,7 +2,10 @@
 // Copyright (c) 2026 stlrefine authors
 #include "api/report.h"
 
+#include <algorithm>
 #include <charconv>
+#include <cmath>
+#include <numbers>
 
 #include "slicer/writers.h"
 
@@ -156,6 +159,79 @@ Json refine_report(const Ingested& in, const RefineReport& r, const RefineReques
                   {"write", times.write},
                   {"total", times.total}};
   j["ingest"] = ingest_report_json(in.result.report);
+  return j;
+}
+
+Json primitives_report_json(const primitives::RegionMap* regions,
+                            const primitives::PostPassReport& post,
+                            const PrimitiveOptions& options) {
+  Json j;
+  j["mode"] = options.enabled ? "auto" : "off";
+  j["tolerance"] = options.tolerance;
+  if (!regions) return j;
+  j["tolerance_mm"] = regions->tolerance;
+  j["regions_found"] = regions->regions.size();
+  std::size_t faces = 0;
+  for (const primitives::Region& r : regions->regions) faces += r.faces;
+  j["faces_in_regions"] = faces;
+  std::vector<std::size_t> order(regions->regions.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return regions->regions[a].faces > regions->regions[b].faces;
+  });
+  // The report travels in a response header (X-Stlrefine-Report, at most 8 KiB a line in
+  // cpp-httplib): the largest regions only.
+  constexpr std::size_t kListed = 10;
+  if (order.size() > kListed) order.resize(kListed);
+  Json list = Json::array();
+  for (std::size_t i : order) {
+    const primitives::Region& r = regions->regions[i];
+    const primitives::Primitive& p = r.primitive;
+    Json e;
+    e["type"] = primitives::to_string(p.type);
+    e["point"] = vec3_json(p.point);
+    if (p.type != primitives::PrimitiveType::Sphere) e["axis"] = vec3_json(p.axis);
+    if (p.type == primitives::PrimitiveType::Sphere ||
+        p.type == primitives::PrimitiveType::Cylinder || p.type == primitives::PrimitiveType::Torus)
+      e["radius"] = p.radius;
+    if (p.type == primitives::PrimitiveType::Torus) e["minor_radius"] = p.minor;
+    if (p.type == primitives::PrimitiveType::Cone)
+      e["half_angle_deg"] = p.angle * 180 / std::numbers::pi;
+    e["faces"] = r.faces;
+    e["vertices"] = r.vertices;
+    e["max_residual"] = r.max_residual;
+    e["grown"] = r.grown;
+    list.push_back(std::move(e));
+  }
+  j["regions"] = std::move(list);
+  j["snapped"] = post.snapped;
+  j["snapped_to_curve"] = post.snapped_to_curve;
+  j["snap_refused"] = post.snap_refused;
+  j["snaps_reverted"] = post.snaps_reverted;
+  j["max_snap_move"] = post.max_snap_move;
+  return j;
+}
+
+Json deviation_report_json(const primitives::PostPassReport& post,
+                           const PrimitiveOptions& options) {
+  Json j;
+  if (!options.max_deviation) {
+    j["bound"] = "auto";
+  } else if (*options.max_deviation > 0) {
+    j["bound"] = *options.max_deviation;
+  } else {
+    j["bound"] = "off";
+  }
+  j["max_bound"] = post.max_bound;
+  j["checked_vertices"] = post.vertices_checked;
+  j["max_distance_from_input"] = post.max_distance;
+  j["max_distance_before"] = post.max_distance_before;
+  j["pulled_back"] = post.pulled_back;
+  j["max_pull_back"] = post.max_pull_back;
+  j["worst_normal_change_deg"] = post.worst_normal_change_deg;
+  j["faces_turned_over_60_deg"] = post.faces_turned_over_60_deg;
+  j["detect_seconds"] = post.detect_seconds;
+  j["seconds"] = post.seconds;
   return j;
 }
 

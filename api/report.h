@@ -13,6 +13,8 @@
 #include "core/mesh/mesh_stats.h"
 #include "core/refine.h"
 #include "core/schemes/lsf_curvature.h"
+#include "primitives/post_pass.h"
+#include "primitives/regions.h"
 #include "slicer/slice.h"
 
 namespace stlrefine::api {
@@ -56,6 +58,31 @@ struct RefineTimes {
 nlohmann::ordered_json refine_report(const Ingested& in, const RefineReport& report,
                                      const RefineRequest& request, std::size_t output_bytes,
                                      const RefineTimes& times);
+
+//! The `primitives` member of the refine report: mode (auto/off), tolerance (fraction of
+//! the bbox diagonal) and tolerance_mm, regions_found, faces_in_regions, and `regions`: the
+//! largest 10 (by faces; the report is a response header), each {type, the primitive's parameters
+//! (point, axis, radius, minor_radius, half_angle_deg as the type has them), faces, vertices,
+//! max_residual (mm), grown}; then snapped, snapped_to_curve, snap_refused, snaps_reverted (a snap
+//! that turned a face over, taken back), max_snap_move (mm). Only mode and tolerance when regions
+//! is null (primitives=off; or `skipped` with the reason: an approximating scheme without
+//! max_deviation, whose moved input vertices the default post-pass would undo).
+nlohmann::ordered_json primitives_report_json(const primitives::RegionMap* regions,
+                                              const primitives::PostPassReport& post,
+                                              const PrimitiveOptions& options);
+
+//! The `deviation` member: what a bureau can check without the true surface. bound ("auto"
+//! or the mm value; "off"), max_bound (mm), checked_vertices (output vertices that are not
+//! input vertices), max_distance_from_input (of any output vertex from the input surface,
+//! after the pass, mm), max_distance_before (before it), pulled_back (vertices moved back
+//! within the bound), max_pull_back (mm), worst_normal_change_deg (largest angle between an
+//! output face and the input faces near it that agree best, see
+//! primitives::PostPassReport),
+//! faces_turned_over_60_deg, detect_seconds (region detection and the input surface), seconds (the
+//! pass itself). The guard's folded faces are the report's `fold_fallbacks`. With an approximating
+//! scheme and no max_deviation the pass only measures (bound "off", nothing moved).
+nlohmann::ordered_json deviation_report_json(const primitives::PostPassReport& post,
+                                             const PrimitiveOptions& options);
 
 //! The slice part of a report: format, layer_height (null for explicit heights), z_min,
 //! z_max (null when not given), layers, outer_loops, holes, open_polylines, points,

@@ -195,6 +195,7 @@ struct RefineOptions {
   std::string scheme, levels, crease_angle, max_faces, threads, weld_tolerance;
   std::string adaptive_tol, adaptive_angle, max_level, slice, slice_format, slice_out;
   std::string alpha, alpha_features, kappa, ramp_steps;
+  std::string primitives, primitive_tol, max_deviation;
   bool ascii = false;
 };
 
@@ -249,6 +250,9 @@ int run_refine(const CLI::App& cmd, const RefineOptions& o) {
   add_if_given(raw, cmd, "--alpha-features", "alpha_features", o.alpha_features);
   add_if_given(raw, cmd, "--kappa", "kappa", o.kappa);
   add_if_given(raw, cmd, "--ramp-steps", "ramp_steps", o.ramp_steps);
+  add_if_given(raw, cmd, "--primitives", "primitives", o.primitives);
+  add_if_given(raw, cmd, "--primitive-tol", "primitive_tol", o.primitive_tol);
+  add_if_given(raw, cmd, "--max-deviation", "max_deviation", o.max_deviation);
   add_if_given(raw, cmd, "--slice", "slice", o.slice);
   add_if_given(raw, cmd, "--slice-format", "slice_format", o.slice_format);
   const bool slicing = cmd.get_option("--slice")->count() > 0;
@@ -457,6 +461,18 @@ int main(int argc, char** argv) {
   refine_cmd->add_option("--ramp-steps", refine.ramp_steps,
                          "loop-g2: modify gradually over this many steps (PU Remark 5.3) "
                          "[0, 8] (0 = off)");
+  refine_cmd->add_option("--primitives", refine.primitives,
+                         "auto: recognise planes, spheres, cylinders, cones and tori on the "
+                         "input and put the new vertices of their regions exactly on them; "
+                         "off: do not (auto)");
+  refine_cmd->add_option("--primitive-tol", refine.primitive_tol,
+                         "A region is recognised when every input vertex of it lies within "
+                         "this fraction of the bounding box diagonal of the primitive "
+                         "(0, 0.01] (1e-6)");
+  refine_cmd->add_option("--max-deviation", refine.max_deviation,
+                         "No output vertex farther than this from the input surface (mm, "
+                         "[0, 1e6]; 0 = off; auto = the input's local chordal error, default "
+                         "with --primitives auto)");
   refine_cmd->add_option("--slice", refine.slice,
                          "Also slice the refined mesh with this layer height (mm)");
   refine_cmd->add_option("--slice-format", refine.slice_format,

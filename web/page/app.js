@@ -144,6 +144,7 @@ function query() {
   const q = new URLSearchParams();
   const fields = ['scheme', 'levels', 'crease_angle', 'adaptive_tol', 'max_level'];
   if ($('slice-on').checked) fields.push('slice', 'slice_format');
+  fields.push('primitives', 'primitive_tol', 'max_deviation');
   const adaptive = Number($('adaptive_tol').value) > 0;
   for (const name of fields) {
     const el = form.elements.namedItem(name);

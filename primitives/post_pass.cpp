@@ -1,0 +1,503 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#include "primitives/post_pass.h"
+
+#include <CGAL/AABB_traits.h>
+#include <CGAL/AABB_tree.h>
+#include <CGAL/AABB_triangle_primitive.h>
+#include <CGAL/Simple_cartesian.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <iterator>
+#include <limits>
+#include <numbers>
+
+#include "core/geometry/point_triangle.h"
+#include "primitives/chordal.h"
+
+namespace stlrefine::primitives {
+
+namespace {
+
+using K = CGAL::Simple_cartesian<double>;
+using Triangles = std::vector<K::Triangle_3>;
+using AabbPrimitive = CGAL::AABB_triangle_primitive<K, Triangles::const_iterator>;
+using Tree = CGAL::AABB_tree<CGAL::AABB_traits<K, AabbPrimitive>>;
+
+K::Point_3 point3(const Vec3& p) {
+  return {p.x, p.y, p.z};
+}
+Vec3 vec3(const K::Point_3& p) {
+  return {p.x(), p.y(), p.z()};
+}
+
+// What one output vertex ends as.
+struct Outcome {
+  Vec3 position;
+  double distance_before = 0, distance_after = 0, snap_move = 0, pull_back = 0, bound = 0,
+         allowance = 0;
+  std::uint32_t face = 0;  // the closest input face at the end
+  // Where the vertex goes without its snap (pulled back within the default bound only), for a
+  // snap that turns a face over: its closest face and distance there.
+  Vec3 original, fallback;
+  std::uint32_t fallback_face = 0;
+  double fallback_distance = 0;
+  std::uint8_t reverted = 0;
+  std::uint8_t is_new = 0, snapped = 0, to_curve = 0, refused = 0, pulled = 0;
+};
+
+}  // namespace
+
+struct InputSurface::Impl {
+  std::vector<Vec3> positions;
+  std::vector<std::array<std::uint32_t, 3>> faces;
+  std::vector<Vec3> normals;  // unit (zero for a degenerate face)
+  // Per face: the default deviation bound, the input's chordal error there (chordal_bounds).
+  std::vector<double> bound;
+  std::vector<std::int32_t> face_region;  // empty without regions
+  // Per face and edge k (corner k to k + 1): the face across when the edge is sharp, else -1.
+  std::vector<std::array<std::int32_t, 3>> across_crease;
+  std::vector<Region> regions;
+  double diagonal = 0, tolerance = 0;
+  Triangles triangles;
+  Tree tree;
+
+  std::size_t face_of(const Tree::Primitive_id& id) const {
+    return static_cast<std::size_t>(id - triangles.begin());
+  }
+};
+
+InputSurface::InputSurface(const Mesh& mesh, const Features& features, const RegionMap* regions)
+    : impl_(std::make_unique<Impl>()) {
+  Impl& m = *impl_;
+  m.positions.assign(mesh.positions().begin(), mesh.positions().end());
+  const std::size_t nf = mesh.num_faces();
+  m.faces.resize(nf);
+  m.across_crease.assign(nf, {-1, -1, -1});
+  m.normals.resize(nf);
+  m.triangles.reserve(nf);
+  for (std::size_t f = 0; f < nf; ++f) {
+    const auto vs = mesh.face_vertices(FaceId(static_cast<std::uint32_t>(f)));
+    m.faces[f] = {vs[0].idx, vs[1].idx, vs[2].idx};
+    const Vec3 &a = mesh.position(vs[0]), &b = mesh.position(vs[1]), &c = mesh.position(vs[2]);
+    m.triangles.emplace_back(point3(a), point3(b), point3(c));
+    const Vec3 n = cross(b - a, c - a);
+    m.normals[f] = norm(n) > 0 ? normalized(n) : Vec3{};
+    for (int k = 0; k < 3; ++k) {
+      const HalfedgeId h = Mesh::halfedge(FaceId(static_cast<std::uint32_t>(f)), k);
+      if (!mesh.is_boundary(h) && features.is_sharp(mesh, h))
+        m.across_crease[f][std::size_t(k)] =
+            static_cast<std::int32_t>(Mesh::face(mesh.twin(h)).idx);
+    }
+  }
+  Vec3 lo, hi;
+  if (!m.positions.empty()) lo = hi = m.positions[0];
+  for (const Vec3& p : m.positions) {
+    lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
+    hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
+  }
+  m.diagonal = distance(lo, hi);
+  m.tolerance = regions ? regions->tolerance : 1e-6 * m.diagonal;
+  if (regions) {
+    m.face_region = regions->face_region;
+    m.regions = regions->regions;
+  }
+  // The default bound: the input's own chordal error (at least 1e-12 of the diagonal, for
+  // rounding: a flat face's vertices are pulled onto it). On a recognised region the primitive
+  // is the surface the face was cut from: the bound is the farthest the primitive is from the
+  // face (sampled at the centroid, the edge midpoints and quarter points) plus its region's
+  // largest vertex residual (an exact plane's faces: 1e-12 of the diagonal, so a vertex
+  // pulled back onto one is on its plane). detect_regions only recognises a
+  // primitive within twice the chordal estimate of every face's chords.
+  m.bound = chordal_bounds(mesh, features, 1e-12 * m.diagonal);
+  for (std::size_t f = 0; f < nf && !m.face_region.empty(); ++f) {
+    if (m.face_region[f] < 0) continue;
+    const Primitive& prim = m.regions[std::size_t(m.face_region[f])].primitive;
+    const auto& t = m.faces[f];
+    const Vec3 &a = m.positions[t[0]], &b = m.positions[t[1]], &c = m.positions[t[2]];
+    double gap = prim.distance((a + b + c) * (1.0 / 3));
+    for (const auto& [u, w] : {std::pair{a, b}, std::pair{b, c}, std::pair{c, a}})
+      for (double s : {0.25, 0.5, 0.75}) gap = std::max(gap, prim.distance(u + (w - u) * s));
+    m.bound[f] = gap + m.regions[std::size_t(m.face_region[f])].max_residual + 1e-12 * m.diagonal;
+  }
+  m.tree.insert(m.triangles.begin(), m.triangles.end());
+  m.tree.build();
+  m.tree.accelerate_distance_queries();
+}
+
+InputSurface::~InputSurface() = default;
+
+std::uint64_t InputSurface::predict_bytes(std::uint64_t input_vertices, std::uint64_t input_faces,
+                                          bool regions) {
+  // Per vertex: positions (24). Per face: corner indices (12), normal (24), bound (8), region
+  // (4), crease links (12), the CGAL triangle (72), the tree's primitive (8) and node (64 per
+  // face: n - 1 nodes of a box and two pointers), the search tree's point and id (32) and its
+  // kd nodes; vectors grown by doubling may hold up to twice their size.
+  const std::uint64_t held = 2 * (24 * input_vertices) +
+                             2 * (12 + 24 + 8 + 4 + 12 + 72) * input_faces +
+                             (8 + 64 + 2 * 32 + 48) * input_faces;
+  // detect_regions, before the surface exists: components, patches (a copy of every vertex per
+  // face it touches, normals and centroids), stamps, bounds and face flags.
+  const std::uint64_t detect =
+      regions ? (3 * 24 + 2 * 24 + 8 + 4 + 4 + 16 + 16) * 2 * input_faces + 8 * input_vertices : 0;
+  return held + detect + (std::uint64_t{1} << 16);
+}
+
+std::uint64_t InputSurface::predict_apply_bytes(std::uint64_t output_vertices) {
+  // One outcome per vertex; the list of snaps to take back (at most three corners of every
+  // face, about two faces per vertex, in a vector that may double).
+  return (sizeof(Outcome) + 2 * 3 * 2 * sizeof(std::uint32_t)) * output_vertices +
+         (std::uint64_t{1} << 20);
+}
+
+double InputSurface::default_bound(std::size_t face) const {
+  return impl_->bound[face];
+}
+
+PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) const {
+  const auto start = std::chrono::steady_clock::now();
+  const Impl& m = *impl_;
+  PostPassReport report;
+  const std::size_t nv = refined.num_vertices();
+  if (m.faces.empty() || nv == 0) return report;
+  const bool snap = params.snap && !m.regions.empty();
+  const bool user_bound = params.max_deviation && *params.max_deviation > 0;
+  const bool bound_on = !params.max_deviation || *params.max_deviation > 0;
+  const double curve_tol = 1e-12 * m.diagonal;
+  std::vector<Outcome> out(nv);
+
+  auto closest = [&](const Vec3& p, std::size_t& face) {
+    const auto hit = m.tree.closest_point_and_primitive(point3(p));
+    face = m.face_of(hit.second);
+    return vec3(hit.first);
+  };
+
+  auto snap_target = [&](VertexId v, const Vec3& p, double d, Outcome& o) -> std::optional<Vec3> {
+    // Input faces near p (a quarter of its longest edge farther than the nearest: a vertex
+    // of a crease may lie on one side's face, inside the other side's chord), each incident
+    // refined face voting for the one whose normal it agrees with best.
+    double longest = 0;
+    const Vec3 self = refined.position(v);
+    for_each_outgoing(refined, v, [&](HalfedgeId h) {
+      longest = std::max(longest, distance(self, refined.position(refined.to(h))));
+    });
+    const double r = d + 0.25 * longest + 1e-9 * m.diagonal;
+    const CGAL::Bbox_3 box(p.x - r, p.y - r, p.z - r, p.x + r, p.y + r, p.z + r);
+    std::vector<Tree::Primitive_id> ids;
+    m.tree.all_intersected_primitives(box, std::back_inserter(ids));
+    std::vector<std::size_t> near;
+    std::vector<double> near_distance;
+    for (const auto& id : ids) {
+      const std::size_t f = m.face_of(id);
+      const auto& t = m.faces[f];
+      const double dist =
+          point_triangle_distance(p, m.positions[t[0]], m.positions[t[1]], m.positions[t[2]]);
+      if (dist <= r) {
+        near.push_back(f);
+        near_distance.push_back(dist);
+      }
+    }
+    if (near.empty()) return std::nullopt;
+    std::array<std::int32_t, 8> region{};
+    std::array<int, 8> votes{};
+    int kinds = 0;
+    for_each_outgoing(refined, v, [&](HalfedgeId h) {
+      const Vec3 n = refined.face_normal(Mesh::face(h));
+      const double len = norm(n);
+      if (!(len > 0)) return;
+      // The best agreeing normal; among faces that agree as well (parallel planes, an
+      // embossed letter's top), the nearest.
+      double best = -2;
+      for (std::size_t f : near) best = std::max(best, dot(n, m.normals[f]) / len);
+      std::size_t pick = near[0];
+      double nearest = INFINITY;
+      for (std::size_t j = 0; j < near.size(); ++j) {
+        const std::size_t f = near[j];
+        if (dot(n, m.normals[f]) / len < best - 1e-6) continue;
+        if (near_distance[j] < nearest) {
+          nearest = near_distance[j];
+          pick = f;
+        }
+      }
+      const std::int32_t id = m.face_region[pick];
+      for (int i = 0; i < kinds; ++i)
+        if (region[std::size_t(i)] == id) {
+          ++votes[std::size_t(i)];
+          return;
+        }
+      if (kinds < 8) {
+        region[std::size_t(kinds)] = id;
+        votes[std::size_t(kinds)] = 1;
+        ++kinds;
+      }
+    });
+    // Recognised regions among the votes, most votes first.
+    std::vector<std::pair<int, std::int32_t>> found;
+    for (int i = 0; i < kinds; ++i)
+      if (region[std::size_t(i)] >= 0)
+        found.emplace_back(-votes[std::size_t(i)], region[std::size_t(i)]);
+    if (found.empty()) return std::nullopt;
+    std::sort(found.begin(), found.end());
+    // The bound of the voted regions' faces nearby (a rim vertex is nearest to the cap, whose
+    // bound is flat, but lies on the side's circle, within the side's chordal error).
+    for (std::size_t f : near)
+      for (const auto& e : found)
+        if (m.face_region[f] == e.second) o.allowance = std::max(o.allowance, m.bound[f]);
+    const double reach = 0.5 * longest;
+    auto accept = [&](const std::optional<Vec3>& t) {
+      return t && is_finite(*t) && distance(*t, p) <= reach;
+    };
+    // A vertex within 15% of its longest edge of an input crease between two recognised
+    // regions is a vertex of that crease, whatever its faces say (a folded face may vote
+    // for the wrong side).
+    double crease_gap = 0.15 * longest;
+    std::int32_t crease_a = -1, crease_b = -1;
+    double crease_allowance = 0;
+    for (std::size_t f : near)
+      for (int k = 0; k < 3; ++k) {
+        const std::int32_t g = m.across_crease[f][std::size_t(k)];
+        if (g < 0) continue;
+        const std::int32_t ra = m.face_region[f], rb = m.face_region[std::size_t(g)];
+        if (ra < 0 || rb < 0 || ra == rb) continue;
+        const Vec3& e0 = m.positions[m.faces[f][std::size_t(k)]];
+        const Vec3& e1 = m.positions[m.faces[f][std::size_t((k + 1) % 3)]];
+        const double gap = point_triangle_distance(p, e0, e1, e1);
+        if (gap < crease_gap) {
+          crease_gap = gap;
+          crease_a = ra;
+          crease_b = rb;
+          crease_allowance = std::max(m.bound[f], m.bound[std::size_t(g)]);
+        }
+      }
+    if (crease_a >= 0) {
+      const std::optional<Vec3> t =
+          project_to_intersection(m.regions[std::size_t(crease_a)].primitive,
+                                  m.regions[std::size_t(crease_b)].primitive, p, curve_tol);
+      if (accept(t)) {
+        o.to_curve = 1;
+        o.allowance = std::max(o.allowance, crease_allowance);
+        return t;
+      }
+    }
+    std::vector<std::optional<Vec3>> tries;
+    if (found.size() == 2) {
+      const Primitive& a = m.regions[std::size_t(found[0].second)].primitive;
+      const Primitive& b = m.regions[std::size_t(found[1].second)].primitive;
+      const std::optional<Vec3> t = project_to_intersection(a, b, p, curve_tol);
+      if (accept(t)) {
+        o.to_curve = 1;
+        return t;
+      }
+      // The curve is out of reach: keep planes planar.
+      if (a.type == PrimitiveType::Plane) tries.push_back(a.project(p));
+      if (b.type == PrimitiveType::Plane) tries.push_back(b.project(p));
+    } else if (found.size() == 1) {
+      tries.push_back(m.regions[std::size_t(found[0].second)].primitive.project(p));
+    }
+    for (const std::optional<Vec3>& t : tries)
+      if (accept(t)) return t;
+    o.refused = 1;
+    return std::nullopt;
+  };
+
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nv), [&](const auto& range) {
+    for (std::size_t i = range.begin(); i != range.end(); ++i) {
+      Outcome& o = out[i];
+      const VertexId v(static_cast<std::uint32_t>(i));
+      Vec3 p = refined.position(v);
+      o.position = p;
+      std::size_t face = 0;
+      Vec3 q = closest(p, face);
+      const auto& t = m.faces[face];
+      o.face = static_cast<std::uint32_t>(face);
+      if (p == m.positions[t[0]] || p == m.positions[t[1]] || p == m.positions[t[2]]) continue;
+      o.is_new = 1;
+      double d = distance(p, q);
+      o.distance_before = d;
+      o.original = o.fallback = p;
+      o.fallback_face = static_cast<std::uint32_t>(face);
+      o.fallback_distance = d;
+      if (bound_on) {
+        const double bound = user_bound ? *params.max_deviation : m.bound[face];
+        if (d > bound) {
+          std::size_t back_face = face;
+          o.fallback = q + (p - q) * (bound / d);
+          o.fallback_distance = distance(o.fallback, closest(o.fallback, back_face));
+          o.fallback_face = static_cast<std::uint32_t>(back_face);
+        }
+      }
+      if (snap) {
+        std::optional<Vec3> target = snap_target(v, p, d, o);
+        if (!target && o.refused && d > 0) {
+          // The scheme put the vertex far off (lsf on a zipped side: 2 mm): its region is
+          // decided, and it is projected, from its closest point on the input instead.
+          Outcome retry = o;
+          retry.refused = 0;
+          retry.allowance = 0;
+          retry.to_curve = 0;
+          target = snap_target(v, q, 0, retry);
+          if (target) o = retry;
+        }
+        if (target) {
+          // A snap that takes the vertex farther from the input than the input's chordal
+          // error there is a wrong region: refused (a snapped vertex is never pulled back,
+          // so the bound it is held to is the one it must already meet).
+          std::size_t to_face = 0;
+          const Vec3 to_q = closest(*target, to_face);
+          const double to_d = distance(*target, to_q);
+          if (to_d <= std::max(m.bound[to_face], o.allowance)) {
+            o.snapped = 1;
+            o.snap_move = distance(*target, p);
+            p = *target;
+            q = to_q;
+            d = to_d;
+            face = to_face;
+          } else {
+            o.refused = 1;
+          }
+        }
+      }
+      if (bound_on) {
+        const double bound = user_bound  ? *params.max_deviation
+                             : o.snapped ? std::max(m.bound[face], o.allowance)
+                                         : m.bound[face];
+        o.bound = bound;
+        if (d > bound) {
+          const Vec3 back = q + (p - q) * (bound / d);
+          o.pulled = 1;
+          o.pull_back = distance(back, p);
+          p = back;
+          d = distance(p, closest(p, face));
+        }
+      }
+      o.distance_after = d;
+      o.position = p;
+      o.face = static_cast<std::uint32_t>(face);
+    }
+  });
+
+  BigVector<Vec3>& positions = refined.mutable_positions();
+  for (std::size_t i = 0; i < nv; ++i)
+    if (out[i].is_new) positions[i] = out[i].position;
+
+  // A snap must not turn a face over: where a face ends more than kFoldDegrees from the input
+  // (as measured below) and was not before the pass, its corners snapped onto one primitive
+  // go back to their fallback (pulled back within the default bound only). Up to three rounds.
+  const double cos_turn = std::cos(kFoldDegrees * std::numbers::pi / 180);
+  auto agreement = [&](FaceId face, bool before) {
+    const auto vs = refined.face_vertices(face);
+    auto at = [&](VertexId v) {
+      const Outcome& o = out[v.idx];
+      return before && o.is_new ? o.original : positions[v.idx];
+    };
+    const Vec3 n = cross(at(vs[1]) - at(vs[0]), at(vs[2]) - at(vs[0]));
+    const double len = norm(n);
+    double best = -2;
+    if (!(len > 0)) return best;
+    for (VertexId v : vs) {
+      const Vec3& in = m.normals[out[v.idx].face];
+      if (in != Vec3{}) best = std::max(best, dot(n, in) / len);
+    }
+    if (best >= cos_turn) return best;
+    // Its corners' closest faces disagree (corners on a crease, or just past it once snapped,
+    // are closest to the other side's chords): any input face within the face's own size of
+    // its centroid that it agrees with will do; a fold agrees with none.
+    const Vec3 a = at(vs[0]), b = at(vs[1]), c = at(vs[2]);
+    const Vec3 centre = (a + b + c) * (1.0 / 3);
+    std::size_t near_face = 0;
+    const double r = distance(centre, closest(centre, near_face)) +
+                     std::max({distance(a, b), distance(b, c), distance(c, a)});
+    const CGAL::Bbox_3 box(centre.x - r, centre.y - r, centre.z - r, centre.x + r, centre.y + r,
+                           centre.z + r);
+    std::vector<Tree::Primitive_id> ids;
+    m.tree.all_intersected_primitives(box, std::back_inserter(ids));
+    for (const auto& id : ids) {
+      const std::size_t f = m.face_of(id);
+      if (m.normals[f] == Vec3{}) continue;
+      const auto& t = m.faces[f];
+      if (point_triangle_distance(centre, m.positions[t[0]], m.positions[t[1]],
+                                  m.positions[t[2]]) <= r)
+        best = std::max(best, dot(n, m.normals[f]) / len);
+    }
+    return best;
+  };
+  for (int round = 0; round < 3 && snap; ++round) {
+    std::vector<std::uint32_t> revert;
+    for (std::size_t g = 0; g < refined.num_faces(); ++g) {
+      const FaceId face(static_cast<std::uint32_t>(g));
+      const double after = agreement(face, false);
+      if (after < -1.5 || after >= cos_turn) continue;
+      if (agreement(face, true) < cos_turn) continue;  // the scheme's, not the pass's
+      // A vertex snapped onto a crease curve stays: a face with its three corners on the
+      // curve (butterfly makes them along zipped rims) lies across the curve's chord, and no
+      // position of them both on the curve and unfolded exists.
+      for (VertexId v : refined.face_vertices(face))
+        if (out[v.idx].snapped && !out[v.idx].to_curve) revert.push_back(v.idx);
+    }
+    if (revert.empty()) break;
+    for (std::uint32_t i : revert) {
+      Outcome& o = out[i];
+      if (!o.snapped || o.to_curve) continue;
+      o.snapped = o.to_curve = 0;
+      o.reverted = 1;
+      o.position = positions[i] = o.fallback;
+      o.face = o.fallback_face;
+      o.distance_after = o.fallback_distance;
+      o.pulled = o.fallback != o.original;
+      o.pull_back = distance(o.fallback, o.original);
+      o.snap_move = 0;
+    }
+  }
+
+  for (std::size_t i = 0; i < nv; ++i) {
+    const Outcome& o = out[i];
+    if (!o.is_new) continue;
+    ++report.vertices_checked;
+    report.snapped += o.snapped && !o.to_curve;
+    report.snapped_to_curve += o.to_curve;
+    report.snap_refused += o.refused;
+    report.pulled_back += o.pulled;
+    report.max_snap_move = std::max(report.max_snap_move, o.snap_move);
+    report.max_pull_back = std::max(report.max_pull_back, o.pull_back);
+    report.max_distance_before = std::max(report.max_distance_before, o.distance_before);
+    report.max_distance = std::max(report.max_distance, o.distance_after);
+    report.max_bound = std::max(report.max_bound, o.bound);
+    report.snaps_reverted += o.reverted;
+  }
+  // The normal change (PostPassReport::worst_normal_change_deg).
+  struct Turn {
+    double worst = 0;
+    std::size_t over = 0;
+  };
+  const Turn turn = tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, refined.num_faces()), Turn{},
+      [&](const auto& range, Turn acc) {
+        for (std::size_t g = range.begin(); g != range.end(); ++g) {
+          double best = agreement(FaceId(static_cast<std::uint32_t>(g)), false);
+          if (best < -1.5) continue;  // degenerate, or no corner's closest face has a normal
+          best = std::clamp(best, -1.0, 1.0);
+          acc.worst = std::max(acc.worst, std::acos(best) * 180 / std::numbers::pi);
+          acc.over += best < cos_turn;
+        }
+        return acc;
+      },
+      [](Turn a, const Turn& b) {
+        a.worst = std::max(a.worst, b.worst);
+        a.over += b.over;
+        return a;
+      });
+  report.worst_normal_change_deg = turn.worst;
+  report.faces_turned_over_60_deg = turn.over;
+  report.default_bound = bound_on && !user_bound;
+  if (user_bound) report.max_bound = *params.max_deviation;
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return report;
+}
+
+}  // namespace stlrefine::primitives

@@ -1,0 +1,668 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+//
+// Issue 17 items 4 and 6: with primitives=auto the new vertices of a recognised region lie on
+// its primitive (measured against the generator's true surface, not against our own fits),
+// crease vertices on the intersection curve, planes stay planar, max_deviation holds, input
+// vertices are never moved; with primitives=off the output is what it was before.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <fstream>
+#include <iterator>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "api/ingest.h"
+#include "api/params.h"
+#include "api/pipeline.h"
+#include "core/error.h"
+#include "core/features/features.h"
+#include "core/geometry/point_triangle.h"
+#include "core/io/stl.h"
+#include "core/mesh/build_mesh.h"
+#include "core/refine.h"
+#include "primitives/chordal.h"
+#include "primitives/post_pass.h"
+#include "primitives/regions.h"
+#include "tests/primitives/heap_meter.h"
+#include "tests/support/cad_like.h"
+
+namespace stlrefine::primitives {
+namespace {
+
+using test::CadFamily;
+
+double diagonal(const Mesh& mesh) {
+  Vec3 lo = mesh.position(VertexId(0)), hi = lo;
+  for (const Vec3& p : mesh.positions()) {
+    lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
+    hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
+  }
+  return distance(lo, hi);
+}
+
+struct Refined {
+  Mesh input, output;
+  RegionMap regions;
+  PostPassReport post;
+};
+
+// The api's path, on a mesh in double precision (so the generator's vertices are on its
+// true surface to rounding): detect, refine, post-pass.
+Refined refine_with(const Mesh& input, const std::string& scheme, int levels,
+                    const PostPassParams& post = {}, bool detect = true) {
+  Refined r;
+  r.input = input;
+  RefineParams params;
+  params.scheme = scheme;
+  params.levels = levels;
+  const Features features = detect_features(input, params.features);
+  if (detect) r.regions = detect_regions(input, features, {});
+  const InputSurface surface(input, features, detect ? &r.regions : nullptr);
+  r.output = refine(input, params).mesh;
+  r.post = surface.apply(r.output, post);
+  return r;
+}
+
+Mesh cad_mesh(CadFamily family, std::uint64_t seed) {
+  return build_mesh(test::make_cad_shape(family, {seed, 1.0}).soup).mesh;
+}
+
+void expect_inputs_unmoved(const Refined& r) {
+  for (std::size_t i = 0; i < r.input.num_vertices(); ++i) {
+    const VertexId v(static_cast<std::uint32_t>(i));
+    ASSERT_EQ(r.output.position(v), r.input.position(v)) << "input vertex " << i << " moved";
+  }
+}
+
+std::size_t count_type(const RegionMap& map, PrimitiveType type) {
+  return static_cast<std::size_t>(
+      std::count_if(map.regions.begin(), map.regions.end(),
+                    [&](const Region& r) { return r.primitive.type == type; }));
+}
+
+// Every output vertex on the true surface to 1e-9 of the diagonal; those at the true creases
+// (the rims) on them.
+void expect_on_truth(CadFamily family, std::uint64_t seed, const std::string& scheme) {
+  const test::CadShape shape = test::make_cad_shape(family, {seed, 1.0});
+  const Mesh input = build_mesh(shape.soup).mesh;
+  const Refined r = refine_with(input, scheme, 2);
+  const double diag = diagonal(input);
+  SCOPED_TRACE(shape.name + " seed " + std::to_string(seed) + " " + scheme);
+  EXPECT_GE(count_type(r.regions, PrimitiveType::Cylinder), 1u);
+  EXPECT_GE(count_type(r.regions, PrimitiveType::Plane), 2u);
+  expect_inputs_unmoved(r);
+  double worst = 0, worst_rim = 0;
+  std::size_t rim = 0;
+  for (const Vec3& p : r.output.positions()) {
+    worst = std::max(worst, distance(p, shape.surface->closest_point(p).point));
+    const std::optional<test::SurfacePoint> c = shape.surface->closest_crease_point(p);
+    ASSERT_TRUE(c);
+    const double to_crease = distance(p, c->point);
+    // Rim vertices: the new vertices of the rims' edges, within a small fraction of an edge
+    // of the rim (a vertex off the rim is at least a quarter of an input edge away).
+    if (to_crease < 1e-4 * diag) {
+      ++rim;
+      worst_rim = std::max(worst_rim, to_crease);
+    }
+  }
+  EXPECT_LE(worst, 1e-9 * diag);
+  EXPECT_LE(worst_rim, 1e-9 * diag);
+  // Every rim edge was split twice: 3 new rim vertices per input rim edge.
+  EXPECT_GE(rim, shape.crease_edges.size() * 4);
+  EXPECT_EQ(r.post.snap_refused, 0u);
+}
+
+TEST(PrimitivesTruth, CappedCylinderButterfly) {
+  for (std::uint64_t seed : {1, 2, 3})
+    expect_on_truth(CadFamily::CappedCylinder, seed, "butterfly");
+}
+TEST(PrimitivesTruth, CappedCylinderLsf) {
+  for (std::uint64_t seed : {1, 2, 3}) expect_on_truth(CadFamily::CappedCylinder, seed, "lsf");
+}
+TEST(PrimitivesTruth, TubeButterfly) {
+  for (std::uint64_t seed : {1, 2, 3}) expect_on_truth(CadFamily::Tube, seed, "butterfly");
+}
+TEST(PrimitivesTruth, TubeLsf) {
+  // Seeds 1-3. On seed 6 (of 1-10) one lsf vertex ends 7.7e-3 of the diagonal off the tube:
+  // its snap turned a face over and was taken back (bench/results-issue17-primitives.md).
+  for (std::uint64_t seed : {1, 2, 3}) expect_on_truth(CadFamily::Tube, seed, "lsf");
+}
+
+TEST(PrimitivesTruth, OffIsFarFromTheTruth) {
+  // The check above can fail: without the post-pass the same output is not on the cylinder.
+  const test::CadShape shape = test::make_cad_shape(CadFamily::CappedCylinder, {1, 1.0});
+  const Mesh input = build_mesh(shape.soup).mesh;
+  RefineParams params;
+  params.levels = 2;
+  const Mesh out = refine(input, params).mesh;
+  double worst = 0;
+  for (const Vec3& p : out.positions())
+    worst = std::max(worst, distance(p, shape.surface->closest_point(p).point));
+  EXPECT_GT(worst, 1e-6 * diagonal(input));
+}
+
+TEST(PrimitivesDetect, RecognisesSphereConeTorus) {
+  const RegionMap sphere = detect_regions(cad_mesh(CadFamily::Sphere, 4),
+                                          detect_features(cad_mesh(CadFamily::Sphere, 4), {}), {});
+  EXPECT_EQ(count_type(sphere, PrimitiveType::Sphere), 1u);
+  const Mesh cone = cad_mesh(CadFamily::Cone, 4);
+  const RegionMap cones = detect_regions(cone, detect_features(cone, {}), {});
+  EXPECT_EQ(count_type(cones, PrimitiveType::Cone), 1u);
+  EXPECT_EQ(count_type(cones, PrimitiveType::Plane), 2u);
+  const Mesh torus = cad_mesh(CadFamily::Torus, 4);
+  FeatureParams smooth;
+  smooth.crease_angle_deg = 60;  // the coarse torus has edges over 35 degrees (issue 17)
+  const RegionMap tori = detect_regions(torus, detect_features(torus, smooth), {});
+  EXPECT_EQ(count_type(tori, PrimitiveType::Torus), 1u);
+  // The blob fits nothing.
+  const Mesh blob = cad_mesh(CadFamily::Blob, 4);
+  const RegionMap none = detect_regions(blob, detect_features(blob, {}), {});
+  EXPECT_TRUE(none.regions.empty());
+  for (const RegionMap* m : {&sphere, &cones, &tori})
+    for (const Region& r : m->regions) EXPECT_LE(r.max_residual, m->tolerance);
+}
+
+// For every recognised plane: each new output vertex (not an input vertex) whose closest
+// input face is a face of the plane's region, at least 1e-3 of the diagonal (5e-2 for a grown
+// plane, which meets a fillet tangentially) from the region's border, is on the plane to 1e-9
+// of the diagonal (brute force closest faces, independent of the post-pass's tree). Returns
+// how many vertices were checked.
+std::size_t expect_planes_planar(const Refined& r) {
+  const double diag = diagonal(r.input);
+  const std::size_t nf = r.input.num_faces();
+  std::vector<std::array<Vec3, 3>> tri(nf);
+  std::vector<std::array<Vec3, 2>> box(nf);
+  for (std::size_t f = 0; f < nf; ++f) {
+    const FaceId face(static_cast<std::uint32_t>(f));
+    const auto vs = r.input.face_vertices(face);
+    tri[f] = {r.input.position(vs[0]), r.input.position(vs[1]), r.input.position(vs[2])};
+    box[f] = {tri[f][0], tri[f][0]};
+    for (const Vec3& c : tri[f]) {
+      box[f][0] = {std::min(box[f][0].x, c.x), std::min(box[f][0].y, c.y),
+                   std::min(box[f][0].z, c.z)};
+      box[f][1] = {std::max(box[f][1].x, c.x), std::max(box[f][1].y, c.y),
+                   std::max(box[f][1].z, c.z)};
+    }
+  }
+  // The border edges of every region, for the distance to it.
+  std::vector<std::vector<std::pair<Vec3, Vec3>>> region_border(r.regions.regions.size());
+  for (std::size_t f = 0; f < nf; ++f) {
+    const std::int32_t k = r.regions.face_region[f];
+    if (k < 0) continue;
+    for (int e = 0; e < 3; ++e) {
+      const HalfedgeId h = Mesh::halfedge(FaceId(static_cast<std::uint32_t>(f)), e);
+      const bool out =
+          r.input.is_boundary(h) || r.regions.face_region[Mesh::face(r.input.twin(h)).idx] != k;
+      if (out)
+        region_border[std::size_t(k)].emplace_back(tri[f][std::size_t(e)],
+                                                   tri[f][std::size_t((e + 1) % 3)]);
+    }
+  }
+  std::size_t checked = 0;
+  for (std::size_t i = r.input.num_vertices(); i < r.output.num_vertices(); ++i) {
+    const Vec3 p = r.output.position(VertexId(static_cast<std::uint32_t>(i)));
+    double best = INFINITY;
+    std::size_t at = 0;
+    for (std::size_t f = 0; f < nf; ++f) {
+      const double dx = std::max({box[f][0].x - p.x, p.x - box[f][1].x, 0.0});
+      const double dy = std::max({box[f][0].y - p.y, p.y - box[f][1].y, 0.0});
+      const double dz = std::max({box[f][0].z - p.z, p.z - box[f][1].z, 0.0});
+      if (dx * dx + dy * dy + dz * dz >= best * best) continue;
+      const double d = point_triangle_distance(p, tri[f][0], tri[f][1], tri[f][2]);
+      if (d < best) {
+        best = d;
+        at = f;
+      }
+    }
+    const std::int32_t k = r.regions.face_region[at];
+    if (k < 0) continue;
+    const Region& region = r.regions.regions[std::size_t(k)];
+    if (region.primitive.type != PrimitiveType::Plane) continue;
+    const double margin = region.grown ? 5e-2 * diag : 1e-3 * diag;
+    bool inside = true;
+    for (const auto& [u, w] : region_border[std::size_t(k)])
+      if (point_triangle_distance(p, u, w, w) < margin) {
+        inside = false;
+        break;
+      }
+    if (!inside) continue;
+    ++checked;
+    EXPECT_LE(std::abs(dot(p - region.primitive.point, region.primitive.axis)), 1e-9 * diag)
+        << "new vertex " << i << " of a plane region is off its plane";
+  }
+  return checked;
+}
+
+TEST(PrimitivesPlanar, PlateAndRoundedBox) {
+  for (CadFamily family : {CadFamily::Plate, CadFamily::RoundedBox})
+    for (std::uint64_t seed : {1, 2})
+      for (const char* scheme : {"butterfly", "lsf"}) {
+        SCOPED_TRACE(std::string(test::cad_family_name(family)) + " " + scheme);
+        const Refined r = refine_with(cad_mesh(family, seed), scheme, 2);
+        EXPECT_GE(count_type(r.regions, PrimitiveType::Plane), 2u);
+        expect_inputs_unmoved(r);
+        EXPECT_GT(expect_planes_planar(r), 0u);
+      }
+}
+
+TEST(PrimitivesPlanar, PlaneIsBentWithoutThePostPass) {
+  // The plate's flat faces are bent by butterfly when nothing puts them back (issue 17).
+  Refined r = refine_with(cad_mesh(CadFamily::Plate, 1), "butterfly", 2, {}, true);
+  Refined off = r;
+  RefineParams params;
+  params.levels = 2;
+  off.output = refine(r.input, params).mesh;
+  const double diag = diagonal(r.input);
+  double worst = 0;
+  for (std::size_t k = 0; k < r.regions.regions.size(); ++k) {
+    const Primitive& plane = r.regions.regions[k].primitive;
+    if (plane.type != PrimitiveType::Plane) continue;
+    for (const Vec3& p : off.output.positions()) {
+      const double d = std::abs(dot(p - plane.point, plane.axis));
+      if (d < 1e-3 * diag) worst = std::max(worst, d);
+    }
+  }
+  EXPECT_GT(worst, 1e-9 * diag);
+}
+
+Mesh load(const std::string& name) {
+  std::ifstream in(std::string(STLREFINE_TEST_DATA_DIR) + "/" + name, std::ios::binary);
+  const std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)),
+                                        std::istreambuf_iterator<char>());
+  return api::ingest_stl(bytes, 0).result.mesh;
+}
+
+TEST(PrimitivesPlanar, SharedCadMeshes) {
+  for (const char* name : {"xyz_cube_20mm.stl", "round.stl", "gearwheel.stl", "tray_bottom.stl"})
+    for (const char* scheme : {"butterfly", "lsf", "sqrt3-interp", "butterfly-g1"}) {
+      SCOPED_TRACE(std::string(name) + " " + scheme);
+      const Mesh input = load(name);
+      ASSERT_GT(input.num_faces(), 0u);
+      const Refined r = refine_with(input, scheme, 2);
+      EXPECT_GE(count_type(r.regions, PrimitiveType::Plane), 2u);
+      expect_inputs_unmoved(r);
+      EXPECT_GT(expect_planes_planar(r), 0u);
+      // The default bound holds.
+      EXPECT_LE(r.post.max_distance, r.post.max_bound * (1 + 1e-9));
+    }
+}
+
+// Distance of p from the input, brute force (independent of the AABB tree).
+double distance_to(const Mesh& mesh, const Vec3& p) {
+  double best = INFINITY;
+  for (std::size_t f = 0; f < mesh.num_faces(); ++f) {
+    const auto vs = mesh.face_vertices(FaceId(static_cast<std::uint32_t>(f)));
+    best = std::min(best, point_triangle_distance(p, mesh.position(vs[0]), mesh.position(vs[1]),
+                                                  mesh.position(vs[2])));
+  }
+  return best;
+}
+
+TEST(PrimitivesDeviation, UserBoundNeverExceeded) {
+  for (CadFamily family : {CadFamily::Plate, CadFamily::RoundedBox, CadFamily::Blob})
+    for (const char* scheme : {"butterfly", "lsf", "loop"}) {
+      SCOPED_TRACE(std::string(test::cad_family_name(family)) + " " + scheme);
+      const Mesh input = cad_mesh(family, 7);
+      // A bound below what the refinement does without one.
+      PostPassParams off;
+      off.snap = false;
+      off.max_deviation = 0;
+      const double free = refine_with(input, scheme, 2, off).post.max_distance;
+      ASSERT_GT(free, 0);
+      PostPassParams pp;
+      pp.max_deviation = 0.3 * free;
+      const Refined r = refine_with(input, scheme, 2, pp);
+      double worst = 0;
+      for (const Vec3& p : r.output.positions()) worst = std::max(worst, distance_to(input, p));
+      EXPECT_LE(worst, *pp.max_deviation * (1 + 1e-9));
+      EXPECT_LE(r.post.max_distance, *pp.max_deviation * (1 + 1e-9));
+      // The bound was needed: something was pulled back.
+      EXPECT_GT(r.post.pulled_back, 0u);
+      EXPECT_GT(r.post.max_distance_before, *pp.max_deviation);
+    }
+}
+
+TEST(PrimitivesDeviation, DefaultBoundIsTheInputsChordalError) {
+  // On a smooth shape nothing is recognised; the default bound is the local sagitta, so the
+  // output stays within it, while the true surface (the ideal refinement) is within it too.
+  const test::CadShape shape = test::make_cad_shape(CadFamily::Blob, {5, 1.0});
+  const Mesh input = build_mesh(shape.soup).mesh;
+  const Refined r = refine_with(input, "lsf", 2);
+  const Features features = detect_features(input, {});
+  const InputSurface surface(input, features, nullptr);
+  EXPECT_TRUE(r.post.default_bound);
+  EXPECT_LE(r.post.max_distance, r.post.max_bound * (1 + 1e-9));
+  // The truth at the input's face centroids is within the face's bound (it is not pulled).
+  std::size_t within = 0;
+  for (std::size_t f = 0; f < input.num_faces(); ++f) {
+    const auto vs = input.face_vertices(FaceId(static_cast<std::uint32_t>(f)));
+    const Vec3 c =
+        (input.position(vs[0]) + input.position(vs[1]) + input.position(vs[2])) * (1.0 / 3);
+    const Vec3 t = shape.surface->closest_point(c).point;
+    within += distance(c, t) <= surface.default_bound(f);
+  }
+  EXPECT_GE(double(within), 0.95 * double(input.num_faces()));
+}
+
+// --- the api: parameters, the report, primitives=off
+
+std::string stl_of(const Mesh& mesh) {
+  return write_stl(mesh, StlFormat::Binary);
+}
+
+api::RefineOutcome run(const std::string& stl, const api::RawParams& raw) {
+  const api::RefineRequest request = api::parse_refine_params(raw, {});
+  const auto* data = reinterpret_cast<const std::uint8_t*>(stl.data());
+  return api::run_refine(std::span<const std::uint8_t>(data, stl.size()), request);
+}
+
+TEST(PrimitivesApi, ReportListsRegions) {
+  const std::string stl = stl_of(cad_mesh(CadFamily::CappedCylinder, 1));
+  const api::RefineOutcome out = run(stl, {{"scheme", "lsf"}, {"levels", "2"}});
+  const auto& prim = out.report.at("primitives");
+  EXPECT_EQ(prim.at("mode"), "auto");
+  ASSERT_EQ(prim.at("regions_found"), 3u);
+  std::vector<std::string> types;
+  for (const auto& r : prim.at("regions")) {
+    types.push_back(r.at("type"));
+    EXPECT_LE(r.at("max_residual").get<double>(), prim.at("tolerance_mm").get<double>());
+    EXPECT_GT(r.at("faces").get<std::size_t>(), 0u);
+  }
+  std::sort(types.begin(), types.end());
+  EXPECT_EQ(types, (std::vector<std::string>{"cylinder", "plane", "plane"}));
+  EXPECT_GT(prim.at("snapped").get<std::size_t>(), 0u);
+  EXPECT_GT(prim.at("snapped_to_curve").get<std::size_t>(), 0u);
+  const auto& dev = out.report.at("deviation");
+  EXPECT_EQ(dev.at("bound"), "auto");
+  EXPECT_GT(dev.at("max_distance_from_input").get<double>(), 0);
+  EXPECT_TRUE(dev.contains("pulled_back"));
+}
+
+TEST(PrimitivesApi, OffIsTheOldOutput) {
+  const Mesh input = cad_mesh(CadFamily::Tube, 2);
+  const std::string stl = stl_of(input);
+  const api::RefineOutcome out =
+      run(stl, {{"scheme", "butterfly"}, {"levels", "2"}, {"primitives", "off"}});
+  const Mesh reread =
+      api::ingest_stl(std::span<const std::uint8_t>(
+                          reinterpret_cast<const std::uint8_t*>(stl.data()), stl.size()),
+                      0)
+          .result.mesh;
+  RefineParams params;
+  params.levels = 2;
+  EXPECT_EQ(out.stl, stl_of(refine(reread, params).mesh));
+  EXPECT_FALSE(out.report.contains("deviation"));
+  EXPECT_EQ(out.report.at("primitives").at("mode"), "off");
+  const api::RefineOutcome on = run(stl, {{"scheme", "butterfly"}, {"levels", "2"}});
+  EXPECT_NE(on.stl, out.stl);
+}
+
+TEST(PrimitivesApi, MaxDeviationWithPrimitivesOff) {
+  const std::string stl = stl_of(cad_mesh(CadFamily::Plate, 3));
+  const api::RefineOutcome out = run(
+      stl, {{"scheme", "lsf"}, {"levels", "2"}, {"primitives", "off"}, {"max_deviation", "0.05"}});
+  const auto& dev = out.report.at("deviation");
+  EXPECT_EQ(dev.at("bound"), 0.05);
+  EXPECT_LE(dev.at("max_distance_from_input").get<double>(), 0.05 * (1 + 1e-9));
+  EXPECT_GT(dev.at("pulled_back").get<std::size_t>(), 0u);
+}
+
+void expect_rejected(const api::RawParams& raw, const std::string& field,
+                     const std::string& reason) {
+  try {
+    api::parse_refine_params(raw, {});
+    ADD_FAILURE() << "accepted " << raw[0].first << "=" << raw[0].second;
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::InvalidParameter);
+    EXPECT_EQ(e.field(), field);
+    EXPECT_EQ(e.reason(), reason);
+  }
+}
+
+TEST(PrimitivesApi, Parameters) {
+  expect_rejected({{"primitives", "on"}}, "primitives", "unknown_value");
+  expect_rejected({{"primitive_tol", "0"}}, "primitive_tol", "out_of_range");
+  expect_rejected({{"primitive_tol", "0.5"}}, "primitive_tol", "out_of_range");
+  expect_rejected({{"primitive_tol", "x"}}, "primitive_tol", "not_a_number");
+  expect_rejected({{"max_deviation", "-1"}}, "max_deviation", "out_of_range");
+  expect_rejected({{"max_deviation", "nan"}}, "max_deviation", "not_a_number");
+  const api::RefineRequest a = api::parse_refine_params(
+      {{"primitives", "off"}, {"primitive_tol", "1e-5"}, {"max_deviation", "auto"}}, {});
+  EXPECT_FALSE(a.primitives.enabled);
+  EXPECT_EQ(a.primitives.tolerance, 1e-5);
+  EXPECT_FALSE(a.primitives.max_deviation);
+  EXPECT_TRUE(a.primitives.post_pass());
+  const api::RefineRequest b = api::parse_refine_params({{"max_deviation", "0"}}, {});
+  EXPECT_EQ(b.primitives.max_deviation, 0.0);
+  EXPECT_TRUE(api::parse_refine_params({}, {}).primitives.enabled);
+}
+
+}  // namespace
+}  // namespace stlrefine::primitives
+
+namespace stlrefine::primitives {
+namespace {
+
+// The post-pass's memory (issue 16's admission): what detect_regions, the input surface and
+// apply allocate on the heap stays within the prediction, and the prediction is not far above
+// it (within 4 times), on CAD-like meshes and a shared CAD mesh.
+TEST(PrimitivesMemory, PredictionBoundsTheHeap) {
+  std::vector<std::pair<std::string, Mesh>> inputs;
+  for (CadFamily family : {CadFamily::Plate, CadFamily::Torus, CadFamily::Tube})
+    inputs.emplace_back(test::cad_family_name(family), cad_mesh(family, 3));
+  inputs.emplace_back("gearwheel", load("gearwheel.stl"));
+  for (const auto& named : inputs) {
+    const Mesh& input = named.second;
+    SCOPED_TRACE(named.first);
+    RefineParams params;
+    params.levels = 2;
+    Mesh output = refine(input, params).mesh;
+    const Features features = detect_features(input, params.features);
+    const std::uint64_t base = test::heap_reset_peak();
+    std::uint64_t held = 0, peak_build = 0;
+    {
+      const RegionMap regions = detect_regions(input, features, {});
+      const InputSurface surface(input, features, &regions);
+      peak_build = test::heap_peak_bytes() - base;
+      held = test::heap_live_bytes() - base;
+      const std::uint64_t before_apply = test::heap_reset_peak();
+      surface.apply(output, {});
+      const std::uint64_t apply = test::heap_peak_bytes() - before_apply;
+      EXPECT_LE(apply, InputSurface::predict_apply_bytes(output.num_vertices()));
+      EXPECT_GE(4 * apply, InputSurface::predict_apply_bytes(output.num_vertices()) -
+                               (std::uint64_t{1} << 20));
+    }
+    const std::uint64_t predicted =
+        InputSurface::predict_bytes(input.num_vertices(), input.num_faces(), true);
+    std::printf("%s: faces %zu build peak %llu held %llu predicted %llu\n", named.first.c_str(),
+                input.num_faces(), static_cast<unsigned long long>(peak_build),
+                static_cast<unsigned long long>(held), static_cast<unsigned long long>(predicted));
+    EXPECT_LE(peak_build, predicted);
+    EXPECT_GE(4 * peak_build, predicted);
+  }
+}
+
+}  // namespace
+}  // namespace stlrefine::primitives
+
+namespace stlrefine::primitives {
+namespace {
+
+// run_refine asks for the post-pass's memory as refine asks for its own: before the surface
+// is built (whole-request figure: body + input mesh + predict_bytes), and the surface is
+// counted in every figure refine reports after that; a refusal is a MemoryBudgetError naming
+// `primitives` with the refused figure.
+TEST(PrimitivesMemory, RunRefineAsksBeforeTheSurface) {
+  const Mesh mesh = cad_mesh(CadFamily::Tube, 2);
+  const std::string stl = write_stl(mesh, StlFormat::Binary);
+  const auto* data = reinterpret_cast<const std::uint8_t*>(stl.data());
+  const std::span<const std::uint8_t> body(data, stl.size());
+  api::RawParams raw{{"scheme", "butterfly"}, {"levels", "2"}};
+  const api::RefineRequest request = api::parse_refine_params(raw, {});
+  const std::uint64_t surface =
+      InputSurface::predict_bytes(mesh.num_vertices(), mesh.num_faces(), true);
+
+  std::vector<std::uint64_t> asked;
+  const MemoryGrowFn refuse_first = [&](std::uint64_t b) {
+    asked.push_back(b);
+    return false;
+  };
+  try {
+    api::run_refine(body, request, {}, nullptr, refuse_first);
+    ADD_FAILURE() << "not refused";
+  } catch (const MemoryBudgetError& e) {
+    EXPECT_EQ(e.field(), "primitives");
+    ASSERT_EQ(asked.size(), 1u);
+    EXPECT_EQ(e.needed_bytes(), asked[0]);
+    EXPECT_GE(asked[0], stl.size() + surface);
+  }
+
+  // Granted: every figure after the first holds the surface beside refine's own.
+  std::vector<std::uint64_t> with, without;
+  api::run_refine(body, request, {}, nullptr, [&](std::uint64_t b) {
+    with.push_back(b);
+    return true;
+  });
+  raw.emplace_back("primitives", "off");
+  api::run_refine(body, api::parse_refine_params(raw, {}), {}, nullptr, [&](std::uint64_t b) {
+    without.push_back(b);
+    return true;
+  });
+  // with: the surface, refine's figures, the post-pass's, the rest; without: refine's, the
+  // rest.
+  ASSERT_EQ(with.size(), without.size() + 2);
+  for (std::size_t i = 0; i + 1 < without.size(); ++i) EXPECT_EQ(with[i + 1], without[i] + surface);
+  EXPECT_GE(with[with.size() - 2], stl.size() + surface + InputSurface::predict_apply_bytes(0));
+  // A refusal of the post-pass's own figure, after refining.
+  std::size_t call = 0;
+  try {
+    api::run_refine(body, request, {}, nullptr,
+                    [&](std::uint64_t) { return ++call < with.size() - 1; });
+    ADD_FAILURE() << "not refused";
+  } catch (const MemoryBudgetError& e) {
+    EXPECT_EQ(e.field(), "primitives");
+    EXPECT_EQ(e.level(), 2);
+  }
+}
+
+}  // namespace
+}  // namespace stlrefine::primitives
+
+// Measurements for bench/results-issue17-primitives.md (disabled: run by hand with
+// --gtest_also_run_disabled_tests --gtest_filter='*Measure*'; they print, they do not check).
+namespace stlrefine::primitives {
+namespace {
+
+// The true surface's distance from every input face (centroid, edge midpoints) against
+// chordal_bounds, on every CAD-like family, seeds 1-10.
+TEST(PrimitivesMeasure, DISABLED_ChordalBoundCoverage) {
+  for (CadFamily family : test::cad_families()) {
+    double worst = 0;
+    std::size_t over = 0, curved = 0;
+    for (std::uint64_t seed = 1; seed <= 10; ++seed) {
+      const test::CadShape shape = test::make_cad_shape(family, {seed, 1.0});
+      const Mesh input = build_mesh(shape.soup).mesh;
+      const std::vector<double> bound = chordal_bounds(input, detect_features(input, {}), 0);
+      for (std::size_t f = 0; f < input.num_faces(); ++f) {
+        const auto vs = input.face_vertices(FaceId(static_cast<std::uint32_t>(f)));
+        const Vec3 &a = input.position(vs[0]), &b = input.position(vs[1]),
+                   &c = input.position(vs[2]);
+        double gap = 0;
+        for (const Vec3& q : {(a + b + c) * (1.0 / 3), (a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5})
+          gap = std::max(gap, distance(q, shape.surface->closest_point(q).point));
+        if (gap <= 1e-9 * diagonal(input)) continue;
+        ++curved;
+        over += gap > bound[f];
+        worst = std::max(worst, gap / bound[f]);
+      }
+    }
+    std::printf("| %s | %zu | %zu | %.3g |\n", std::string(test::cad_family_name(family)).c_str(),
+                curved, over, worst);
+  }
+}
+
+// The cylinder and the tube, seeds 1-10, 2 levels, every interpolating scheme: the farthest
+// output vertex from the true surface and from the true rims (fraction of the diagonal).
+TEST(PrimitivesMeasure, DISABLED_CylinderTubeResiduals) {
+  for (CadFamily family : {CadFamily::CappedCylinder, CadFamily::Tube})
+    for (const char* scheme :
+         {"lsf", "butterfly", "sqrt3-interp", "sqrt3-unified", "butterfly-g1"}) {
+      double worst = 0, worst_rim = 0, worst_off = 0;
+      std::size_t refused = 0, turned = 0;
+      for (std::uint64_t seed = 1; seed <= 10; ++seed) {
+        const test::CadShape shape = test::make_cad_shape(family, {seed, 1.0});
+        const Mesh input = build_mesh(shape.soup).mesh;
+        const double diag = diagonal(input);
+        const Refined r = refine_with(input, scheme, 2);
+        PostPassParams off;
+        off.snap = false;
+        off.max_deviation = 0;
+        const Refined o = refine_with(input, scheme, 2, off, false);
+        refused += r.post.snap_refused;
+        turned += r.post.faces_turned_over_60_deg;
+        for (const Vec3& p : r.output.positions()) {
+          worst = std::max(worst, distance(p, shape.surface->closest_point(p).point) / diag);
+          const double to_crease = distance(p, shape.surface->closest_crease_point(p)->point);
+          if (to_crease < 1e-4 * diag) worst_rim = std::max(worst_rim, to_crease / diag);
+        }
+        for (const Vec3& p : o.output.positions())
+          worst_off =
+              std::max(worst_off, distance(p, shape.surface->closest_point(p).point) / diag);
+      }
+      std::printf("| %s | %s | %.3g | %.3g | %.3g | %zu | %zu |\n",
+                  std::string(test::cad_family_name(family)).c_str(), scheme, worst_off, worst,
+                  worst_rim, refused, turned);
+    }
+}
+
+}  // namespace
+}  // namespace stlrefine::primitives
+
+namespace stlrefine::primitives {
+namespace {
+
+// The heap of detection + surface and of apply against the predictions, on the shared CAD
+// meshes in $STLREFINE_CAD_DIR (butterfly, 2 levels).
+TEST(PrimitivesMeasure, DISABLED_SharedMeshMemory) {
+  const char* dir = std::getenv("STLREFINE_CAD_DIR");
+  if (!dir) GTEST_SKIP() << "set STLREFINE_CAD_DIR";
+  for (const char* name :
+       {"fandisk", "featuretype_open", "gearwheel", "round", "tray_bottom", "xyz_cube_20mm"}) {
+    std::ifstream in(std::string(dir) + "/" + name + ".stl", std::ios::binary);
+    const std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)),
+                                          std::istreambuf_iterator<char>());
+    const Mesh input = api::ingest_stl(bytes, 0).result.mesh;
+    RefineParams params;
+    params.levels = 2;
+    Mesh output = refine(input, params).mesh;
+    const Features features = detect_features(input, params.features);
+    const std::uint64_t base = test::heap_reset_peak();
+    std::uint64_t build = 0, apply = 0;
+    {
+      const RegionMap regions = detect_regions(input, features, {});
+      const InputSurface surface(input, features, &regions);
+      build = test::heap_peak_bytes() - base;
+      const std::uint64_t before = test::heap_reset_peak();
+      surface.apply(output, {});
+      apply = test::heap_peak_bytes() - before;
+    }
+    std::printf(
+        "| %s | %zu | %llu | %llu | %llu | %llu |\n", name, input.num_faces(),
+        static_cast<unsigned long long>(build),
+        static_cast<unsigned long long>(
+            InputSurface::predict_bytes(input.num_vertices(), input.num_faces(), true)),
+        static_cast<unsigned long long>(apply),
+        static_cast<unsigned long long>(InputSurface::predict_apply_bytes(output.num_vertices())));
+  }
+}
+
+}  // namespace
+}  // namespace stlrefine::primitives
