@@ -9,6 +9,7 @@
 #include <string>
 #include <string_view>
 
+#include "api/params.h"
 #include "api/pipeline.h"
 #include "api/problem.h"
 #include "core/error.h"
@@ -42,6 +43,32 @@ TEST(ApiPipeline, RefineQuadruplesFacesAndKeepsInputVertices) {
     EXPECT_EQ(out.report.at("max_input_displacement"), 0.0);
     EXPECT_EQ(out.report.at("scheme"), "butterfly");
   }
+}
+
+// The report says why an adaptive refinement stopped: at its tolerance, or at max_level with
+// how far off (mm) and where the worst remaining edge is.
+TEST(ApiPipeline, AdaptiveReportSaysWhyItStopped) {
+  const std::string in = test::binary_stl(test::octahedron_triangles());
+  // Creases off: the octahedron is a coarse smooth surface, so butterfly bends every edge.
+  const auto adaptive = [](const std::string& tol, const std::string& max_level) {
+    return parse_refine_params({{"scheme", "butterfly"},
+                                {"crease_angle", "180"},
+                                {"adaptive_tol", tol},
+                                {"max_level", max_level}},
+                               RequestLimits{});
+  };
+  const RefineOutcome reached = run_refine(bytes_of(in), adaptive("1000", "4"));
+  EXPECT_EQ(reached.report.at("adaptive_stop").at("reason"), "tolerance");
+  EXPECT_FALSE(reached.report.at("adaptive_stop").contains("max_over_tolerance_mm"));
+
+  const RefineOutcome capped = run_refine(bytes_of(in), adaptive("0.000001", "1"));
+  const auto& stop = capped.report.at("adaptive_stop");
+  EXPECT_EQ(stop.at("reason"), "max_level");
+  EXPECT_GT(capped.report.at("edges_over_tolerance").get<double>(), 0);
+  EXPECT_GT(stop.value("max_over_tolerance_mm", 0.0), 1e-6);
+  EXPECT_EQ(stop.value("worst_at", nlohmann::ordered_json::array()).size(), 3u);
+
+  EXPECT_FALSE(run_refine(bytes_of(in), butterfly(1)).report.contains("adaptive_stop"));
 }
 
 TEST(ApiPipeline, RefineIsDeterministic) {
