@@ -26,6 +26,7 @@
 #include "bench/fidelity/svg_plot.h"
 #include "core/io/stl.h"
 #include "core/mesh/build_mesh.h"
+#include "core/refine.h"
 #include "core/schemes/scheme.h"
 #include "tests/support/cad_like.h"
 
@@ -94,8 +95,9 @@ SeedResult run_seed(CadFamily family, std::uint64_t seed, const CadOptions& o,
   const test::CadShape shape = test::make_cad_shape(family, {seed, o.coarseness});
   // What every row starts from: the shape as a binary STL file (float positions), read
   // through the request path's ingest. Ours get the bytes, the peers the mesh.
-  const std::string stl = write_stl(build_mesh(shape.soup).mesh, StlFormat::Binary);
-  const Mesh input = ingest_request_stl(stl);
+  Mesh exact = build_mesh(shape.soup).mesh;
+  const std::string stl = write_stl(exact, StlFormat::Binary);
+  const Mesh input = o.direct ? std::move(exact) : ingest_request_stl(stl);
   r.description = shape.description;
   r.diag = bbox_diagonal(input);
   r.input = measure_cad(input, *shape.surface, o.samples);
@@ -109,7 +111,15 @@ SeedResult run_seed(CadFamily family, std::uint64_t seed, const CadOptions& o,
     for (const int level : o.levels) {
       Outcome out;
       try {
-        if (c.kind == Variant::Kind::Ours) {
+        if (c.kind == Variant::Kind::Ours && o.direct) {
+          const RefineParams params =
+              check_refine_params(
+                  merge_params(c.params, {{"levels", std::to_string(c.steps(level))}}))
+                  .refine;
+          RefineResult run = refine(Mesh(input), params);
+          out.m = measure_cad(run.mesh, *shape.surface, o.samples);
+          out.fold_fallbacks = run.report.fold_fallbacks;
+        } else if (c.kind == Variant::Kind::Ours) {
           const ApiRun run = run_api_refine(
               stl, merge_params(c.params, {{"levels", std::to_string(c.steps(level))}}));
           out.m = measure_cad(run.mesh, *shape.surface, o.samples);
@@ -474,13 +484,18 @@ void print_header(std::ostream& md, const CadOptions& o, const std::vector<Colum
      << " distance samples per mesh. Levels are 1-to-4 levels; sqrt3 schemes (ours and "
         "OpenMesh's) make 2 steps per level. Distances are relative to each input's bbox "
         "diagonal; ratios are per seed, then averaged.\n\n"
-        "Every row starts from the shape written as a binary STL (float positions, as a "
-        "bureau's file) and read back through the request path's ingest. Our rows run as a "
-        "request runs them: the parameters below through `api::parse_refine_params` (the CLI's "
-        "limits) and `api::run_refine`, and what is measured is the STL it answers, read back "
-        "(so any post-pass of the pipeline is included; output positions are floats). OpenMesh "
-        "rows refine the ingested mesh directly.\n\n"
-        "| row | request parameters (`levels` from the L column) | crease angle in effect |\n"
+     << (o.direct
+             ? "**Diagnostic run (`--direct`)**: every row starts from the double-precision "
+               "mesh; our rows call `stlrefine::refine` with the RefineParams the parameters "
+               "below parse to (no STL rounding, no post-pass of the request pipeline).\n\n"
+             : "Every row starts from the shape written as a binary STL (float positions, as a "
+               "bureau's file) and read back through the request path's ingest. Our rows run "
+               "as a request runs them: the parameters below through "
+               "`api::parse_refine_params` (the CLI's limits) and `api::run_refine`, and what is "
+               "measured is the STL it answers, read back (so any post-pass of the pipeline is "
+               "included; output positions are floats). OpenMesh rows refine the ingested mesh "
+               "directly.\n\n")
+     << "| row | request parameters (`levels` from the L column) | crease angle in effect |\n"
         "|---|---|--:|\n";
   for (const Column& c : columns) {
     if (c.kind != Variant::Kind::Ours) continue;

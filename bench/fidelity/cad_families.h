@@ -33,6 +33,10 @@ struct CadOptions {
   //! `schemes` with these parameters (labels "scheme [NAME]") and together they replace the
   //! plain rows; with `scheme=X` it is one more row, labelled NAME. Applied after `params`.
   std::vector<std::string> variants;
+  //! Diagnostic: our rows call stlrefine::refine on the double-precision mesh with the
+  //! RefineParams their parameters parse to, and every row starts from that mesh (no STL
+  //! rounding, no pipeline post-pass), to tell the pipeline's effects from the scheme's.
+  bool direct = false;
   int jobs = 1;                  //!< seeds run in parallel (each refinement single-threaded)
   std::size_t samples = 60'000;  //!< distance samples per mesh
   //! When set: <family>.md and <family>.svg (error vs faces) per family and all.md (the

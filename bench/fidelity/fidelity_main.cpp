@@ -234,6 +234,9 @@ int main(int argc, char** argv) {
                  "CAD-like families: NAME:name=value,... a parameter set (repeatable). Without "
                  "scheme=, every scheme runs once per variant (rows 'scheme [NAME]', replacing "
                  "the plain rows); with scheme=X, one more row NAME");
+  app.add_flag("--direct", cad.direct,
+               "CAD-like families, diagnostic: our rows call refine() on the double-precision "
+               "mesh (no STL rounding, no pipeline post-pass)");
   app.add_option("--out", cad.out_dir,
                  "CAD-like families: also write <family>.md, <family>.svg (error vs faces) and "
                  "all.md into this directory");
