@@ -227,6 +227,19 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.25, 4.0));
   app.add_option("--jobs", cad.jobs, "CAD-like families: seeds run in parallel")
       ->check(CLI::Range(1, 64));
+  app.add_option("--param", cad.params,
+                 "CAD-like families: name=value request parameter for every run of ours "
+                 "(repeatable; e.g. primitives=auto, crease_angle=60)");
+  app.add_option("--variant", cad.variants,
+                 "CAD-like families: NAME:name=value,... a parameter set (repeatable). Without "
+                 "scheme=, every scheme runs once per variant (rows 'scheme [NAME]', replacing "
+                 "the plain rows); with scheme=X, one more row NAME");
+  app.add_flag("--direct", cad.direct,
+               "CAD-like families, diagnostic: our rows call refine() on the double-precision "
+               "mesh (no STL rounding, no pipeline post-pass)");
+  app.add_option("--out", cad.out_dir,
+                 "CAD-like families: also write <family>.md, <family>.svg (error vs faces) and "
+                 "all.md into this directory");
   CLI11_PARSE(app, argc, argv);
 
   if (cad_mode) {
@@ -235,7 +248,9 @@ int main(int argc, char** argv) {
     if (app.count("--levels")) cad.levels = o.levels;
     if (app.count("--samples")) cad.samples = o.samples;
     cad.openmesh = o.openmesh;
-    cad.crease_angle_deg = o.run.crease_angle_deg;
+    // Only when given: otherwise our rows run at the request default, as a user's would.
+    if (app.count("--crease-angle")) cad.crease_angle_deg = o.run.crease_angle_deg;
+    for (int i = 0; i < argc; ++i) cad.command += (i ? " " : "") + std::string(argv[i]);
     return fid::run_cad_families(cad);
   }
 
@@ -336,9 +351,9 @@ int main(int argc, char** argv) {
         continue;
       const std::string label = r.variant.label();
       const std::string colour = colours.count(label) ? colours.at(label) : "#7f7f7f";
-      fid::Series kc{label, colour, {}, label.starts_with("OpenMesh")};
+      fid::Series kc{label, colour, {}, label.starts_with("OpenMesh"), "", false};
       for (const auto& s : r.section->curvature) kc.points.emplace_back(s.polar_deg, s.value);
-      fid::Series tc{label, colour, {}, label.starts_with("OpenMesh")};
+      fid::Series tc{label, colour, {}, label.starts_with("OpenMesh"), "", false};
       for (const auto& s : r.section->tangent_smoothed)
         tc.points.emplace_back(s.polar_deg, s.value);
       curvature.series.push_back(std::move(kc));
