@@ -21,7 +21,8 @@ struct CadMetrics {
   //! included).
   double rms = 0, max = 0;
   //! Per face: the angle between its normal and the true normal at its centroid's closest
-  //! point (at a crease: the angle to the arc of normals there).
+  //! point (at a crease, or within 1e-6 of the bbox diagonal of one, as float32 STL rounding
+  //! leaves a face: the angle to the arc of normals there).
   std::size_t folded = 0;   //!< more than 90 degrees
   std::size_t over_60 = 0;  //!< more than 60 degrees (folded ones included)
   double worst_normal_deg = 0;
