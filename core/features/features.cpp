@@ -13,6 +13,12 @@ namespace stlrefine {
 
 void FeatureParams::validate() const {
   require_in_range("crease_angle", crease_angle_deg, 0.0, 180.0);
+  if (crease_mode != CreaseMode::Auto && crease_mode != CreaseMode::Angle)
+    throw Error(ErrorCode::InvalidParameter, "crease_angle", "unknown crease mode");
+}
+
+const char* to_string(CreaseMode mode) {
+  return mode == CreaseMode::Angle ? "angle" : "auto";
 }
 
 const char* to_string(VertexKind kind) {
@@ -100,8 +106,9 @@ double dihedral_angle_deg(const Mesh& mesh, EdgeId e) {
   return std::atan2(norm(cross(n1, n2)), dot(n1, n2)) * 180.0 / std::numbers::pi;
 }
 
-Features detect_features(const Mesh& mesh, const FeatureParams& params) {
-  params.validate();
+namespace {
+
+Features detect_by_angle(const Mesh& mesh, const FeatureParams& params) {
   BigVector<std::uint8_t> sharp(mesh.num_edges());
   // angle > theta  <=>  n1.n2 < cos(theta) |n1| |n2|: no normalisation, no atan2.
   const double cos_limit = std::cos(params.crease_angle_deg * std::numbers::pi / 180.0);
@@ -124,6 +131,113 @@ Features detect_features(const Mesh& mesh, const FeatureParams& params) {
     sharp[e] = scale > 0 && dot(n1, n2) < cos_limit * scale;
   });
   return Features(mesh, std::move(sharp));
+}
+
+// Auto mode (see detect_features in the header).
+Features detect_auto(const Mesh& mesh) {
+  const std::size_t nf = mesh.num_faces(), ne = mesh.num_edges();
+  constexpr double kDeg = std::numbers::pi / 180.0;
+  // Per face: the unit normal.
+  BigVector<Vec3> normal(nf);
+  parallel_for_each_index(nf, [&](std::size_t f) {
+    normal[f] = normalized(mesh.face_normal(FaceId(static_cast<std::uint32_t>(f))));
+  });
+  // Per edge: the dihedral (radians; 0 at boundaries and next to zero-area faces).
+  BigVector<double> angle(ne);
+  BigVector<std::uint8_t> sharp(ne);
+  parallel_for_each_index(ne, [&](std::size_t e) {
+    const HalfedgeId h = mesh.halfedge(EdgeId(static_cast<std::uint32_t>(e)));
+    const HalfedgeId t = mesh.twin(h);
+    angle[e] = 0;
+    sharp[e] = 0;
+    if (!t.valid()) return;
+    const Vec3& n1 = normal[Mesh::face(h).idx];
+    const Vec3& n2 = normal[Mesh::face(t).idx];
+    if (n1 == Vec3{} || n2 == Vec3{}) return;
+    angle[e] = std::atan2(norm(cross(n1, n2)), dot(n1, n2));
+  });
+  // Why an edge is sharp: its dihedral alone, a planar face on one side, standing out.
+  constexpr std::uint8_t kAlways = 1, kPlanarSide = 2, kStandsOut = 3;
+  const double always = kAutoCreaseAlwaysDeg * kDeg;
+  const double flat = kAutoCreaseFlatDeg * kDeg;
+  // The face of half-edge h, seen from its edge: the largest dihedral of its two other edges
+  // (leaving out the always-sharp ones), and whether it lies in a plane with a neighbour
+  // and bends nowhere else (a face of a planar region).
+  struct Side {
+    double bend = 0;
+    bool planar = false;
+  };
+  auto side = [&](HalfedgeId h) {
+    Side s;
+    bool coplanar_neighbour = false;
+    for (const HalfedgeId g : {Mesh::next(h), Mesh::prev(h)}) {
+      const EdgeId eg = mesh.edge(g);
+      if (!mesh.twin(g).valid() || angle[eg.idx] >= always) continue;
+      s.bend = std::max(s.bend, angle[eg.idx]);
+      coplanar_neighbour |= angle[eg.idx] < flat;
+    }
+    s.planar = coplanar_neighbour && s.bend < flat;
+    return s;
+  };
+  parallel_for_each_index(ne, [&](std::size_t e) {
+    const HalfedgeId h = mesh.halfedge(EdgeId(static_cast<std::uint32_t>(e)));
+    const HalfedgeId t = mesh.twin(h);
+    if (!t.valid()) return;
+    const double a = angle[e];
+    const Side s1 = side(h), s2 = side(t);
+    const double excess = kAutoCreaseExcessDeg * kDeg;
+    if (a >= always) {
+      sharp[e] = kAlways;
+    } else if (s1.planar != s2.planar) {
+      // A plane meeting a curved region: tangent-continuous, the dihedral is about half the
+      // curved side's own; more than that by `excess` is a crease.
+      sharp[e] = a >= 0.5 * std::max(s1.bend, s2.bend) + excess ? kPlanarSide : 0;
+    } else {
+      const double around = std::max(s1.bend, s2.bend);
+      sharp[e] = a >= around + kAutoCreaseStandOutDeg * kDeg && a >= kAutoCreaseRatio * around
+                     ? kStandsOut
+                     : 0;
+    }
+  });
+  // A crease is a chain: an edge found by standing out alone needs, at both of its ends, a
+  // sharp edge that continues it (turns by less than kAutoCreaseTurnDeg).
+  const double cos_turn = std::cos(kAutoCreaseTurnDeg * kDeg);
+  auto continued_at = [&](VertexId v, VertexId other, EdgeId self) {
+    const Vec3 d = normalized(mesh.position(v) - mesh.position(other));
+    bool found = false;
+    auto look = [&](HalfedgeId g, VertexId far) {
+      const EdgeId eg = mesh.edge(g);
+      if (found || eg == self || !sharp[eg.idx]) return;
+      found = dot(d, normalized(mesh.position(far) - mesh.position(v))) >= cos_turn;
+    };
+    HalfedgeId last;
+    for_each_outgoing(mesh, v, [&](HalfedgeId g) {
+      look(g, mesh.to(g));
+      last = g;
+    });
+    if (last.valid() && mesh.is_boundary(v)) look(Mesh::prev(last), mesh.from(Mesh::prev(last)));
+    return found;
+  };
+  BigVector<std::uint8_t> keep(ne);
+  parallel_for_each_index(ne, [&](std::size_t e) {
+    keep[e] = sharp[e];
+    if (sharp[e] != kStandsOut) return;
+    const EdgeId self(static_cast<std::uint32_t>(e));
+    const HalfedgeId h = mesh.halfedge(self);
+    keep[e] = continued_at(mesh.from(h), mesh.to(h), self) &&
+              continued_at(mesh.to(h), mesh.from(h), self);
+  });
+  // Flags are 0 or 1 from here on (Features counts them by adding).
+  parallel_for_each_index(ne, [&](std::size_t e) { sharp[e] = keep[e] != 0; });
+  return Features(mesh, std::move(sharp));
+}
+
+}  // namespace
+
+Features detect_features(const Mesh& mesh, const FeatureParams& params) {
+  params.validate();
+  return params.crease_mode == CreaseMode::Angle ? detect_by_angle(mesh, params)
+                                                 : detect_auto(mesh);
 }
 
 }  // namespace stlrefine

@@ -11,11 +11,28 @@
 
 namespace stlrefine {
 
-//! How sharp edges are found (spec section 0).
+//! How sharp edges are found: from what the geometry says (the default), or by the angle
+//! alone (what a user who gives `crease_angle` asks for).
+enum class CreaseMode : std::uint8_t {
+  //! An edge is a crease when its dihedral angle stands out against the curvature of the
+  //! faces on both sides across it (see detect_features): a coarse smooth surface, whose
+  //! dihedrals are all alike, has none; a plane meeting a curved fillet at a few degrees is
+  //! one. crease_angle_deg is not used.
+  Auto,
+  //! An edge is a crease when its face normals differ by more than crease_angle_deg.
+  Angle,
+};
+
+const char* to_string(CreaseMode mode);
+
+//! How sharp edges are found (spec section 0). Boundaries are always sharp.
 struct FeatureParams {
-  //! An edge is a crease when its face normals differ by more than this (degrees,
-  //! [0, 180], default 35; 180 disables crease detection; boundaries are always sharp).
+  //! Angle mode: an edge is a crease when its face normals differ by more than this
+  //! (degrees, [0, 180], default 35; 180 disables crease detection).
   double crease_angle_deg = 35.0;
+  //! Auto by default; the API's `crease_angle=<degrees>` selects Angle, `crease_angle=auto`
+  //! (or leaving it out) Auto.
+  CreaseMode crease_mode = CreaseMode::Auto;
 
   //! \throw Error(InvalidParameter) naming the field.
   void validate() const;
@@ -62,8 +79,29 @@ class Features {
   std::size_t num_sharp_ = 0;
 };
 
-//! Marks boundary edges and edges whose dihedral angle exceeds the crease angle.
+//! Marks boundary edges, and creases as params.crease_mode says.
+//!
+//! Auto mode (issue 17 item 5). A coarse smooth surface has similar dihedrals on all edges
+//! around; a plane has none. An edge is a crease when
+//! - its dihedral is at least kAutoCreaseAlwaysDeg; or
+//! - exactly one of its two faces is planar (across one of its other edges a neighbour
+//!   within kAutoCreaseFlatDeg, and no other bend except always-sharp edges) and the
+//!   dihedral exceeds half the curved side's bend (the largest dihedral of that face's
+//!   other edges: a tangent-continuous plane meets chords of a fillet at half their angle)
+//!   by kAutoCreaseExcessDeg: a plane meeting a curved region at a shallow angle; or
+//! - it stands out: at least kAutoCreaseRatio times and kAutoCreaseStandOutDeg above the
+//!   largest dihedral of its faces' other edges (always-sharp ones left out), and at both
+//!   of its ends a sharp edge continues it turning by less than kAutoCreaseTurnDeg (a
+//!   crease is a chain).
 Features detect_features(const Mesh& mesh, const FeatureParams& params);
+
+//! Auto mode's thresholds (degrees, and a ratio), see detect_features.
+inline constexpr double kAutoCreaseExcessDeg = 4.0;
+inline constexpr double kAutoCreaseRatio = 3.0;
+inline constexpr double kAutoCreaseStandOutDeg = 15.0;
+inline constexpr double kAutoCreaseAlwaysDeg = 65.0;
+inline constexpr double kAutoCreaseTurnDeg = 45.0;
+inline constexpr double kAutoCreaseFlatDeg = 0.1;
 
 //! Angle in degrees between the normals of the two faces at a manifold edge (0 for a
 //! flat edge, boundary edges, and edges next to a zero-area face).
