@@ -19,37 +19,56 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// Sharp edges the automatic detection finds on each shared CAD mesh, inspected edge by edge
+// against the 35 degree angle (bench/results-issue17-creases.md): it keeps every edge the angle
+// marks, and adds
+// - fandisk: 99 feature lines of 4.7-34 degrees (chains along the part's tangent
+//   discontinuities) whose neighbouring edges all bend by less than 2.3 degrees;
+// - featuretype_open: 6 edges of 8.8-10 degrees, tray_bottom: 16 of 9-10 degrees, each where a
+//   flat wall meets the first facet of a hole's or slot's tessellated arc at the arc's full
+//   facet angle: the planar-side rule cannot tell that from a shallow crease (a tangent wall
+//   meets the first facet at half of it). Both are listed as open in the results file.
+struct SharedCase {
+  const char* name;
+  std::size_t sharp_auto;
+};
+
 TEST(AutoCreasesShared, KeepTheRealCreasesOfTheCadMeshes) {
   const fs::path dir = fs::path(STLREFINE_SHARED_MESHES_DIR) / "cad";
   if (!fs::exists(dir)) GTEST_SKIP() << dir << " absent";
-  for (const char* name : {"fandisk.stl", "featuretype_open.stl", "gearwheel.stl", "round.stl",
-                           "tray_bottom.stl", "xyz_cube_20mm.stl"}) {
-    SCOPED_TRACE(name);
-    const fs::path path = dir / name;
+  for (const SharedCase c :
+       {SharedCase{"fandisk.stl", 815}, SharedCase{"featuretype_open.stl", 2017},
+        SharedCase{"gearwheel.stl", 1306}, SharedCase{"round.stl", 140},
+        SharedCase{"tray_bottom.stl", 1916}, SharedCase{"xyz_cube_20mm.stl", 194}}) {
+    SCOPED_TRACE(c.name);
+    const fs::path path = dir / c.name;
     if (!fs::exists(path)) continue;
     const Mesh m = build_mesh(weld(read_stl_file(path))).mesh;
     FeatureParams angle;
     angle.crease_mode = CreaseMode::Angle;
     const Features by_angle = detect_features(m, angle);
     const Features automatic = detect_features(m, FeatureParams{});
-    std::size_t steep = 0, steep_kept = 0, only_angle = 0, only_auto = 0;
+    std::size_t only_angle = 0, only_auto = 0, not_standing_out = 0;
     for (std::uint32_t e = 0; e < m.num_edges(); ++e) {
       const bool a = by_angle.is_sharp(EdgeId(e)), b = automatic.is_sharp(EdgeId(e));
       only_angle += a && !b;
-      only_auto += b && !a;
-      // Every edge at 60 degrees or more is a crease of these parts, and stays one.
-      if (dihedral_angle_deg(m, EdgeId(e)) >= 60 || m.is_boundary(EdgeId(e))) {
-        ++steep;
-        steep_kept += b;
-      }
+      if (!b || a) continue;
+      ++only_auto;
+      // An added edge bends at least twice as much as every smooth edge of its two faces.
+      const double d = dihedral_angle_deg(m, EdgeId(e));
+      const HalfedgeId h = m.halfedge(EdgeId(e));
+      for (const HalfedgeId s : {h, m.twin(h)})
+        for (const HalfedgeId g : {Mesh::next(s), Mesh::prev(s)}) {
+          const double dg = dihedral_angle_deg(m, m.edge(g));
+          not_standing_out += !automatic.is_sharp(m.edge(g)) && 2 * dg > d;
+        }
     }
     std::printf("%s: %zu edges, sharp at 35 deg %zu, auto %zu (only 35: %zu, only auto: %zu)\n",
-                name, m.num_edges(), by_angle.num_sharp_edges(), automatic.num_sharp_edges(),
+                c.name, m.num_edges(), by_angle.num_sharp_edges(), automatic.num_sharp_edges(),
                 only_angle, only_auto);
-    EXPECT_EQ(steep_kept, steep);
-    // At most a tenth of what 35 degrees marks is dropped (xyz_cube_20mm: 16 of 194 bevel
-    // edges between 35 and 65 degrees; fandisk, gearwheel, round, tray_bottom: none).
-    EXPECT_LE(only_angle * 10, by_angle.num_sharp_edges());
+    EXPECT_EQ(only_angle, 0u);
+    EXPECT_EQ(not_standing_out, 0u);
+    EXPECT_EQ(automatic.num_sharp_edges(), c.sharp_auto);
   }
 }
 
