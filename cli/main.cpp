@@ -6,7 +6,8 @@
 //
 //   stlrefine info IN.stl [--crease-angle auto|DEG] [--weld-tolerance T] [--curvature OUT.csv]
 //   stlrefine refine IN.stl -o OUT.stl [--scheme butterfly] [--levels 1]
-//                    [--crease-angle auto|DEG] [--max-faces N] [--threads N] [--weld-tolerance T] [--ascii]
+//                    [--crease-angle auto|DEG] [--max-faces N] [--threads N]
+//                    [--weld-tolerance T] [--ascii]
 //                    [--adaptive-tol MM] [--adaptive-angle DEG] [--max-level L]
 //                    [--alpha A] [--alpha-features A]
 //                    [--kappa K] [--ramp-steps N]
