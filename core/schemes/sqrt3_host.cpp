@@ -482,8 +482,9 @@ Level sqrt3_refine(const Level& coarse, const Sqrt3Stencil& stencil, StepStats& 
     }
   });
 
-  stats.fold_fallbacks +=
-      guard_sqrt3_folds(m, features, layout, trisects, corner_vertex, positions);
+  if (stencil.guards_folds())
+    stats.fold_fallbacks +=
+        guard_sqrt3_folds(m, features, layout, trisects, corner_vertex, positions);
 
   Level fine;
   fine.mesh = Mesh::from_parts_with_edges(std::move(positions), std::move(corner_vertex),
