@@ -25,7 +25,6 @@
 #include "core/refine.h"
 #include "core/schemes/adaptive_split4.h"
 #include "core/schemes/scheme.h"
-#include "core/schemes/sqrt3_host.h"
 #include "tests/core/reference_cases.h"
 #include "tests/core/test_util.h"
 #include "tests/support/mesh_queries.h"
@@ -75,34 +74,8 @@ Outcome adapt(const Level& coarse, const char* scheme, const Sqrt3AdaptiveCriter
 
 // The adaptive sqrt3 host has no fold guard yet (issue 17 item 2 added it to the uniform
 // host): it is compared with the uniform host's rules alone, which it matches.
-class Unguarded final : public Sqrt3Stencil {
- public:
-  explicit Unguarded(const Sqrt3Stencil& s) : s_(s) {}
-  bool interpolating() const override { return s_.interpolating(); }
-  bool guards_folds() const override { return false; }
-  BigVector<double> initial_alpha(const Level& l) const override { return s_.initial_alpha(l); }
-  void points(const Sqrt3Step& st, Sqrt3Points out) const override { s_.points(st, out); }
-  Vec3 face_point(const Sqrt3Step& st, FaceId f) const override { return s_.face_point(st, f); }
-  Vec3 vertex_point(const Sqrt3Step& st, VertexId v) const override {
-    return s_.vertex_point(st, v);
-  }
-  std::array<Vec3, 2> curve_points(const Sqrt3Step& st, HalfedgeId h) const override {
-    return s_.curve_points(st, h);
-  }
-
- private:
-  const Sqrt3Stencil& s_;
-};
-
 Level uniform(const Level& coarse, const char* scheme, int levels) {
-  const auto s = make_scheme(scheme);
-  const auto* sqrt3 = dynamic_cast<const Sqrt3Scheme*>(s.get());
-  if (!sqrt3) return refine_levels(scheme, coarse, levels);
-  const Unguarded stencil(sqrt3->stencil());
-  Level level = coarse;
-  StepStats stats;
-  for (int i = 0; i < levels; ++i) level = sqrt3_refine(level, stencil, stats);
-  return level;
+  return refine_levels_unguarded(scheme, coarse, levels);
 }
 
 std::size_t boundary_halfedges(const Mesh& m) {
