@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <numbers>
 #include <string>
+#include <utility>
 
 #include "core/features/features.h"
 #include "core/io/stl.h"
@@ -69,6 +70,24 @@ TEST(AutoCreasesShared, KeepTheRealCreasesOfTheCadMeshes) {
     EXPECT_EQ(only_angle, 0u);
     EXPECT_EQ(not_standing_out, 0u);
     EXPECT_EQ(automatic.num_sharp_edges(), c.sharp_auto);
+  }
+}
+
+// OpenSCAD's coarse smooth parts: the flat 16-gon capping sphere_fn16 meets its band at the
+// band's full facet angle (22.9 degrees, a chord, not a plane) and the 32 x 16 torus's tube
+// edges bend 22.6 degrees against 2-6 degree ring edges (as much as the parallel edges across
+// their quads): no crease on either; the 24-gon cylinder keeps exactly its two rims.
+TEST(AutoCreasesShared, CoarseSmoothOpenScadPartsHaveNoCreases) {
+  const fs::path dir = fs::path(STLREFINE_SHARED_MESHES_DIR) / "generated";
+  if (!fs::exists(dir)) GTEST_SKIP() << dir << " absent";
+  for (const auto& [name, sharp] : {std::pair<const char*, std::size_t>{"sphere_fn16.stl", 0},
+                                    {"torus.stl", 0},
+                                    {"cylinder_fn24.stl", 48}}) {
+    SCOPED_TRACE(name);
+    const fs::path path = dir / name;
+    if (!fs::exists(path)) continue;
+    const Mesh m = build_mesh(weld(read_stl_file(path))).mesh;
+    EXPECT_EQ(detect_features(m, FeatureParams{}).num_sharp_edges(), sharp);
   }
 }
 
