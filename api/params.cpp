@@ -166,6 +166,21 @@ double parse_number(std::string_view field, std::string_view text) {
   return value;
 }
 
+namespace {
+
+// `crease_angle`: "auto" selects Auto detection (also the default when it is absent), a
+// number Angle mode with that angle (the user's override, issue 17 item 5).
+void parse_crease_angle(std::string_view text, FeatureParams& features) {
+  if (text == "auto") {
+    features.crease_mode = CreaseMode::Auto;
+    return;
+  }
+  features.crease_angle_deg = parse_number("crease_angle", text);
+  features.crease_mode = CreaseMode::Angle;
+}
+
+}  // namespace
+
 const std::vector<std::string_view>& info_param_names() {
   static const std::vector<std::string_view> kNames{"crease_angle", "weld_tolerance"};
   return kNames;
@@ -225,7 +240,7 @@ InfoRequest parse_info_params(const RawParams& params) {
   InfoRequest request;
   for (const auto& [name, value] : params) {
     if (name == "crease_angle") {
-      request.features.crease_angle_deg = parse_number(name, value);
+      parse_crease_angle(value, request.features);
     } else if (name == "weld_tolerance") {
       request.weld_tolerance = parse_weld_tolerance(value);
     }
@@ -246,7 +261,7 @@ RefineRequest parse_refine_params(const RawParams& params, const RequestLimits& 
     } else if (name == "levels") {
       p.levels = parse_int(name, value);
     } else if (name == "crease_angle") {
-      p.features.crease_angle_deg = parse_number(name, value);
+      parse_crease_angle(value, p.features);
     } else if (name == "max_faces") {
       p.max_faces = parse_unsigned(name, value, 1, std::numeric_limits<std::uint64_t>::max());
       if (p.max_faces > limits.max_faces)

@@ -38,7 +38,7 @@ struct RequestLimits {
 
 //! What `info` needs besides the STL bytes.
 struct InfoRequest {
-  FeatureParams features;     //!< `crease_angle`, degrees [0, 180], default 35
+  FeatureParams features;     //!< `crease_angle`: `auto` (default) or degrees [0, 180]
   double weld_tolerance = 0;  //!< `weld_tolerance`, model units, >= 0; 0 = exact welding
 };
 

@@ -4,9 +4,10 @@
 // stlrefine: the command-line front end. It validates parameters with the daemon's code
 // (api/params) and runs the daemon's pipeline (api/pipeline), on files.
 //
-//   stlrefine info IN.stl [--crease-angle 35] [--weld-tolerance T] [--curvature OUT.csv]
-//   stlrefine refine IN.stl -o OUT.stl [--scheme butterfly] [--levels 1] [--crease-angle 35]
-//                    [--max-faces N] [--threads N] [--weld-tolerance T] [--ascii]
+//   stlrefine info IN.stl [--crease-angle auto|DEG] [--weld-tolerance T] [--curvature OUT.csv]
+//   stlrefine refine IN.stl -o OUT.stl [--scheme butterfly] [--levels 1]
+//                    [--crease-angle auto|DEG] [--max-faces N] [--threads N]
+//                    [--weld-tolerance T] [--ascii]
 //                    [--adaptive-tol MM] [--adaptive-angle DEG] [--max-level L]
 //                    [--alpha A] [--alpha-features A]
 //                    [--kappa K] [--ramp-steps N]
@@ -415,8 +416,10 @@ int main(int argc, char** argv) {
   InfoOptions info;
   CLI::App* info_cmd = app.add_subcommand("info", "Print a JSON report on an STL file");
   info_cmd->add_option("input", info.input, "STL file (binary or ASCII)")->required();
-  info_cmd->add_option("--crease-angle", info.crease_angle,
-                       "Dihedral angle in degrees above which an edge is sharp [0, 180] (35)");
+  info_cmd->add_option(
+      "--crease-angle", info.crease_angle,
+      "Sharp edges: auto (default: found from the geometry) or a dihedral angle in degrees above "
+      "which an edge is sharp [0, 180]");
   info_cmd->add_option("--weld-tolerance", info.weld_tolerance,
                        "Merge corners closer than this (model units; 0 = exact, default)");
 
@@ -431,8 +434,10 @@ int main(int argc, char** argv) {
   refine_cmd->add_option("--scheme", refine.scheme,
                          "Subdivision scheme: " + scheme_list() + " (butterfly)");
   refine_cmd->add_option("--levels", refine.levels, "Subdivision steps [0, 8] (1)");
-  refine_cmd->add_option("--crease-angle", refine.crease_angle,
-                         "Dihedral angle in degrees above which an edge is sharp [0, 180] (35)");
+  refine_cmd->add_option(
+      "--crease-angle", refine.crease_angle,
+      "Sharp edges: auto (default: found from the geometry) or a dihedral angle in degrees above "
+      "which an edge is sharp [0, 180]");
   refine_cmd->add_option("--max-faces", refine.max_faces,
                          "Refuse before any work if the output would have more faces (20000000)");
   refine_cmd->add_option("--threads", refine.threads, "Worker threads [0, 256] (0 = every core)");

@@ -32,7 +32,9 @@ const std::map<std::string, ParamDoc>& param_docs() {
       {"scheme", {"string", "Subdivision scheme."}},
       {"levels", {"integer", "Uniform subdivision steps, 0..8."}},
       {"crease_angle",
-       {"number", "Dihedral angle in degrees above which an edge is a crease, 0..180."}},
+       {"string",
+        "auto (default): creases found from the geometry; or a dihedral angle in degrees, "
+        "0..180, above which an edge is a crease."}},
       {"max_faces",
        {"integer", "Face budget of the output; refused with 422 before any work above it."}},
       {"weld_tolerance", {"number", "Distance in mm below which STL corners are welded."}},

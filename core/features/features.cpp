@@ -13,6 +13,12 @@ namespace stlrefine {
 
 void FeatureParams::validate() const {
   require_in_range("crease_angle", crease_angle_deg, 0.0, 180.0);
+  if (crease_mode != CreaseMode::Auto && crease_mode != CreaseMode::Angle)
+    throw Error(ErrorCode::InvalidParameter, "crease_angle", "unknown crease mode");
+}
+
+const char* to_string(CreaseMode mode) {
+  return mode == CreaseMode::Angle ? "angle" : "auto";
 }
 
 const char* to_string(VertexKind kind) {
@@ -100,8 +106,9 @@ double dihedral_angle_deg(const Mesh& mesh, EdgeId e) {
   return std::atan2(norm(cross(n1, n2)), dot(n1, n2)) * 180.0 / std::numbers::pi;
 }
 
-Features detect_features(const Mesh& mesh, const FeatureParams& params) {
-  params.validate();
+namespace {
+
+Features detect_by_angle(const Mesh& mesh, const FeatureParams& params) {
   BigVector<std::uint8_t> sharp(mesh.num_edges());
   // angle > theta  <=>  n1.n2 < cos(theta) |n1| |n2|: no normalisation, no atan2.
   const double cos_limit = std::cos(params.crease_angle_deg * std::numbers::pi / 180.0);
@@ -124,6 +131,241 @@ Features detect_features(const Mesh& mesh, const FeatureParams& params) {
     sharp[e] = scale > 0 && dot(n1, n2) < cos_limit * scale;
   });
   return Features(mesh, std::move(sharp));
+}
+
+// Auto mode (see detect_features in the header).
+Features detect_auto(const Mesh& mesh) {
+  const std::size_t nf = mesh.num_faces(), ne = mesh.num_edges();
+  constexpr double kDeg = std::numbers::pi / 180.0;
+  // Per face: the unit normal.
+  BigVector<Vec3> normal(nf);
+  parallel_for_each_index(nf, [&](std::size_t f) {
+    normal[f] = normalized(mesh.face_normal(FaceId(static_cast<std::uint32_t>(f))));
+  });
+  // Per edge: the dihedral (radians; 0 at boundaries and next to zero-area faces).
+  BigVector<double> angle(ne);
+  BigVector<std::uint8_t> sharp(ne);
+  parallel_for_each_index(ne, [&](std::size_t e) {
+    const HalfedgeId h = mesh.halfedge(EdgeId(static_cast<std::uint32_t>(e)));
+    const HalfedgeId t = mesh.twin(h);
+    angle[e] = 0;
+    sharp[e] = 0;
+    if (!t.valid()) return;
+    const Vec3& n1 = normal[Mesh::face(h).idx];
+    const Vec3& n2 = normal[Mesh::face(t).idx];
+    if (n1 == Vec3{} || n2 == Vec3{}) return;
+    angle[e] = std::atan2(norm(cross(n1, n2)), dot(n1, n2));
+  });
+  // Why an edge is sharp: its dihedral alone, a planar face on one side, standing out.
+  constexpr std::uint8_t kAlways = 1, kPlanarSide = 2, kStandsOut = 3;
+  const double always = kAutoCreaseAlwaysDeg * kDeg;
+  const double flat = kAutoCreaseFlatDeg * kDeg;
+  // Planar regions: faces joined across edges flatter than kAutoCreaseFlatDeg, with their
+  // areas. A plane is told from a chord of a curved surface (the flat polygon capping a
+  // coarse sphere, which meets its band at the band's full segment angle) by its size.
+  std::vector<std::uint32_t> region(nf);
+  for (std::uint32_t f = 0; f < nf; ++f) region[f] = f;
+  auto find = [&](std::uint32_t f) {
+    while (region[f] != f) f = region[f] = region[region[f]];
+    return f;
+  };
+  for (std::uint32_t e = 0; e < ne; ++e) {
+    const HalfedgeId h = mesh.halfedge(EdgeId(e));
+    const HalfedgeId t = mesh.twin(h);
+    if (!t.valid() || angle[e] >= flat) continue;
+    if (normal[Mesh::face(h).idx] == Vec3{} || normal[Mesh::face(t).idx] == Vec3{}) continue;
+    const std::uint32_t a = find(Mesh::face(h).idx), b = find(Mesh::face(t).idx);
+    if (a != b) region[std::max(a, b)] = std::min(a, b);
+  }
+  std::vector<double> region_area(nf, 0.0);
+  for (std::uint32_t f = 0; f < nf; ++f)
+    region_area[find(f)] += 0.5 * norm(mesh.face_normal(FaceId(f)));
+  for (std::uint32_t f = 0; f < nf; ++f) region[f] = find(f);
+  // The face of half-edge h, seen from its edge: the largest dihedral of its two other edges
+  // and of the edges beyond them that do not touch h's edge (across a split quad, the edge
+  // parallel to h's: a coarse smooth surface bends there as much as at h's edge, a crease
+  // does not), leaving out the always-sharp ones; and whether it lies in a plane with a
+  // neighbour and bends nowhere else (a face of a planar region).
+  struct Side {
+    double bend = 0;
+    double own = 0;  // the largest dihedral of the face's two other edges alone
+    bool planar = false;
+  };
+  const double planes = kAutoCreasePlanesDeg * kDeg;
+  auto side = [&](HalfedgeId h) {
+    Side s;
+    bool coplanar_neighbour = false;
+    double own = 0;
+    const VertexId a = mesh.from(h), b = mesh.to(h);
+    for (const HalfedgeId g : {Mesh::next(h), Mesh::prev(h)}) {
+      const EdgeId eg = mesh.edge(g);
+      const HalfedgeId across = mesh.twin(g);
+      if (!across.valid() || angle[eg.idx] >= always) continue;
+      coplanar_neighbour |= angle[eg.idx] < flat;
+      // A fan triangle of a cap touching two rim edges is still planar.
+      if (angle[eg.idx] < planes) own = std::max(own, angle[eg.idx]);
+      for (const HalfedgeId k : {Mesh::next(across), Mesh::prev(across)}) {
+        const EdgeId ek = mesh.edge(k);
+        if (mesh.from(k) == a || mesh.from(k) == b || mesh.to(k) == a || mesh.to(k) == b) continue;
+        if (angle[ek.idx] < always) s.bend = std::max(s.bend, angle[ek.idx]);
+      }
+    }
+    s.bend = std::max(s.bend, own);
+    s.own = own;
+    s.planar = coplanar_neighbour && own < flat;
+    return s;
+  };
+  // A planar side is a plane when its region is large against the other face's height
+  // over the edge (kAutoCreasePlaneSize of them squared).
+  auto is_plane = [&](HalfedgeId planar, HalfedgeId other) {
+    const double len = norm(mesh.position(mesh.to(planar)) - mesh.position(mesh.from(planar)));
+    if (len == 0) return false;
+    const double height = norm(mesh.face_normal(Mesh::face(other))) / len;
+    const double size = kAutoCreasePlaneSize * height;
+    // Both its area and its width across the edge (area over the edge's length: a strip of
+    // a zipped cylinder side, long along the edge, is a chord too) count.
+    const double area = region_area[region[Mesh::face(planar).idx]];
+    return area >= size * size && area >= size * len;
+  };
+  parallel_for_each_index(ne, [&](std::size_t e) {
+    const HalfedgeId h = mesh.halfedge(EdgeId(static_cast<std::uint32_t>(e)));
+    const HalfedgeId t = mesh.twin(h);
+    if (!t.valid()) return;
+    const double a = angle[e];
+    const Side s1 = side(h), s2 = side(t);
+    const double excess = kAutoCreaseExcessDeg * kDeg;
+    if (a >= always) {
+      sharp[e] = kAlways;
+    } else if (s1.planar && s2.planar && a >= planes) {
+      // Two planar regions at a steep angle: the walls of an embossed letter, a chamfer. A
+      // coarse prism's facets meet at less (a 24-gon's at 15 degrees).
+      sharp[e] = kAlways;
+    } else if (s1.planar && s2.planar && is_plane(h, t) != is_plane(t, h)) {
+      // A plane meeting a planar strip (a fillet's chord between two rulings sampled
+      // alike): the strip bends at its far (parallel) edge; as below against that.
+      const Side& strip = is_plane(h, t) ? s2 : s1;
+      sharp[e] = a >= 0.5 * strip.bend + excess ? kPlanarSide : 0;
+    } else if (s1.planar != s2.planar &&
+               (a >= planes || (s1.planar ? is_plane(h, t) : is_plane(t, h)))) {
+      // A plane meeting a curved region: tangent-continuous, the dihedral is about half the
+      // curved side's own bend (its face's other edges: the chords of a fillet); more than
+      // that by `excess` is a crease.
+      sharp[e] = a >= 0.5 * std::max(s1.own, s2.own) + excess ? kPlanarSide : 0;
+    } else {
+      const double around = std::max(s1.bend, s2.bend);
+      sharp[e] = a >= around + kAutoCreaseStandOutDeg * kDeg && a >= kAutoCreaseRatio * around
+                     ? kStandsOut
+                     : 0;
+    }
+  });
+  // A crease is a chain: an edge found by standing out alone needs, at both of its ends, a
+  // sharp edge that continues it (turns by less than kAutoCreaseTurnDeg).
+  const double cos_turn = std::cos(kAutoCreaseTurnDeg * kDeg);
+  auto continued_at = [&](VertexId v, VertexId other, EdgeId self) {
+    const Vec3 d = normalized(mesh.position(v) - mesh.position(other));
+    bool found = false;
+    auto look = [&](HalfedgeId g, VertexId far) {
+      const EdgeId eg = mesh.edge(g);
+      if (found || eg == self || !sharp[eg.idx]) return;
+      found = dot(d, normalized(mesh.position(far) - mesh.position(v))) >= cos_turn;
+    };
+    HalfedgeId last;
+    for_each_outgoing(mesh, v, [&](HalfedgeId g) {
+      look(g, mesh.to(g));
+      last = g;
+    });
+    if (last.valid() && mesh.is_boundary(v)) look(Mesh::prev(last), mesh.from(Mesh::prev(last)));
+    return found;
+  };
+  BigVector<std::uint8_t> keep(ne);
+  parallel_for_each_index(ne, [&](std::size_t e) {
+    keep[e] = sharp[e];
+    if (sharp[e] != kStandsOut) return;
+    const EdgeId self(static_cast<std::uint32_t>(e));
+    const HalfedgeId h = mesh.halfedge(self);
+    keep[e] = continued_at(mesh.from(h), mesh.to(h), self) &&
+              continued_at(mesh.to(h), mesh.from(h), self);
+  });
+  // Gaps in a chain: an edge that continues sharp edges at both of its ends, bends at least
+  // kAutoCreaseGapRatio as much as they do and stands out (kAutoCreaseRatio) against its
+  // faces' other edges is part of the same crease (a fillet's tangent line whose dihedral
+  // wavers around the planar-side threshold would otherwise alternate sharp and smooth,
+  // leaving darts). Repeated while it adds edges (a few passes: each fills gaps one edge
+  // long from both sides).
+  auto continued_by = [&](VertexId v, VertexId other, EdgeId self) {
+    // The smallest dihedral of the sharp edges continuing (other, v) beyond v; 0 for none.
+    const Vec3 d = normalized(mesh.position(v) - mesh.position(other));
+    double best = 0;
+    auto look = [&](HalfedgeId g, VertexId far) {
+      const EdgeId eg = mesh.edge(g);
+      if (eg == self || !keep[eg.idx] || mesh.is_boundary(eg)) return;
+      if (dot(d, normalized(mesh.position(far) - mesh.position(v))) < cos_turn) return;
+      best = best == 0 ? angle[eg.idx] : std::min(best, angle[eg.idx]);
+    };
+    HalfedgeId last;
+    for_each_outgoing(mesh, v, [&](HalfedgeId g) {
+      look(g, mesh.to(g));
+      last = g;
+    });
+    if (last.valid() && mesh.is_boundary(v)) look(Mesh::prev(last), mesh.from(Mesh::prev(last)));
+    return best;
+  };
+  for (int pass = 0; pass < 8; ++pass) {
+    std::vector<std::uint32_t> add;
+    for (std::uint32_t e = 0; e < ne; ++e) {
+      if (keep[e] || angle[e] == 0) continue;
+      const EdgeId self(e);
+      const HalfedgeId h = mesh.halfedge(self);
+      const HalfedgeId t = mesh.twin(h);
+      if (!t.valid()) continue;
+      const double around = std::max(side(h).bend, side(t).bend);
+      if (angle[e] < kAutoCreaseRatio * around) continue;
+      const double at_from = continued_by(mesh.from(h), mesh.to(h), self);
+      const double at_to = continued_by(mesh.to(h), mesh.from(h), self);
+      if (at_from == 0 || at_to == 0) continue;
+      if (angle[e] >= kAutoCreaseGapRatio * std::min(at_from, at_to)) add.push_back(e);
+    }
+    if (add.empty()) break;
+    for (const std::uint32_t e : add) keep[e] = 1;
+  }
+  // A crease runs until it meets another feature: an edge found by any rule but its steep
+  // dihedral that meets no other sharp (or boundary) edge at either end is dropped (on a
+  // rounded box's zipped fillets a lone edge of a twisted strip can pass the planar-side
+  // rule).
+  auto lone_end = [&](VertexId v, EdgeId self) {
+    bool other = false;
+    HalfedgeId last;
+    auto look = [&](HalfedgeId g) {
+      const EdgeId eg = mesh.edge(g);
+      other |= eg != self && (keep[eg.idx] || mesh.is_boundary(eg));
+    };
+    for_each_outgoing(mesh, v, [&](HalfedgeId g) {
+      look(g);
+      last = g;
+    });
+    if (last.valid() && mesh.is_boundary(v)) look(Mesh::prev(last));
+    return !other;
+  };
+  {
+    std::vector<std::uint32_t> lone;
+    for (std::uint32_t e = 0; e < ne; ++e) {
+      if (!keep[e] || sharp[e] == kAlways) continue;
+      const HalfedgeId h = mesh.halfedge(EdgeId(e));
+      if (lone_end(mesh.from(h), EdgeId(e)) && lone_end(mesh.to(h), EdgeId(e))) lone.push_back(e);
+    }
+    for (const std::uint32_t e : lone) keep[e] = 0;
+  }
+  // Flags are 0 or 1 from here on (Features counts them by adding).
+  parallel_for_each_index(ne, [&](std::size_t e) { sharp[e] = keep[e] != 0; });
+  return Features(mesh, std::move(sharp));
+}
+
+}  // namespace
+
+Features detect_features(const Mesh& mesh, const FeatureParams& params) {
+  params.validate();
+  return params.crease_mode == CreaseMode::Angle ? detect_by_angle(mesh, params)
+                                                 : detect_auto(mesh);
 }
 
 }  // namespace stlrefine

@@ -11,11 +11,28 @@
 
 namespace stlrefine {
 
-//! How sharp edges are found (spec section 0).
+//! How sharp edges are found: from what the geometry says (the default), or by the angle
+//! alone (what a user who gives `crease_angle` asks for).
+enum class CreaseMode : std::uint8_t {
+  //! An edge is a crease when its dihedral angle stands out against the curvature of the
+  //! faces on both sides across it (see detect_features): a coarse smooth surface, whose
+  //! dihedrals are all alike, has none; a plane meeting a curved fillet at a few degrees is
+  //! one. crease_angle_deg is not used.
+  Auto,
+  //! An edge is a crease when its face normals differ by more than crease_angle_deg.
+  Angle,
+};
+
+const char* to_string(CreaseMode mode);
+
+//! How sharp edges are found (spec section 0). Boundaries are always sharp.
 struct FeatureParams {
-  //! An edge is a crease when its face normals differ by more than this (degrees,
-  //! [0, 180], default 35; 180 disables crease detection; boundaries are always sharp).
+  //! Angle mode: an edge is a crease when its face normals differ by more than this
+  //! (degrees, [0, 180], default 35; 180 disables crease detection).
   double crease_angle_deg = 35.0;
+  //! Auto by default; the API's `crease_angle=<degrees>` selects Angle, `crease_angle=auto`
+  //! (or leaving it out) Auto.
+  CreaseMode crease_mode = CreaseMode::Auto;
 
   //! \throw Error(InvalidParameter) naming the field.
   void validate() const;
@@ -62,8 +79,45 @@ class Features {
   std::size_t num_sharp_ = 0;
 };
 
-//! Marks boundary edges and edges whose dihedral angle exceeds the crease angle.
+//! Marks boundary edges, and creases as params.crease_mode says.
+//!
+//! Auto mode (issue 17 item 5). A coarse smooth surface has similar dihedrals on all edges
+//! around; a plane has none. A face's "bend" seen from an edge is the largest dihedral of
+//! its two other edges and of the edges beyond those that do not touch the edge (across a
+//! split quad: the parallel edge), always-sharp edges left out. An edge is a crease when
+//! - its dihedral is at least kAutoCreaseAlwaysDeg; or
+//! - both of its faces are planar (as below) and it is at least kAutoCreasePlanesDeg; or
+//! - exactly one of its two faces is planar (across one of its other edges a neighbour
+//!   within kAutoCreaseFlatDeg, and no other bend there below kAutoCreasePlanesDeg), that
+//!   face's planar region is a plane (below kAutoCreasePlanesDeg: its area at least the
+//!   square of, and its width across the edge (area / edge length) at least,
+//!   kAutoCreasePlaneSize times the other face's height over the edge; the flat polygon
+//!   capping a coarse sphere and a strip of a zipped cylinder side are chords, not planes)
+//!   and the dihedral exceeds half the largest dihedral of the curved face's other two
+//!   edges (a tangent-continuous plane meets chords of a fillet at half their angle) by
+//!   kAutoCreaseExcessDeg: a plane meeting a curved region at a shallow angle; or
+//! - both faces are planar, only one of them a plane, and the dihedral exceeds half the
+//!   other's bend by kAutoCreaseExcessDeg (a plane meeting a planar strip of a fillet); or
+//! - it stands out: at least kAutoCreaseRatio times and kAutoCreaseStandOutDeg above the
+//!   bend of both faces, and at both of its ends a sharp edge continues it turning by less
+//!   than kAutoCreaseTurnDeg (a crease is a chain).
+//! Then gaps in chains are filled: an edge continued (as above) by sharp edges at both
+//! ends, bending at least kAutoCreaseGapRatio times as much as they do and kAutoCreaseRatio
+//! times its faces' bend, is sharp too. Last, an edge found by a rule other than the steep
+//! ones that meets no other sharp or boundary edge at either end is dropped (a crease runs
+//! until it meets another feature).
 Features detect_features(const Mesh& mesh, const FeatureParams& params);
+
+//! Auto mode's thresholds (degrees, and a ratio), see detect_features.
+inline constexpr double kAutoCreaseExcessDeg = 4.0;
+inline constexpr double kAutoCreaseRatio = 3.0;
+inline constexpr double kAutoCreaseStandOutDeg = 15.0;
+inline constexpr double kAutoCreaseAlwaysDeg = 65.0;
+inline constexpr double kAutoCreaseTurnDeg = 45.0;
+inline constexpr double kAutoCreaseFlatDeg = 0.1;
+inline constexpr double kAutoCreasePlanesDeg = 35.0;
+inline constexpr double kAutoCreaseGapRatio = 0.5;
+inline constexpr double kAutoCreasePlaneSize = 2.0;
 
 //! Angle in degrees between the normals of the two faces at a manifold edge (0 for a
 //! flat edge, boundary edges, and edges next to a zero-area face).

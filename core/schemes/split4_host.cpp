@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
+#include <numbers>
 
 #include "core/parallel.h"
 #include "core/refine.h"
@@ -141,11 +143,64 @@ std::uint64_t guard_folds_work_bytes(const Mesh& m) {
          2 * sizeof(std::uint32_t) * std::uint64_t(m.num_faces());
 }
 
+std::uint64_t guard_folds_normal_bytes(const Mesh& m) {
+  return sizeof(Vec3) * 3 * std::uint64_t(m.num_faces());
+}
+
+BigVector<Vec3> sector_normals(const Mesh& m, const Features& features) {
+  BigVector<Vec3> corner(3 * std::size_t(m.num_faces()));
+  parallel_for_each_index(m.num_vertices(), [&](std::size_t i) {
+    const VertexId v(static_cast<std::uint32_t>(i));
+    HalfedgeId start = m.halfedge(v);
+    if (!start.valid()) return;
+    if (!m.is_boundary(v)) {
+      // Start the walk at a sharp edge, so that sectors do not wrap around.
+      HalfedgeId h = start;
+      do {
+        if (features.is_sharp(m.edge(h))) {
+          start = h;
+          break;
+        }
+        h = m.ccw_rotated(h);
+      } while (h != start);
+    }
+    HalfedgeId sector_begin = start, h = start;
+    Vec3 sum{};
+    while (true) {
+      // Face of h, corner at v: its unit normal weighted by its angle at v.
+      const Vec3 p = m.position(v);
+      const Vec3 a = m.position(m.to(h)) - p;
+      const Vec3 b = m.position(m.from(Mesh::prev(h))) - p;
+      const Vec3 n = normalized(cross(a, b));
+      sum += std::atan2(norm(cross(a, b)), dot(a, b)) * n;
+      const HalfedgeId next = m.ccw_rotated(h);
+      const bool end = !next.valid() || next == start;
+      if (end || features.is_sharp(m.edge(next))) {
+        const Vec3 unit = normalized(sum);
+        for (HalfedgeId g = sector_begin;; g = m.ccw_rotated(g)) {
+          corner[g.idx] = unit;
+          if (g == h) break;
+        }
+        sector_begin = next;
+        sum = Vec3{};
+      }
+      if (end) break;
+      h = next;
+    }
+  });
+  return corner;
+}
+
 // Fold guard. An interpolating stencil can push an edge point so far that a child turns
-// over (the butterfly does on long thin CAD triangles). Where a child's normal is more
-// than 90 degrees from its parent's, the offending edge points are pulled towards their
-// chord midpoints in steps (1/2, 1/4, then the midpoint itself). With all three edge points
-// at their midpoints the children are parallel to the parent, so the loop ends.
+// over (the butterfly does on long thin CAD triangles) or turns far from the surface the
+// coarse mesh stands for. That surface's normals are estimated per corner of a coarse face:
+// the angle-weighted mean of the face normals around the corner's vertex within its crease
+// sector (sector_normals); an edge point's is the mean of its edge's two corner normals.
+// A child folds when its normal is more than kFoldAngleDeg from the mean of its three
+// vertices' normals, or more than 90 degrees from its parent's. Folding children's edge
+// points are pulled towards their chord midpoints in steps (1/2, 1/4, then the midpoint
+// itself). With all three edge points at their midpoints the children are parallel to the
+// parent, so the loop ends.
 // Sharp (crease and boundary) edge points lie on their curve and are moved only when the
 // face's smooth edges are already at their midpoints: pulling a crease point off its curve
 // would make a dent in the crease that later levels amplify.
@@ -154,11 +209,22 @@ std::size_t guard_folds(const Mesh& m, const Features& features, BigVector<Vec3>
   const std::uint32_t nv = static_cast<std::uint32_t>(m.num_vertices());
   const std::uint32_t nf = static_cast<std::uint32_t>(m.num_faces());
   constexpr std::array<double, 4> kScale = {1.0, 0.5, 0.25, 0.0};
+  const double cos_fold = std::cos(kFoldAngleDeg * std::numbers::pi / 180.0);
   std::vector<std::uint8_t> stage(m.num_edges(), 0);
   std::vector<Vec3> original;  // filled lazily: most meshes never fold
+  const BigVector<Vec3> corner = sector_normals(m, features);
 
   auto edge_point = [&](std::uint32_t f, std::uint32_t k) -> const Vec3& {
     return pos[nv + m.edge(HalfedgeId(3 * f + k)).idx];
+  };
+  // Whether the child (a, b, c) turns too far: from its parent's normal n, or from the mean
+  // of its vertices' smooth normals.
+  auto child_folds = [&](const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& n,
+                         const Vec3& smooth) {
+    const Vec3 t = triangle_normal(a, b, c);
+    if (dot(t, n) < 0) return true;
+    const double len = norm(t) * norm(smooth);
+    return len > 0 && dot(t, smooth) < cos_fold * len;
   };
   auto folds = [&](std::uint32_t f) {
     const Vec3 n = m.face_normal(FaceId(f));
@@ -166,8 +232,10 @@ std::size_t guard_folds(const Mesh& m, const Features& features, BigVector<Vec3>
     const Vec3 m0 = edge_point(f, 0), m1 = edge_point(f, 1), m2 = edge_point(f, 2);
     const auto [v0, v1, v2] = m.face_vertices(FaceId(f));
     const Vec3 &p0 = pos[v0.idx], &p1 = pos[v1.idx], &p2 = pos[v2.idx];
-    return dot(triangle_normal(p0, m0, m2), n) < 0 || dot(triangle_normal(p1, m1, m0), n) < 0 ||
-           dot(triangle_normal(p2, m2, m1), n) < 0 || dot(triangle_normal(m0, m1, m2), n) < 0;
+    const Vec3 &c0 = corner[3 * f], &c1 = corner[3 * f + 1], &c2 = corner[3 * f + 2];
+    const Vec3 n0 = normalized(c0 + c1), n1 = normalized(c1 + c2), n2 = normalized(c2 + c0);
+    return child_folds(p0, m0, m2, n, c0 + n0 + n2) || child_folds(p1, m1, m0, n, c1 + n1 + n0) ||
+           child_folds(p2, m2, m1, n, c2 + n2 + n1) || child_folds(m0, m1, m2, n, n0 + n1 + n2);
   };
 
   std::vector<std::uint8_t> folding(nf, 0);
@@ -279,7 +347,8 @@ std::uint64_t split4_step_bytes(const Level& coarse, const Split4Stencil& stenci
       big_vector_bytes<std::array<VertexId, 2>>(fine_vertices) + stencil.scratch_bytes(coarse);
   // irregular_vertices(): a valence per vertex and the list of the irregular ones.
   if (stencil.uses_irregular()) bytes += (sizeof(int) + 8) * std::uint64_t(nv);
-  if (stencil.guards_folds()) bytes += ne + nf + guard_folds_work_bytes(m);
+  if (stencil.guards_folds())
+    bytes += ne + nf + guard_folds_normal_bytes(m) + guard_folds_work_bytes(m);
   return bytes;
 }
 

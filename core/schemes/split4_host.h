@@ -48,21 +48,37 @@ IrregularVertices irregular_vertices(const Level& level);
 //! spectral analysis, which must see the stencil's linear rules alone).
 enum class FoldGuard { AsStencil, Off };
 
+//! The fold guard's limit (degrees): no child face turns further than this from the smooth
+//! normals of the surface the coarse mesh stands for (issue 17 item 2).
+inline constexpr double kFoldAngleDeg = 60.0;
+
 //! 1-to-4 split (Loop / butterfly / LSF topology). New vertex ids: old vertices keep
 //! theirs, then one per coarse edge (V + e). Face 4f+k is the corner triangle at corner
 //! k of coarse face f, 4f+3 the middle one. Halves of sharp edges stay sharp.
 //! For interpolating stencils the fold guard runs: an edge point whose child faces would
-//! turn more than 90 degrees from their parent is moved back towards its chord midpoint.
+//! turn more than kFoldAngleDeg from the smooth normals (see guard_folds) or more than 90
+//! degrees from their parent is moved back towards its chord midpoint.
 Level split4(const Level& coarse, const Split4Stencil& stencil, StepStats& stats,
              FoldGuard guard = FoldGuard::AsStencil);
 
+//! Per corner of a face (indexed by the half-edge leaving the corner's vertex): the unit
+//! angle-weighted mean of the face normals around that vertex within the corner's crease
+//! sector (bounded by sharp edges), the smooth surface's normal there as the coarse mesh
+//! tells it. Zero on a sector of zero-area faces.
+BigVector<Vec3> sector_normals(const Mesh& coarse, const Features& features);
+
 //! The fold guard on its own: `positions` holds the coarse vertices then one edge point
 //! per coarse edge (V + e). Pulls edge points whose 1-to-4 children would turn more than
-//! 90 degrees from their parent towards the chord midpoint, smooth edges before sharp
-//! ones; returns how many moved. It allocates a byte per edge and per face; only when some
-//! child folds, guard_folds_work_bytes more, and calls `reserve` with that first.
+//! kFoldAngleDeg from the smooth normals (the sector normals at the child's old vertices,
+//! their edge means at its new ones) or more than 90 degrees from their parent towards the
+//! chord midpoint, smooth edges before sharp ones; returns how many moved. It allocates a
+//! byte per edge and per face and guard_folds_normal_bytes; only when some child folds,
+//! guard_folds_work_bytes more, and calls `reserve` with that first.
 std::size_t guard_folds(const Mesh& coarse, const Features& features, BigVector<Vec3>& positions,
                         const std::function<void(std::uint64_t)>& reserve = {});
+
+//! The fold guard's smooth normals (three per face), always allocated.
+std::uint64_t guard_folds_normal_bytes(const Mesh& coarse);
 
 //! The fold guard's work arrays when some child folds: the original edge points and two
 //! face lists.

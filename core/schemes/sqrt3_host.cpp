@@ -2,13 +2,18 @@
 // Copyright (c) 2026 stlrefine authors
 #include "core/schemes/sqrt3_host.h"
 
+#include <algorithm>
 #include <array>
 #include <atomic>
+#include <cmath>
+#include <numbers>
+#include <vector>
 
 #include "core/error.h"
 #include "core/parallel.h"
 #include "core/refine.h"
 #include "core/schemes/crease_rules.h"
+#include "core/schemes/split4_host.h"
 
 namespace stlrefine {
 
@@ -187,6 +192,142 @@ std::uint32_t rank_boundary_edges(const Mesh& m, const Features& features,
   return count;
 }
 
+// Fold guard of the sqrt3 host (issue 17 item 2), the counterpart of split4's guard_folds.
+// The smooth surface's normals come from the coarse level's sector normals (split4_host.h):
+// at an old vertex the one of its corner in the coarse face the fine face belongs to, at a
+// face point the mean of its face's three corner normals, at a trisection point the mean of
+// its edge's two corners weighted by nearness. A fine face folds when its normal is more than
+// kFoldAngleDeg from the mean of its corners' smooth normals. Its face points are then pulled
+// towards the centroid of their face's (new) corner points in steps (1/2, 1/4, then the
+// centroid itself: the linear 1-to-3 split). Old vertices and trisection points (on their
+// crease curve) never move, so an interpolating stencil stays interpolating and creases
+// exact. Returns how many face points moved.
+std::size_t guard_sqrt3_folds(const Mesh& m, const Features& features, const Sqrt3Layout& layout,
+                              bool trisects, std::span<const VertexId> corner_vertex,
+                              BigVector<Vec3>& pos) {
+  const std::uint32_t nv = static_cast<std::uint32_t>(m.num_vertices());
+  const std::uint32_t nf = static_cast<std::uint32_t>(m.num_faces());
+  const std::uint32_t nh = 3 * nf;
+  // Stages: the stencil's point, 1/2 and 1/4 of the way from the centroid, the centroid,
+  // then towards the face's largest-angle corner (see target()).
+  constexpr std::array<double, 6> kScale = {1.0, 0.5, 0.25, 0.0, 0.0, 0.0};
+  const double cos_fold = std::cos(kFoldAngleDeg * std::numbers::pi / 180.0);
+  const BigVector<Vec3> corner = sector_normals(m, features);
+  auto face_normal_of = [&](std::uint32_t f) {
+    return normalized(corner[3 * f] + corner[3 * f + 1] + corner[3 * f + 2]);
+  };
+  // The smooth normal at apex(h) (see Sqrt3Layout::apex).
+  auto apex_normal = [&](HalfedgeId h) {
+    const HalfedgeId s = layout.sharp_of(h.idx / 3);
+    if (!s.valid()) return face_normal_of(h.idx / 3);
+    const Vec3 &na = corner[s.idx], &nb = corner[Mesh::next(s).idx];
+    return h == Mesh::next(s) ? normalized(na + 2.0 * nb) : normalized(2.0 * na + nb);
+  };
+  // The mean smooth normal of fine face h (unnormalised sum of its corners').
+  auto smooth_normal = [&](HalfedgeId h) -> Vec3 {
+    const HalfedgeId t = m.twin(h);
+    if (!trisects) {
+      if (t.valid() && !layout.sharp(h))
+        return corner[h.idx] + face_normal_of(t.idx / 3) + face_normal_of(h.idx / 3);
+      return corner[h.idx] + corner[Mesh::next(h).idx] + face_normal_of(h.idx / 3);
+    }
+    const HalfedgeId s = layout.sharp_of(h.idx / 3);
+    if (h == s) {
+      const Vec3 &na = corner[s.idx], &nb = corner[Mesh::next(s).idx];
+      return normalized(2.0 * na + nb) + normalized(na + 2.0 * nb) + corner[Mesh::prev(s).idx];
+    }
+    return corner[h.idx] + apex_normal(t) + apex_normal(h);
+  };
+  auto folds = [&](std::uint32_t h) {
+    const Vec3 n = triangle_normal(pos[corner_vertex[3 * h].idx], pos[corner_vertex[3 * h + 1].idx],
+                                   pos[corner_vertex[3 * h + 2].idx]);
+    const Vec3 smooth = smooth_normal(HalfedgeId(h));
+    const double len = norm(n) * norm(smooth);
+    return len > 0 && dot(n, smooth) < cos_fold * len;
+  };
+  std::vector<std::uint8_t> folding(nh, 0);
+  parallel_for_each_index(
+      nh, [&](std::size_t h) { folding[h] = folds(static_cast<std::uint32_t>(h)); });
+  if (std::find(folding.begin(), folding.end(), 1) == folding.end()) return 0;
+  std::vector<std::uint8_t> stage(nf, 0);
+  std::vector<Vec3> original(nf);
+  std::vector<std::uint32_t> todo, touched;
+  for (std::uint32_t h = 0; h < nh; ++h)
+    if (folding[h]) todo.push_back(h);
+  std::fill(folding.begin(), folding.end(), 0);  // from now on: "in touched"
+  // The face points of fine face h: those of the coarse faces whose apexes it uses.
+  auto face_points_of = [&](std::uint32_t h, std::array<std::uint32_t, 2>& out) {
+    int n = 0;
+    for (int j = 0; j < 3; ++j) {
+      const std::uint32_t v = corner_vertex[3 * h + j].idx;
+      if (v < nv || v >= nv + nf) continue;
+      const std::uint32_t f = v - nv;
+      if (layout.sharp_of(f).valid()) continue;  // a trisection point in f's slot
+      out[n++] = f;
+    }
+    return n;
+  };
+  auto touch = [&](std::uint32_t h) {
+    if (folding[h]) return;
+    folding[h] = 1;
+    touched.push_back(h);
+  };
+  std::size_t moved = 0;
+  while (!todo.empty()) {
+    touched.clear();
+    for (const std::uint32_t h : todo) {
+      std::array<std::uint32_t, 2> fps{};
+      const int n = face_points_of(h, fps);
+      for (int i = 0; i < n; ++i) {
+        const std::uint32_t f = fps[i];
+        if (stage[f] + 1u >= kScale.size()) continue;
+        const VertexId q = layout.face_point(f);
+        if (stage[f] == 0) {
+          original[f] = pos[q.idx];
+          ++moved;
+        }
+        ++stage[f];
+        const auto [a, b, c] = m.face_vertices(FaceId(f));
+        const Vec3 centroid = (pos[a.idx] + pos[b.idx] + pos[c.idx]) * (1.0 / 3.0);
+        pos[q.idx] = centroid + kScale[stage[f]] * (original[f] - centroid);
+        if (stage[f] >= 4) {
+          // Even the linear split folds where the flipped edge's quad (a, q_g, b, q_f) is not
+          // convex: beside an obtuse face the centroids' segment misses the edge. Points
+          // nearer the obtuse corner keep their projections inside the face's edges.
+          const std::array<Vec3, 3> p = {pos[a.idx], pos[b.idx], pos[c.idx]};
+          int obtuse = 0;
+          double best = -2;
+          for (int k = 0; k < 3; ++k) {
+            const Vec3 u = normalized(p[(k + 1) % 3] - p[k]), v = normalized(p[(k + 2) % 3] - p[k]);
+            const double cosine = -dot(u, v);  // larger for a larger angle
+            if (cosine > best) best = cosine, obtuse = k;
+          }
+          const double t = stage[f] == 4 ? 1.0 / 3.0 : 2.0 / 3.0;
+          pos[q.idx] = centroid + t * (p[obtuse] - centroid);
+        }
+        // Fine faces using q: those of f's half-edges and of their twins.
+        for (std::uint32_t k = 0; k < 3; ++k) {
+          const HalfedgeId g(3 * f + k);
+          touch(g.idx);
+          if (m.twin(g).valid()) touch(m.twin(g).idx);
+        }
+      }
+    }
+    std::sort(touched.begin(), touched.end());
+    for (const std::uint32_t h : touched) folding[h] = 0;
+    todo.clear();
+    for (const std::uint32_t h : touched) {
+      if (!folds(h)) continue;
+      std::array<std::uint32_t, 2> fps{};
+      const int n = face_points_of(h, fps);
+      bool movable = false;
+      for (int i = 0; i < n; ++i) movable |= stage[fps[i]] + 1u < kScale.size();
+      if (movable) todo.push_back(h);
+    }
+  }
+  return moved;
+}
+
 }  // namespace
 
 std::uint64_t sqrt3_step_bytes(const Level& coarse) {
@@ -205,12 +346,16 @@ std::uint64_t sqrt3_step_bytes(const Level& coarse) {
       big_vector_bytes<std::array<VertexId, 2>>(fine_vertices) +
       // alpha, fine and initial, when the stencil blends per vertex
       big_vector_bytes<double>(fine_vertices) + big_vector_bytes<double>(nv) +
-      32 * std::uint64_t(nv);  // stencil scratch
+      32 * std::uint64_t(nv) +  // stencil scratch
+      // fold guard: sector normals, a flag per fine face, a stage and an original point
+      // per coarse face, two lists of fine faces
+      big_vector_bytes<Vec3>(3 * nf) + 3 * nf + nf + sizeof(Vec3) * nf +
+      2 * sizeof(std::uint32_t) * 3 * std::uint64_t(nf);
   if (trisects) bytes += big_vector_bytes<std::uint8_t>(nf) + big_vector_bytes<std::uint32_t>(ne);
   return bytes;
 }
 
-Level sqrt3_refine(const Level& coarse, const Sqrt3Stencil& stencil, StepStats& /*stats*/) {
+Level sqrt3_refine(const Level& coarse, const Sqrt3Stencil& stencil, StepStats& stats) {
   const Mesh& m = coarse.mesh;
   const Features& features = coarse.features;
   const std::uint32_t nv = static_cast<std::uint32_t>(m.num_vertices());
@@ -336,6 +481,10 @@ Level sqrt3_refine(const Level& coarse, const Sqrt3Stencil& stencil, StepStats& 
       w = out.valid() ? layout.near_from(out) : layout.near_to(halfedge_to(m, w, v));
     }
   });
+
+  if (stencil.guards_folds())
+    stats.fold_fallbacks +=
+        guard_sqrt3_folds(m, features, layout, trisects, corner_vertex, positions);
 
   Level fine;
   fine.mesh = Mesh::from_parts_with_edges(std::move(positions), std::move(corner_vertex),

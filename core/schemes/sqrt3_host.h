@@ -48,6 +48,9 @@ class Sqrt3Stencil {
   virtual ~Sqrt3Stencil() = default;
   //! True when old vertices never move (their points are exact copies).
   virtual bool interpolating() const = 0;
+  //! Whether the host runs its fold guard after this stencil (all built-in stencils; a
+  //! test stencil that must see its linear rules alone says no).
+  virtual bool guards_folds() const { return true; }
   //! Per-vertex alpha of an input level (one without Level::alpha) for stencils that blend
   //! per vertex; empty for the others. The host carries it to new vertices (LL eq. 7).
   virtual BigVector<double> initial_alpha(const Level&) const { return {}; }
@@ -75,6 +78,10 @@ class Sqrt3Stencil {
 //!   second trisection point of a boundary edge gets V + F + (rank among boundary edges).
 //! - faces: fine face h belongs to coarse half-edge h: the flipped triangle
 //!   (from(h), apex across, apex of h), or for a sharp h the triangle it keeps.
+//! Fold guard (issue 17 item 2, when stencil.guards_folds()): no fine face more than
+//! kFoldAngleDeg from the coarse level's sector normals (split4_host.h) where moving face
+//! points can prevent it; old vertices and trisection points never move. Counted in
+//! stats.fold_fallbacks (face points moved).
 //! \throw Error(Internal) when a trisecting step meets a face with two sharp edges (a
 //! level not made by this host with the step parity it claims).
 Level sqrt3_refine(const Level& coarse, const Sqrt3Stencil& stencil, StepStats& stats);

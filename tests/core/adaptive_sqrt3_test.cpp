@@ -72,8 +72,10 @@ Outcome adapt(const Level& coarse, const char* scheme, const Sqrt3AdaptiveCriter
   return out;
 }
 
+// The adaptive sqrt3 host has no fold guard yet (issue 17 item 2 added it to the uniform
+// host): it is compared with the uniform host's rules alone, which it matches.
 Level uniform(const Level& coarse, const char* scheme, int levels) {
-  return refine_levels(scheme, coarse, levels);
+  return refine_levels_unguarded(scheme, coarse, levels);
 }
 
 std::size_t boundary_halfedges(const Mesh& m) {
@@ -589,6 +591,10 @@ TEST(AdaptiveSplit4Angle, ButterflyRefinesByTheDihedralAngle) {
   p.scheme = "butterfly";
   p.adaptive_angle = 10;
   p.max_level = 3;
+  // The 35 degree angle this test was written for: it creases the coarse torus's 45 degree
+  // edges, which the criterion then leaves alone. Auto (the default since issue 17) finds no
+  // crease on a torus, and every face of this one is still over 10 degrees at level 2.
+  p.features.crease_mode = CreaseMode::Angle;
   const Mesh torus = to_mesh(torus_soup(12, 8, 20.0, 6.0));
   const RefineResult r = refine(torus, p);
   EXPECT_EQ(r.mesh.check_invariants(), "");
@@ -596,7 +602,7 @@ TEST(AdaptiveSplit4Angle, ButterflyRefinesByTheDihedralAngle) {
   EXPECT_GT(r.mesh.num_faces(), torus.num_faces());
   EXPECT_LT(r.mesh.num_faces(), 64 * torus.num_faces());
   // The report counts exactly the edges still over the angle at the cap.
-  const Level final_level{r.mesh, detect_features(r.mesh, {})};
+  const Level final_level{r.mesh, detect_features(r.mesh, p.features)};
   EXPECT_EQ(
       r.report.edges_over_tolerance,
       count_edges_over_tolerance(final_level, *adaptive_scheme(*make_scheme("butterfly")), 0, 10));

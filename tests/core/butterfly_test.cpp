@@ -517,8 +517,11 @@ TEST(ButterflyScheme, AffineInvariance) {
                 -0.4 * p.x + 1.5 * p.y + 0.2 * p.z - 200.5,
                 0.1 * p.x - 0.7 * p.y + 3 * p.z + 51.125};
   };
-  for (const auto& soup : {icosphere_soup(1), torus_soup(8, 6, 3, 1), bumpy_grid_soup(6, 0.2),
-                           fan_soup(7, 0.4), bipyramid_soup(5), octahedron_soup()}) {
+  // The rules are affine invariant; the fold guard, which measures angles (60 degrees from
+  // the smooth normals), is not: the shapes are ones it leaves alone before and after the map
+  // (bumpy_grid_soup(6, 0.2), made three times steeper by it, is not).
+  for (const auto& soup : {icosphere_soup(1), torus_soup(8, 6, 3, 1), fan_soup(7, 0.4),
+                           bipyramid_soup(5), octahedron_soup()}) {
     IndexedSoup moved = soup;
     for (Vec3& p : moved.positions) p = A(p);
     std::size_t folds_a = 0, folds_b = 0;
@@ -564,7 +567,9 @@ TEST(ButterflyScheme, FoldGuardOnLongThinCylinder) {
           if (raw_cos < 0) {
             ++raw_folds;
             EXPECT_GT(stats.fold_fallbacks, 0u) << where << ": the raw rule folds";
-          } else {
+          } else if (angle < 180) {
+            // With creases off the rims are smoothed, and rim children turn more than 60
+            // degrees from the smooth normals there: the guard acts without a raw fold.
             EXPECT_EQ(stats.fold_fallbacks, 0u) << where << ": nothing to fix";
           }
           level = fine;

@@ -21,6 +21,7 @@ namespace {
 Features features_of(const Mesh& m, double angle) {
   FeatureParams p;
   p.crease_angle_deg = angle;
+  p.crease_mode = CreaseMode::Angle;
   return detect_features(m, p);
 }
 

@@ -25,6 +25,7 @@ RefineParams params(const std::string& scheme, int levels, double crease = 35.0)
   p.scheme = scheme;
   p.levels = levels;
   p.features.crease_angle_deg = crease;
+  p.features.crease_mode = CreaseMode::Angle;  // a given angle is the user's override
   return p;
 }
 

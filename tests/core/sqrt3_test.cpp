@@ -470,7 +470,9 @@ TEST(Sqrt3Family, FacetsFoldedOntoEachOtherRefineToFinitePointsInTheirPlane) {
 TEST(LabsikGreiner, ExtraordinaryRuleOnFans) {
   // Fan of valence n: the centre is the only extraordinary corner of each triangle
   // (c, r_i, r_i+1), so its point is 2/3 c + sum_j alpha_j r_(i+j). Lifting one vertex
-  // to z = 1 reads its weight off every face point.
+  // to z = 1 reads its weight off every face point. The rules alone: the fold guard acts on
+  // the valence-3 fan (even lifted by only 1/1024, a child there turns more than 60 degrees
+  // from the fan's plane).
   for (int n : {3, 4, 5, 7, 8, 12}) {
     const IndexedSoup soup = fan_soup(n);
     const Level flat = make_level(to_mesh(soup), 180);
@@ -478,7 +480,7 @@ TEST(LabsikGreiner, ExtraordinaryRuleOnFans) {
     for (int lifted = 0; lifted <= n; ++lifted) {
       Level coarse = flat;
       coarse.mesh.mutable_positions()[find_vertex(m, soup.positions[lifted]).idx].z = 1.0;
-      const Level fine = refine_level("sqrt3-interp", coarse);
+      const Level fine = refine_levels_unguarded("sqrt3-interp", coarse, 1);
       for (std::uint32_t f = 0; f < m.num_faces(); ++f) {
         // Face (centre, r_i, r_i+1) in some rotation: find r_i, the corner after the centre.
         const auto corners = m.face_vertices(FaceId(f));

@@ -12,6 +12,7 @@
 #include <string_view>
 
 #include "core/schemes/scheme.h"
+#include "core/schemes/sqrt3_host.h"
 #include "tests/support/mesh_queries.h"
 
 namespace stlrefine::test {
@@ -51,6 +52,39 @@ inline Level refine_levels(std::string_view scheme, Level level, int levels,
   StepStats stats;
   for (int i = 0; i < levels; ++i) level = s->refine_once(level, stats);
   if (fold_fallbacks) *fold_fallbacks = stats.fold_fallbacks;
+  return level;
+}
+
+//! A sqrt3 stencil's rules without the host's fold guard: for tests that read the linear
+//! rules alone (weights off a lifted vertex) or compare with the adaptive sqrt3 host, which
+//! has no fold guard yet.
+class UnguardedSqrt3 final : public Sqrt3Stencil {
+ public:
+  explicit UnguardedSqrt3(const Sqrt3Stencil& s) : s_(s) {}
+  bool interpolating() const override { return s_.interpolating(); }
+  bool guards_folds() const override { return false; }
+  BigVector<double> initial_alpha(const Level& l) const override { return s_.initial_alpha(l); }
+  void points(const Sqrt3Step& st, Sqrt3Points out) const override { s_.points(st, out); }
+  Vec3 face_point(const Sqrt3Step& st, FaceId f) const override { return s_.face_point(st, f); }
+  Vec3 vertex_point(const Sqrt3Step& st, VertexId v) const override {
+    return s_.vertex_point(st, v);
+  }
+  std::array<Vec3, 2> curve_points(const Sqrt3Step& st, HalfedgeId h) const override {
+    return s_.curve_points(st, h);
+  }
+
+ private:
+  const Sqrt3Stencil& s_;
+};
+
+//! `levels` steps of the named scheme without a fold guard (refine_levels for others).
+inline Level refine_levels_unguarded(std::string_view scheme, Level level, int levels) {
+  const auto s = make_scheme(scheme);
+  const auto* sqrt3 = dynamic_cast<const Sqrt3Scheme*>(s.get());
+  if (!sqrt3) return refine_levels(scheme, std::move(level), levels);
+  const UnguardedSqrt3 stencil(sqrt3->stencil());
+  StepStats stats;
+  for (int i = 0; i < levels; ++i) level = sqrt3_refine(level, stencil, stats);
   return level;
 }
 

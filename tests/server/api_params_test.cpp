@@ -30,7 +30,7 @@ TEST(ApiParams, RefineDefaults) {
   const RefineRequest r = refine_with({});
   EXPECT_EQ(r.refine.scheme, "butterfly");
   EXPECT_EQ(r.refine.levels, 1);
-  EXPECT_DOUBLE_EQ(r.refine.features.crease_angle_deg, 35.0);
+  EXPECT_EQ(r.refine.features.crease_mode, CreaseMode::Auto);
   EXPECT_EQ(r.refine.max_faces, RequestLimits{}.max_faces);
   EXPECT_EQ(r.weld_tolerance, 0.0);
 }
@@ -48,9 +48,27 @@ TEST(ApiParams, RefineParsesEveryField) {
   EXPECT_EQ(r.refine.scheme, "loop");
   EXPECT_EQ(r.refine.levels, 3);
   EXPECT_DOUBLE_EQ(r.refine.features.crease_angle_deg, 42.5);
+  EXPECT_EQ(r.refine.features.crease_mode, CreaseMode::Angle);
   EXPECT_EQ(r.refine.max_faces, 1000u);
   EXPECT_EQ(r.refine.threads, 2);
   EXPECT_DOUBLE_EQ(r.weld_tolerance, 1e-6);
+}
+
+// crease_angle: "auto" or absent selects Auto detection, a number Angle mode (issue 17 item 5).
+TEST(ApiParams, CreaseAngleAutoOrDegrees) {
+  EXPECT_EQ(refine_with({{"crease_angle", "auto"}}).refine.features.crease_mode, CreaseMode::Auto);
+  const RefineRequest angle = refine_with({{"crease_angle", "0"}});
+  EXPECT_EQ(angle.refine.features.crease_mode, CreaseMode::Angle);
+  EXPECT_EQ(angle.refine.features.crease_angle_deg, 0.0);
+  EXPECT_EQ(parse_info_params({}).features.crease_mode, CreaseMode::Auto);
+  EXPECT_EQ(parse_info_params({{"crease_angle", "auto"}}).features.crease_mode, CreaseMode::Auto);
+  EXPECT_EQ(parse_info_params({{"crease_angle", "60"}}).features.crease_mode, CreaseMode::Angle);
+  for (const char* bad : {"Auto", "AUTO", "auto ", "automatic"})
+    EXPECT_EQ(error_of([&] {
+                refine_with({{"crease_angle", bad}});
+              }).field(),
+              "crease_angle")
+        << bad;
 }
 
 TEST(ApiParams, NumbersMustBeWholeAndFinite) {

@@ -143,6 +143,7 @@ TEST(ApiPipeline, InfoReport) {
   EXPECT_EQ(j.at("features").at("corners"), 6);
   InfoRequest flat;
   flat.features.crease_angle_deg = 80;
+  flat.features.crease_mode = CreaseMode::Angle;  // what the parser makes of crease_angle=80
   const auto k = run_info(bytes_of(test::binary_stl(test::octahedron_triangles())), flat);
   EXPECT_EQ(k.at("features").at("sharp_edges"), 0);
   EXPECT_EQ(k.at("features").at("crease_angle_deg"), 80.0);

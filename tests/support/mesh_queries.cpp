@@ -49,6 +49,7 @@ Level make_level(Mesh mesh, double crease_angle_deg) {
   level.mesh = std::move(mesh);
   FeatureParams params;
   params.crease_angle_deg = crease_angle_deg;
+  params.crease_mode = CreaseMode::Angle;
   level.features = detect_features(level.mesh, params);
   return level;
 }

@@ -38,7 +38,7 @@ inline VertexId edge_vertex(const Mesh& coarse, EdgeId e) {
   return VertexId(static_cast<std::uint32_t>(coarse.num_vertices() + e.idx));
 }
 
-//! A Level whose features come from detect_features(mesh, crease_angle_deg).
+//! A Level whose features come from detect_features(mesh, crease_angle_deg) in angle mode.
 Level make_level(Mesh mesh, double crease_angle_deg = 35.0);
 //! A Level whose sharp edges are exactly `sharp` (plus the boundary, which is forced).
 Level make_level_with_sharp(Mesh mesh, const std::vector<std::pair<VertexId, VertexId>>& sharp);

