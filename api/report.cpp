@@ -114,7 +114,8 @@ Json info_report(const Ingested& in, const MeshStats& s, const Features& feature
   mesh["volume"] = s.volume;
 
   Json feat;
-  feat["crease_angle_deg"] = request.features.crease_angle_deg;
+  feat["crease_mode"] = to_string(request.features.crease_mode);
+  feat["crease_angle_deg"] = request.features.crease_angle_deg;  // used in angle mode only
   feat["sharp_edges"] = features.num_sharp_edges();
   feat["corners"] = features.count(VertexKind::Corner);
   feat["creases"] = features.count(VertexKind::Crease);
@@ -137,7 +138,8 @@ Json refine_report(const Ingested& in, const RefineReport& r, const RefineReques
   Json j;
   j["scheme"] = r.scheme;
   j["levels"] = r.levels;
-  j["crease_angle_deg"] = request.refine.features.crease_angle_deg;
+  j["crease_mode"] = to_string(request.refine.features.crease_mode);
+  j["crease_angle_deg"] = request.refine.features.crease_angle_deg;  // used in angle mode only
   j["input"] = std::move(input);
   j["output"] = {{"format", to_string(request.output_format)},
                  {"vertices", r.output_vertices},

@@ -501,7 +501,10 @@ void print_header(std::ostream& md, const CadOptions& o, const std::vector<Colum
     if (c.kind != Variant::Kind::Ours) continue;
     const api::RefineRequest r = check_refine_params(merge_params(c.params, {{"levels", "1"}}));
     md << "| " << c.label << " | `" << join_params(c.params) << "` | "
-       << fixed(r.refine.features.crease_angle_deg, 1) << "° |\n";
+       << (r.refine.features.crease_mode == CreaseMode::Auto
+               ? std::string("auto")
+               : fixed(r.refine.features.crease_angle_deg, 1) + "°")
+       << " |\n";
   }
 }
 

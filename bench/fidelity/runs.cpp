@@ -60,6 +60,7 @@ RunOutput run_variant(const Variant& variant, const Mesh& input, const RunSettin
     params.scheme = variant.scheme;
     params.levels = variant.level;
     params.features.crease_angle_deg = settings.crease_angle_deg;
+    params.features.crease_mode = CreaseMode::Angle;  // --crease-angle is the user's angle
     params.threads = settings.threads;
     if (variant.kind == Variant::Kind::OursAdaptive) {
       params.adaptive_tol = variant.adaptive_tol;  // curvature-adaptive, red-green closed
