@@ -661,6 +661,10 @@ QuadricFit vertex_fit(const Mesh& m, const Features& f, VertexId v) {
   return first;
 }
 
+// The least ratio of the chord beyond an endpoint to the edge's own chord for which the
+// 1-D rule fits its quadratic (spec 5 gap 3); below it the endpoint's estimate is linear.
+constexpr double kCurveSpacingRatio = 0.2;
+
 Vec3 lsf_curve_point(const Mesh& m, const Features& f, HalfedgeId h) {
   const VertexId a = m.from(h), b = m.to(h);
   // Quadratic through (prev, x, next) at chord parameters (-d0, 0, d1), evaluated at d1/2.
@@ -671,7 +675,10 @@ Vec3 lsf_curve_point(const Mesh& m, const Features& f, HalfedgeId h) {
     if (!before.valid()) return 0.5 * (px + pn);  // polyline end: linear
     const Vec3& pb = m.position(before);
     const double d0 = distance(pb, px), d1 = distance(px, pn);
-    if (d0 <= 0 || d1 <= 0) return 0.5 * (px + pn);
+    // A neighbour beyond much nearer than the edge is long (an arc's last short chord before
+    // a long straight one, issue 17's plate outline): its bend, extrapolated over the long
+    // edge, would bow a straight edge by a large fraction of its length. Linear, as at an end.
+    if (d0 <= 0 || d1 <= 0 || d0 < kCurveSpacingRatio * d1) return 0.5 * (px + pn);
     const double w_before = -d1 * d1 / (4.0 * d0 * (d0 + d1));
     const double w_x = (d0 + 0.5 * d1) / (2.0 * d0);
     const double w_next = (d0 + 0.5 * d1) / (2.0 * (d0 + d1));
@@ -681,6 +688,30 @@ Vec3 lsf_curve_point(const Mesh& m, const Features& f, HalfedgeId h) {
 }
 
 namespace {
+
+// The guard's sector normal (issue 17, see sector_normal below), summed face by face: on even
+// rings weighted by the sine of each face's angle at the vertex, on fans and zippers by the
+// faces' areas, blended by the ratio of the longest to the shortest spoke (kEvenSpokes to
+// kUnevenSpokes). e1, e2: the face's two spokes, counter-clockwise.
+constexpr double kEvenSpokes = 3.0, kUnevenSpokes = 12.0;
+struct NormalSum {
+  Vec3 angle_sum, area_sum;
+  double shortest = std::numeric_limits<double>::infinity(), longest = 0;
+
+  void add(const Vec3& e1, const Vec3& e2) {
+    const Vec3 n = cross(e1, e2);
+    const double l1 = dot(e1, e1), l2 = dot(e2, e2);
+    area_sum += n;
+    if (l1 * l2 > 0) angle_sum += (1.0 / std::sqrt(l1 * l2)) * n;
+    shortest = std::min(shortest, std::min(l1, l2));
+    longest = std::max(longest, std::max(l1, l2));
+  }
+  Vec3 normal() const {
+    const double ratio = longest > 0 && shortest > 0 ? std::sqrt(longest / shortest) : 1.0;
+    const double w = std::clamp((ratio - kEvenSpokes) / (kUnevenSpokes - kEvenSpokes), 0.0, 1.0);
+    return normalized((1.0 - w) * normalized(angle_sum) + w * normalized(area_sum));
+  }
+};
 
 // Smooth and dart vertices whose closed ring has kMinBatchValence..kMaxBatchValence points
 // are fitted four at a time, one vertex per lane of lsf_math::V4d. Every lane runs the
@@ -1109,7 +1140,8 @@ struct Batches {
 // is fitted too) with a closed ring of kMinBatchValence..kMaxBatchValence points, and fits
 // the batch when it is full; false, with nothing changed, for every other vertex. A dart's
 // sharp spoke gets an estimate too: harmless, the sharp edge's point is the curve rule's.
-bool batch_smooth_vertex(const Mesh& m, VertexId v, const EstimateSlots& slots, Batches& batches) {
+bool batch_smooth_vertex(const Mesh& m, VertexId v, const EstimateSlots& slots, Batches& batches,
+                         Vec3* normal) {
   const HalfedgeId start = m.halfedge(v);
   if (!start.valid()) return false;
   // The spokes first (a chain of dependent loads), then their far ends' positions (loads
@@ -1136,6 +1168,16 @@ bool batch_smooth_vertex(const Mesh& m, VertexId v, const EstimateSlots& slots, 
     b.x[i][l] = d.x, b.y[i][l] = d.y, b.z[i][l] = d.z;
     b.dest[i][l] = slots.at(m.edge(spoke[i]), spoke[i].idx < twin.idx);
     twin = prev_spoke[i];
+  }
+  if (normal) {
+    // The guard's normal of a smooth vertex from the offsets just loaded, in sector_normal's
+    // order (from m.halfedge(v), counter-clockwise): the same sums, bit for bit.
+    NormalSum sum;
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::size_t j = i + 1 == n ? 0 : i + 1;
+      sum.add(Vec3(b.x[i][l], b.y[i][l], b.z[i][l]), Vec3(b.x[j][l], b.y[j][l], b.z[j][l]));
+    }
+    *normal = sum.normal();
   }
   if (b.lanes == kLanes) batches.fit(b, n, true);
   return true;
@@ -1205,7 +1247,309 @@ bool batch_crease_vertex(const Mesh& m, const Features& f, VertexId v, const Est
   return true;
 }
 
+// --- The edge-point guard (issue 17) --------------------------------------------------------
+//
+// The two endpoint fits are only as good as their samples: on CAD tessellations (fans,
+// zipped strips, regions whose every vertex is a crease vertex, flat faces beside fillets) a
+// one-sided or mixed sample extrapolates, by up to the edge's length. Each estimate is
+// checked against what the surface's normals allow, and the edge point is built from the
+// estimates that pass, in this order of preference:
+//  1. the mean of the endpoint estimates that agree with the normals (both, or the better
+//     conditioned one);
+//  2. else the cubic Hermite midpoint of the edge from those normals (the chord midpoint when
+//     the normals say the edge is straight: a planar region stays planar);
+// and finally pulled back towards the chord while one of its child faces would turn more than
+// 60 degrees from the normals.
+
+// Faces whose normals are closer than this (sine of the angle) are coplanar: far below any
+// dihedral of a curved surface's tessellation, above the rounding of float STL coordinates.
+constexpr double kCoplanarSine = 1e-3;
+
+// Planar patches are told by a tighter test (the faces of a flat region split into big
+// triangles; float STL rounding stays below it).
+constexpr double kPatchSine = 1e-6;
+
+bool coplanar(const Vec3& t0, const Vec3& t1, double sine = kCoplanarSine) {
+  const Vec3 c = cross(t0, t1);
+  return dot(c, c) <= (sine * sine) * (dot(t0, t0) * dot(t1, t1)) && dot(t0, t1) > 0;
+}
+
+// Whether the face of h (normal t, unnormalised) is coplanar with the face across one of its
+// two other edges.
+bool in_planar_patch(const Mesh& m, HalfedgeId h, const Vec3& t) {
+  for (const HalfedgeId side : {Mesh::next(h), Mesh::prev(h)}) {
+    const HalfedgeId across = m.twin(side);
+    if (!across.valid()) continue;
+    const Vec3 n = triangle_normal(m.position(m.from(across)), m.position(m.to(across)),
+                                   m.position(m.opposite(across)));
+    if (coplanar(t, n, kPatchSine)) return true;
+  }
+  return false;
+}
+
+// How close (degrees, as a cosine) both ends' normals must be to a planar patch's normal for
+// its edges to be taken as straight.
+constexpr double kPlanarNormalDeg = 2.0;
+
+// How much wider across an edge a planar patch's face must be than the face on the other side
+// for the edge to count as the patch's straight border.
+constexpr double kPatchWidthRatio = 2.0;
+
+// How far an endpoint estimate may be from the Hermite midpoint of the normals, as a fraction
+// of the Hermite midpoint's own offset from the chord (plus 1e-3 of the chord).
+constexpr double kHermiteSlack = 1.0;
+
+// The child-fold pass: how many halving rounds before the edges of a face still folding go to
+// their chords, and the cosine of the screening angle (45 degrees) against the parent face.
+constexpr int kFoldRounds = 6;
+constexpr double kScreenCosine = 0.7071067811865476;
+
+// The normal of from(h)'s faces within the crease-bounded sector that holds half-edge h: on
+// even rings weighted by the faces' angles at the vertex, on fans and zippers by their areas.
+// Unit, or zero when the sector has no direction.
+Vec3 sector_normal(const Mesh& m, const Features& f, HalfedgeId h) {
+  // A smooth or dart vertex has one sector, its whole ring: walked from its own half-edge, so
+  // the sum is the same, bit for bit, whichever spoke asks (and equals the per-vertex cache).
+  if (f.kind(m.from(h)) <= VertexKind::Dart) h = m.halfedge(m.from(h));
+  const Vec3 p = m.position(m.from(h));
+  NormalSum sum;
+  auto add = [&](HalfedgeId s) {
+    sum.add(m.position(m.to(s)) - p, m.position(m.to(Mesh::next(s))) - p);
+  };
+  constexpr int kMaxWalk = 4096;  // a valence no mesh has; only guards a broken one
+  // A smooth vertex has no sharp spoke and no boundary: its ring is walked without looking
+  // at the features.
+  const bool smooth = f.kind(m.from(h)) == VertexKind::Smooth;
+  HalfedgeId s = h;
+  int steps = 0;
+  do {  // counter-clockwise up to a sharp spoke (or all the way round)
+    add(s);
+    s = smooth ? m.ccw_rotated(s) : ccw_within_patch(m, f, s);
+  } while (s.valid() && s != h && ++steps < kMaxWalk);
+  if (!s.valid() && !smooth) {  // then clockwise from h, the faces on its other side
+    s = cw_within_patch(m, f, h);
+    steps = 0;
+    while (s.valid() && s != h && ++steps < kMaxWalk) {
+      add(s);
+      s = cw_within_patch(m, f, s);
+    }
+  }
+  // Angle weights suit even rings (a hull's); on a fan or zipper (spokes of very different
+  // lengths) the few short spokes' faces may belong to another surface piece (a fillet's end
+  // touching a rounded corner): there the area-weighted normal, dominated by the long faces,
+  // is the better guess.
+  return sum.normal();
+}
+
+// The midpoint of the cubic Hermite curve from a to b whose tangents are the chord projected
+// onto the tangent planes of n_a and n_b, scaled to the chord's length, relative to the
+// chord midpoint: (T_a - T_b) / 8. Zero when a normal has no direction or lies along the
+// chord (nothing to say).
+Vec3 hermite_offset(const Vec3& chord, const Vec3& na, const Vec3& nb) {
+  const double length = norm(chord);
+  if (!(length > 0)) return {};
+  const Vec3 ta = chord - dot(chord, na) * na, tb = chord - dot(chord, nb) * nb;
+  const double la = norm(ta), lb = norm(tb);
+  if (!(la > 0.1 * length) || !(lb > 0.1 * length)) return {};
+  return (length / 8.0) * ((1.0 / la) * ta - (1.0 / lb) * tb);
+}
+
+// Whether triangle (p, q, r) turns more than 60 degrees from the unit normal n (a degenerate
+// one does not count).
+bool turns_over_60(const Vec3& p, const Vec3& q, const Vec3& r, const Vec3& n) {
+  const Vec3 t = triangle_normal(p, q, r);
+  const double d = dot(t, n);
+  return d < 0 ? dot(t, t) > 0 : d * d < 0.25 * dot(t, t);  // cos < 1/2, without a root
+}
+
+// Pulls the edge point of edge a -> b towards the chord midpoint while a 1-to-4 child of one
+// of its faces would turn more than 60 degrees from that face's normal (the other edges' points
+// taken at their midpoints); at the midpoint when halving eight times is not enough. Face k
+// is (a, b, opposite[k]) when normals[k] is its outward normal and (b, a, opposite[k]) when
+// -normals[k] is (the test below is the same with both signs flipped).
+Vec3 pull_back_folds(const Vec3& a, const Vec3& b, const std::array<Vec3, 2>& opposite,
+                     const std::array<Vec3, 2>& normals, int sides, const Vec3& point) {
+  const Vec3 mid = 0.5 * (a + b);
+  auto folds = [&](const Vec3& q) {
+    for (int k = 0; k < sides; ++k) {
+      const Vec3 c = opposite[k], n = normals[k];
+      const Vec3 ac = 0.5 * (a + c), bc = 0.5 * (b + c);
+      if (turns_over_60(a, q, ac, n) || turns_over_60(q, b, bc, n) || turns_over_60(q, bc, ac, n))
+        return true;
+    }
+    return false;
+  };
+  Vec3 q = point;
+  for (int i = 0; i < 8 && folds(q); ++i) q = mid + 0.5 * (q - mid);
+  return folds(q) ? mid : q;
+}
+
 }  // namespace
+
+namespace {
+
+template <class NormalOf>
+Vec3 guarded_edge_point(const Mesh& m, NormalOf&& normal_of, EdgeId e, const Vec3& lower_estimate,
+                        const Vec3& upper_estimate) {
+  const HalfedgeId h0 = m.halfedge(e), h1 = m.twin(h0);
+  const Vec3 average = 0.5 * (lower_estimate + upper_estimate);
+  if (!h1.valid()) return average;
+  // ha runs a -> b; its estimate is a's fit.
+  const HalfedgeId ha = h0.idx < h1.idx ? h0 : h1, hb = m.twin(ha);
+  const Vec3 a = m.position(m.from(ha)), b = m.position(m.to(ha));
+  const Vec3 mid = 0.5 * (a + b), chord = b - a;
+  // Planar regions stay planar. Both faces in one plane, or a face of a planar patch
+  // (coplanar with a neighbour across one of its other edges) at least twice as wide across
+  // the edge as the face on the other side (a flat face ending at a fillet, tangent or at a
+  // shallow crease: issue 17's rounded box and plate), and both ends' normals within
+  // kPlanarNormalDeg of the plane: the surface there is that plane as far as the mesh can
+  // tell, the edge straight. (A regular cylinder's or sphere's split quads are planar too,
+  // but their vertex normals lean away from them by half a segment's angle: they keep their
+  // fits.)
+  const Vec3 c0 = m.position(m.opposite(ha)), c1 = m.position(m.opposite(hb));
+  const Vec3 t0 = triangle_normal(a, b, c0), t1 = triangle_normal(b, a, c1);
+  const Vec3 na = normal_of(ha), nb = normal_of(hb);
+  const double w0 = norm(t0), w1 = norm(t1);  // the widths across the edge, times its length
+  // The normals may lean from the plane by kPlanarNormalDeg, or by a third of the dihedral
+  // at the edge when it is larger (a fillet's first sliver bends by far more than the flat
+  // face's corner normals lean; a regular mesh's vertex normals lean by half of it).
+  auto on_plane = [&](const Vec3& t) {  // (only asked for the few planar candidates)
+    const double dihedral =
+        w0 > 0 && w1 > 0 ? std::acos(std::clamp(dot(t0, t1) / (w0 * w1), -1.0, 1.0)) : 0.0;
+    const double lean = std::cos(std::max(kPlanarNormalDeg * std::numbers::pi / 180, dihedral / 3));
+    const double l = norm(t);
+    return dot(na, t) >= lean * l && dot(nb, t) >= lean * l;
+  };
+  if ((coplanar(t0, t1) || (w0 >= kPatchWidthRatio * w1 && in_planar_patch(m, ha, t0))) &&
+      on_plane(t0))
+    return mid;
+  if (w1 >= kPatchWidthRatio * w0 && in_planar_patch(m, hb, t1) && on_plane(t1)) return mid;
+  const double length = norm(chord);
+  const Vec3 hermite = hermite_offset(chord, na, nb);
+  const Vec3 da = lower_estimate - mid, db = upper_estimate - mid;
+  const double tolerance = kHermiteSlack * norm(hermite) + 1e-3 * length;
+  const bool a_ok = norm(da - hermite) <= tolerance, b_ok = norm(db - hermite) <= tolerance;
+  Vec3 point = a_ok && b_ok ? average
+               : a_ok       ? lower_estimate
+               : b_ok       ? upper_estimate
+                            : mid + hermite;
+  // The fold guard against the normals: the children of both faces at the edge. A point
+  // within a tenth of the narrower face's height of the chord turns no child by more than
+  // about 11 degrees from its parent: not checked (most points of a fine level).
+  const Vec3 offset = point - mid;
+  const double height = std::min(w0, w1) / length;
+  if (dot(offset, offset) < (0.01 * height) * height) return point;
+  const Vec3 n = normalized(na + nb);
+  if (norm(n) == 0) return point;
+  const std::array<Vec3, 2> opposite = {c0, c1};
+  const std::array<Vec3, 2> normals = {n, -n};  // hb's face seen from a -> b is reversed
+  return pull_back_folds(a, b, opposite, normals, 2, point);
+}
+
+}  // namespace
+
+Vec3 lsf_guarded_edge_point(const Mesh& m, const Features& f, EdgeId e, const Vec3& lower_estimate,
+                            const Vec3& upper_estimate) {
+  return guarded_edge_point(
+      m, [&](HalfedgeId h) { return sector_normal(m, f, h); }, e, lower_estimate, upper_estimate);
+}
+
+Vec3 lsf_guarded_curve_point(const Mesh& m, const Features& f, EdgeId e, const Vec3& point) {
+  const HalfedgeId h = m.halfedge(e), t = m.twin(h);
+  const Vec3 a = m.position(m.from(h)), b = m.position(m.to(h));
+  // Each side's children against that side's normals (sectors end at the sharp edge).
+  std::array<Vec3, 2> opposite, normals;
+  int sides = 0;
+  for (const HalfedgeId s : {h, t}) {
+    if (!s.valid()) continue;
+    const Vec3 n = normalized(sector_normal(m, f, s) + sector_normal(m, f, Mesh::next(s)));
+    if (norm(n) == 0) continue;
+    // Seen from a -> b: the face of t runs b -> a, so its corners are swapped back below.
+    opposite[sides] = m.position(m.opposite(s));
+    normals[sides] = s == h ? n : -n;
+    ++sides;
+  }
+  return pull_back_folds(a, b, opposite, normals, sides, point);
+}
+
+namespace {
+
+// Whether a 1-to-4 child of face `face`, with the edge points `points`, turns more than 60
+// degrees from the face's sector normals (the sum over its three corners). Screened first
+// against the face itself: a child within 45 degrees of its parent is not checked further.
+template <class NormalOf>
+bool child_folds(const Mesh& m, NormalOf&& normal_of, std::span<const Vec3> points, FaceId face) {
+  const HalfedgeId h0 = Mesh::halfedge(face, 0), h1 = Mesh::halfedge(face, 1),
+                   h2 = Mesh::halfedge(face, 2);
+  const Vec3 a = m.position(m.from(h0)), b = m.position(m.from(h1)), c = m.position(m.from(h2));
+  const Vec3 ab = points[m.edge(h0).idx], bc = points[m.edge(h1).idx], ca = points[m.edge(h2).idx];
+  const std::array<std::array<Vec3, 3>, 4> children = {
+      {{a, ab, ca}, {ab, b, bc}, {ca, bc, c}, {ab, bc, ca}}};
+  const Vec3 parent = triangle_normal(a, b, c);
+  const double parent2 = dot(parent, parent);
+  bool suspect = false;
+  for (const auto& t : children) {  // cos < kScreenCosine, without a root
+    const Vec3 n = triangle_normal(t[0], t[1], t[2]);
+    const double d = dot(n, parent);
+    suspect = suspect || d < 0 || d * d < (kScreenCosine * kScreenCosine) * (dot(n, n) * parent2);
+  }
+  if (!suspect) return false;
+  const Vec3 n = normalized(normal_of(h0) + normal_of(h1) + normal_of(h2));
+  if (norm(n) == 0) return false;
+  for (const auto& t : children)
+    if (turns_over_60(t[0], t[1], t[2], n)) return true;
+  return false;
+}
+
+template <class NormalOf>
+void guard_child_folds(const Mesh& m, NormalOf&& normal_of, std::span<Vec3> points,
+                       std::span<std::uint8_t> marks) {
+  const std::size_t nf = m.num_faces();
+  auto midpoint = [&](EdgeId e) {
+    const HalfedgeId h = m.halfedge(e);
+    return 0.5 * (m.position(m.from(h)) + m.position(m.to(h)));
+  };
+  // Every face once (in parallel), then only the folding faces and their neighbours: the
+  // faces whose edge points the last round moved.
+  std::atomic<bool> any{false};
+  parallel_for_each_index(nf, [&](std::size_t i) {
+    marks[i] = child_folds(m, normal_of, points, FaceId(static_cast<std::uint32_t>(i)));
+    if (marks[i]) any.store(true, std::memory_order_relaxed);
+  });
+  if (!any.load()) return;
+  std::vector<std::uint32_t> folding;
+  for (std::size_t i = 0; i < nf; ++i)
+    if (marks[i]) folding.push_back(static_cast<std::uint32_t>(i));
+  std::vector<std::uint32_t> candidates;
+  for (int round = 0; round <= kFoldRounds && !folding.empty(); ++round) {
+    // Halfway back towards the chord (the last round: onto it), each edge of each folding
+    // face; an edge of two folding faces moves twice.
+    candidates.clear();
+    for (const std::uint32_t i : folding) {
+      for (int k = 0; k < 3; ++k) {
+        const HalfedgeId h = Mesh::halfedge(FaceId(i), k);
+        const EdgeId e = m.edge(h);
+        const Vec3 mid = midpoint(e);
+        points[e.idx] = round == kFoldRounds ? mid : mid + 0.5 * (points[e.idx] - mid);
+        candidates.push_back(i);
+        if (m.twin(h).valid()) candidates.push_back(Mesh::face(m.twin(h)).idx);
+      }
+    }
+    std::sort(candidates.begin(), candidates.end());
+    candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+    folding.clear();
+    for (const std::uint32_t i : candidates)
+      if (child_folds(m, normal_of, points, FaceId(i))) folding.push_back(i);
+  }
+}
+
+}  // namespace
+
+void lsf_guard_child_folds(const Mesh& m, const Features& f, std::span<Vec3> points,
+                           std::span<std::uint8_t> marks) {
+  guard_child_folds(
+      m, [&](HalfedgeId h) { return sector_normal(m, f, h); }, points, marks);
+}
 
 void set_lsf_baseline_kernels(bool baseline_only) {
   g_baseline_only.store(baseline_only, std::memory_order_relaxed);
@@ -1236,27 +1580,44 @@ void LsfStencil::edge_points(const Level& coarse, std::span<Vec3> out) const {
   auto sink = [&](HalfedgeId s, const Vec3& point) {
     *slots.at(m.edge(s), s.idx < m.twin(s).idx) = point;
   };
+  std::vector<Vec3> vertex_normal(m.num_vertices());
   parallel_for_each_range(m.num_vertices(), [&](std::size_t begin, std::size_t end) {
     Batches batches;
     for (std::size_t i = begin; i < end; ++i) {
       const VertexId v(static_cast<std::uint32_t>(i));
       const VertexKind kind = f.kind(v);
-      const bool batched = kind <= VertexKind::Dart ? batch_smooth_vertex(m, v, slots, batches)
-                           : kind == VertexKind::Crease
-                               ? batch_crease_vertex(m, f, v, slots, batches)
-                               : false;
+      const bool batched =
+          kind <= VertexKind::Dart
+              ? batch_smooth_vertex(m, v, slots, batches,
+                                    kind == VertexKind::Smooth ? &vertex_normal[i] : nullptr)
+          : kind == VertexKind::Crease ? batch_crease_vertex(m, f, v, slots, batches)
+                                       : false;
       if (!batched) vertex_estimates(m, f, v, sink);
+      // The guard's normal of a one-sector vertex, once (crease and corner vertices' sector
+      // normals are found where they are needed).
+      if (kind <= VertexKind::Dart && !(batched && kind == VertexKind::Smooth) &&
+          m.halfedge(v).valid())
+        vertex_normal[i] = sector_normal(m, f, m.halfedge(v));
     }
     batches.flush();
   });
+  auto normal_of = [&](HalfedgeId h) {
+    const VertexId v = m.from(h);
+    return f.kind(v) <= VertexKind::Dart ? vertex_normal[v.idx] : sector_normal(m, f, h);
+  };
   parallel_for_each_index(m.num_edges(), [&](std::size_t e) {
     const EdgeId edge(static_cast<std::uint32_t>(e));
     if (f.is_sharp(edge)) {
-      out[e] = lsf_curve_point(m, f, m.halfedge(edge));
+      out[e] = lsf_guarded_curve_point(m, f, edge, lsf_curve_point(m, f, m.halfedge(edge)));
       return;
     }
-    out[e] = 0.5 * (out[e] + twin_estimate.data[e]);
+    out[e] = guarded_edge_point(m, normal_of, edge, out[e], twin_estimate.data[e]);
   });
+  // The children with every edge point known: the estimates are no longer needed, so their
+  // storage holds the per-face marks.
+  guard_child_folds(
+      m, normal_of, out,
+      std::span<std::uint8_t>(reinterpret_cast<std::uint8_t*>(twin_estimate.data), m.num_faces()));
 }
 
 }  // namespace stlrefine
