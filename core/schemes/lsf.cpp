@@ -1265,13 +1265,27 @@ bool batch_crease_vertex(const Mesh& m, const Features& f, VertexId v, const Est
 // dihedral of a curved surface's tessellation, above the rounding of float STL coordinates.
 constexpr double kCoplanarSine = 1e-3;
 
-// Planar patches are told by a tighter test (the faces of a flat region split into big
-// triangles; float STL rounding stays below it).
-constexpr double kPatchSine = 1e-6;
+// Planar patches are told by exact coplanarity, to the rounding of the coordinates: a corner
+// within kPatchTol of the face's size plus kFloatRounding of its coordinates' magnitude (four
+// float32 ulps: float STL coordinates of a CAD plane) from the plane. Not an angle: no two
+// faces of a tessellated smooth surface are that flat, however fine.
+constexpr double kPatchTol = 1e-6;
+constexpr double kFloatRounding = 4.0 / (1 << 24);
 
 bool coplanar(const Vec3& t0, const Vec3& t1, double sine = kCoplanarSine) {
   const Vec3 c = cross(t0, t1);
   return dot(c, c) <= (sine * sine) * (dot(t0, t0) * dot(t1, t1)) && dot(t0, t1) > 0;
+}
+
+// Whether face (p, q, r) lies, facing the same way, in the plane through p of normal t
+// (unnormalised), to the rounding above.
+bool in_plane(const Vec3& t, const Vec3& p, const Vec3& q, const Vec3& r) {
+  const Vec3 n = cross(q - p, r - p);
+  if (!(dot(n, t) > 0)) return false;
+  const double magnitude = std::max({std::abs(p.x), std::abs(p.y), std::abs(p.z)});
+  const double tol = (kPatchTol * std::max(norm(q - p), norm(r - p)) + kFloatRounding * magnitude);
+  const double dq = dot(q - p, t), dr = dot(r - p, t);
+  return std::max(dq * dq, dr * dr) <= (tol * tol) * dot(t, t);
 }
 
 // Whether the face of h (normal t, unnormalised) is coplanar with the face across one of its
@@ -1280,16 +1294,57 @@ bool in_planar_patch(const Mesh& m, HalfedgeId h, const Vec3& t) {
   for (const HalfedgeId side : {Mesh::next(h), Mesh::prev(h)}) {
     const HalfedgeId across = m.twin(side);
     if (!across.valid()) continue;
-    const Vec3 n = triangle_normal(m.position(m.from(across)), m.position(m.to(across)),
-                                   m.position(m.opposite(across)));
-    if (coplanar(t, n, kPatchSine)) return true;
+    if (in_plane(t, m.position(m.from(across)), m.position(m.to(across)),
+                 m.position(m.opposite(across))))
+      return true;
   }
   return false;
 }
 
-// How close (degrees, as a cosine) both ends' normals must be to a planar patch's normal for
-// its edges to be taken as straight.
-constexpr double kPlanarNormalDeg = 2.0;
+// How much of an edge end's face area (a fraction) must lie in the plane of the edge's faces
+// for that plane to rule the edge.
+constexpr double kPlaneAreaShare = 0.5;
+
+// Whether the faces of from(h)'s crease-bounded sector that holds h (its whole ring when it
+// is smooth) which lie in the plane of normal t (unnormalised), to the rounding of the
+// coordinates, hold at least kPlaneAreaShare of the sector's face area; `bends` is set when one
+// of from(h)'s faces, in any sector, turns from t by more than kCoplanarSine.
+bool planar_end(const Mesh& m, const Features& f, HalfedgeId h, const Vec3& t, bool& bends) {
+  const VertexId v = m.from(h);
+  const Vec3 p = m.position(v);
+  double planar = 0, total = 0;
+  auto add = [&](HalfedgeId s) {
+    const Vec3 q = m.position(m.to(s)), r = m.position(m.opposite(s));
+    const double area = norm(cross(q - p, r - p));
+    total += area;
+    if (in_plane(t, p, q, r)) planar += area;
+  };
+  for_each_outgoing(m, v, [&](HalfedgeId s) {
+    if (!coplanar(t, triangle_normal(p, m.position(m.to(s)), m.position(m.opposite(s))),
+                  kCoplanarSine))
+      bends = true;
+  });
+  if (f.kind(v) == VertexKind::Smooth) {
+    for_each_outgoing(m, v, add);
+  } else {  // the sector, as sector_normal walks it
+    constexpr int kMaxWalk = 4096;
+    HalfedgeId s = h;
+    int steps = 0;
+    do {
+      add(s);
+      s = ccw_within_patch(m, f, s);
+    } while (s.valid() && s != h && ++steps < kMaxWalk);
+    if (!s.valid()) {
+      s = cw_within_patch(m, f, h);
+      steps = 0;
+      while (s.valid() && s != h && ++steps < kMaxWalk) {
+        add(s);
+        s = cw_within_patch(m, f, s);
+      }
+    }
+  }
+  return total > 0 && planar >= kPlaneAreaShare * total;
+}
 
 // How much wider across an edge a planar patch's face must be than the face on the other side
 // for the edge to count as the patch's straight border.
@@ -1389,8 +1444,8 @@ Vec3 pull_back_folds(const Vec3& a, const Vec3& b, const std::array<Vec3, 2>& op
 namespace {
 
 template <class NormalOf>
-Vec3 guarded_edge_point(const Mesh& m, NormalOf&& normal_of, EdgeId e, const Vec3& lower_estimate,
-                        const Vec3& upper_estimate) {
+Vec3 guarded_edge_point(const Mesh& m, const Features& f, NormalOf&& normal_of, EdgeId e,
+                        const Vec3& lower_estimate, const Vec3& upper_estimate) {
   const HalfedgeId h0 = m.halfedge(e), h1 = m.twin(h0);
   const Vec3 average = 0.5 * (lower_estimate + upper_estimate);
   if (!h1.valid()) return average;
@@ -1401,29 +1456,26 @@ Vec3 guarded_edge_point(const Mesh& m, NormalOf&& normal_of, EdgeId e, const Vec
   // Planar regions stay planar. Both faces in one plane, or a face of a planar patch
   // (coplanar with a neighbour across one of its other edges) at least twice as wide across
   // the edge as the face on the other side (a flat face ending at a fillet, tangent or at a
-  // shallow crease: issue 17's rounded box and plate), and both ends' normals within
-  // kPlanarNormalDeg of the plane: the surface there is that plane as far as the mesh can
-  // tell, the edge straight. (A regular cylinder's or sphere's split quads are planar too,
-  // but their vertex normals lean away from them by half a segment's angle: they keep their
-  // fits.)
+  // shallow crease: issue 17's rounded box and plate), "in one plane" meaning to the rounding
+  // of the coordinates (in_plane), never by an angle: a smooth surface's tessellation, however
+  // fine, has no two faces that flat. The plane then rules the edge when it is most of both
+  // ends' neighbourhoods and the rest bends away for real (planar_end): the one-sided or mixed
+  // fits there bow a straight edge. (A regular cylinder's split quads are exactly planar too,
+  // but they are a small part of their corners' rings: they keep their fits. Near a flat net
+  // nothing bends by more than kCoplanarSine, so the fits, linear there, decide: the spectral
+  // analysis linearises the scheme about exactly such a net.)
   const Vec3 c0 = m.position(m.opposite(ha)), c1 = m.position(m.opposite(hb));
   const Vec3 t0 = triangle_normal(a, b, c0), t1 = triangle_normal(b, a, c1);
-  const Vec3 na = normal_of(ha), nb = normal_of(hb);
   const double w0 = norm(t0), w1 = norm(t1);  // the widths across the edge, times its length
-  // The normals may lean from the plane by kPlanarNormalDeg, or by a third of the dihedral
-  // at the edge when it is larger (a fillet's first sliver bends by far more than the flat
-  // face's corner normals lean; a regular mesh's vertex normals lean by half of it).
-  auto on_plane = [&](const Vec3& t) {  // (only asked for the few planar candidates)
-    const double dihedral =
-        w0 > 0 && w1 > 0 ? std::acos(std::clamp(dot(t0, t1) / (w0 * w1), -1.0, 1.0)) : 0.0;
-    const double lean = std::cos(std::max(kPlanarNormalDeg * std::numbers::pi / 180, dihedral / 3));
-    const double l = norm(t);
-    return dot(na, t) >= lean * l && dot(nb, t) >= lean * l;
+  auto on_plane = [&](const Vec3& t) {        // (only asked for the few exactly planar candidates)
+    bool bends = false;
+    return planar_end(m, f, ha, t, bends) && planar_end(m, f, hb, t, bends) && bends;
   };
-  if ((coplanar(t0, t1) || (w0 >= kPatchWidthRatio * w1 && in_planar_patch(m, ha, t0))) &&
+  if ((in_plane(t0, b, a, c1) || (w0 >= kPatchWidthRatio * w1 && in_planar_patch(m, ha, t0))) &&
       on_plane(t0))
     return mid;
   if (w1 >= kPatchWidthRatio * w0 && in_planar_patch(m, hb, t1) && on_plane(t1)) return mid;
+  const Vec3 na = normal_of(ha), nb = normal_of(hb);
   const double length = norm(chord);
   const Vec3 hermite = hermite_offset(chord, na, nb);
   const Vec3 da = lower_estimate - mid, db = upper_estimate - mid;
@@ -1451,7 +1503,8 @@ Vec3 guarded_edge_point(const Mesh& m, NormalOf&& normal_of, EdgeId e, const Vec
 Vec3 lsf_guarded_edge_point(const Mesh& m, const Features& f, EdgeId e, const Vec3& lower_estimate,
                             const Vec3& upper_estimate) {
   return guarded_edge_point(
-      m, [&](HalfedgeId h) { return sector_normal(m, f, h); }, e, lower_estimate, upper_estimate);
+      m, f, [&](HalfedgeId h) { return sector_normal(m, f, h); }, e, lower_estimate,
+      upper_estimate);
 }
 
 Vec3 lsf_guarded_curve_point(const Mesh& m, const Features& f, EdgeId e, const Vec3& point) {
@@ -1611,7 +1664,7 @@ void LsfStencil::edge_points(const Level& coarse, std::span<Vec3> out) const {
       out[e] = lsf_guarded_curve_point(m, f, edge, lsf_curve_point(m, f, m.halfedge(edge)));
       return;
     }
-    out[e] = guarded_edge_point(m, normal_of, edge, out[e], twin_estimate.data[e]);
+    out[e] = guarded_edge_point(m, f, normal_of, edge, out[e], twin_estimate.data[e]);
   });
   // The children with every edge point known: the estimates are no longer needed, so their
   // storage holds the per-face marks.
