@@ -694,13 +694,23 @@ namespace {
 // faces' areas, blended by the ratio of the longest to the shortest spoke (kEvenSpokes to
 // kUnevenSpokes). e1, e2: the face's two spokes, counter-clockwise.
 constexpr double kEvenSpokes = 3.0, kUnevenSpokes = 12.0;
+// `flat`: every face so far within kFlatSine of the first one (see flat_ring below).
+constexpr double kFlatSine = 0.5e-3;
 struct NormalSum {
-  Vec3 angle_sum, area_sum;
+  Vec3 angle_sum, area_sum, first;
   double shortest = std::numeric_limits<double>::infinity(), longest = 0;
+  bool flat = true;
 
   void add(const Vec3& e1, const Vec3& e2) {
     const Vec3 n = cross(e1, e2);
     const double l1 = dot(e1, e1), l2 = dot(e2, e2);
+    if (dot(first, first) == 0) {
+      first = n;
+    } else if (flat) {
+      const Vec3 c = cross(first, n);
+      flat = dot(c, c) <= (kFlatSine * kFlatSine) * (dot(first, first) * dot(n, n)) &&
+             dot(first, n) > 0;
+    }
     area_sum += n;
     if (l1 * l2 > 0) angle_sum += (1.0 / std::sqrt(l1 * l2)) * n;
     shortest = std::min(shortest, std::min(l1, l2));
@@ -1141,7 +1151,7 @@ struct Batches {
 // the batch when it is full; false, with nothing changed, for every other vertex. A dart's
 // sharp spoke gets an estimate too: harmless, the sharp edge's point is the curve rule's.
 bool batch_smooth_vertex(const Mesh& m, VertexId v, const EstimateSlots& slots, Batches& batches,
-                         Vec3* normal) {
+                         Vec3* normal, std::uint8_t* flat) {
   const HalfedgeId start = m.halfedge(v);
   if (!start.valid()) return false;
   // The spokes first (a chain of dependent loads), then their far ends' positions (loads
@@ -1178,6 +1188,7 @@ bool batch_smooth_vertex(const Mesh& m, VertexId v, const EstimateSlots& slots, 
       sum.add(Vec3(b.x[i][l], b.y[i][l], b.z[i][l]), Vec3(b.x[j][l], b.y[j][l], b.z[j][l]));
     }
     *normal = sum.normal();
+    *flat = sum.flat && dot(sum.first, sum.first) > 0;
   }
   if (b.lanes == kLanes) batches.fit(b, n, true);
   return true;
@@ -1277,15 +1288,22 @@ bool coplanar(const Vec3& t0, const Vec3& t1, double sine = kCoplanarSine) {
   return dot(c, c) <= (sine * sine) * (dot(t0, t0) * dot(t1, t1)) && dot(t0, t1) > 0;
 }
 
-// Whether face (p, q, r) lies, facing the same way, in the plane through p of normal t
-// (unnormalised), to the rounding above.
-bool in_plane(const Vec3& t, const Vec3& p, const Vec3& q, const Vec3& r) {
-  const Vec3 n = cross(q - p, r - p);
+// Whether face (p, q, r), of normal n = (q - p) x (r - p), lies, facing the same way, in the
+// plane through p of normal t (unnormalised), to the rounding above (squared, without a root:
+// the tolerance is taken as the root of the sum of its two terms' squares, times sqrt 2).
+bool in_plane(const Vec3& t, const Vec3& p, const Vec3& q, const Vec3& r, const Vec3& n) {
   if (!(dot(n, t) > 0)) return false;
   const double magnitude = std::max({std::abs(p.x), std::abs(p.y), std::abs(p.z)});
-  const double tol = (kPatchTol * std::max(norm(q - p), norm(r - p)) + kFloatRounding * magnitude);
-  const double dq = dot(q - p, t), dr = dot(r - p, t);
-  return std::max(dq * dq, dr * dr) <= (tol * tol) * dot(t, t);
+  const Vec3 pq = q - p, pr = r - p;
+  const double size2 = std::max(dot(pq, pq), dot(pr, pr));
+  const double tol2 = 2.0 * ((kPatchTol * kPatchTol) * size2 +
+                             (kFloatRounding * magnitude) * (kFloatRounding * magnitude));
+  const double dq = dot(pq, t), dr = dot(pr, t);
+  return std::max(dq * dq, dr * dr) <= tol2 * dot(t, t);
+}
+
+bool in_plane(const Vec3& t, const Vec3& p, const Vec3& q, const Vec3& r) {
+  return in_plane(t, p, q, r, cross(q - p, r - p));
 }
 
 // Whether the face of h (normal t, unnormalised) is coplanar with the face across one of its
@@ -1294,9 +1312,9 @@ bool in_planar_patch(const Mesh& m, HalfedgeId h, const Vec3& t) {
   for (const HalfedgeId side : {Mesh::next(h), Mesh::prev(h)}) {
     const HalfedgeId across = m.twin(side);
     if (!across.valid()) continue;
-    if (in_plane(t, m.position(m.from(across)), m.position(m.to(across)),
-                 m.position(m.opposite(across))))
-      return true;
+    const Vec3 p = m.position(m.from(across)), q = m.position(m.to(across)),
+               r = m.position(m.opposite(across));
+    if (coplanar(t, triangle_normal(p, q, r)) && in_plane(t, p, q, r)) return true;
   }
   return false;
 }
@@ -1313,32 +1331,33 @@ bool planar_end(const Mesh& m, const Features& f, HalfedgeId h, const Vec3& t, b
   const VertexId v = m.from(h);
   const Vec3 p = m.position(v);
   double planar = 0, total = 0;
-  auto add = [&](HalfedgeId s) {
+  // Every face: whether it bends (and, for a smooth vertex, its share); then, at a crease or
+  // corner vertex, the sector's shares.
+  const bool whole_ring = f.kind(v) == VertexKind::Smooth;
+  auto add = [&](HalfedgeId s, bool bend_only) {
     const Vec3 q = m.position(m.to(s)), r = m.position(m.opposite(s));
-    const double area = norm(cross(q - p, r - p));
+    const Vec3 n = cross(q - p, r - p);
+    const bool near = coplanar(t, n);
+    bends = bends || !near;
+    if (bend_only) return;
+    const double area = norm(n);
     total += area;
-    if (in_plane(t, p, q, r)) planar += area;
+    if (near && in_plane(t, p, q, r, n)) planar += area;
   };
-  for_each_outgoing(m, v, [&](HalfedgeId s) {
-    if (!coplanar(t, triangle_normal(p, m.position(m.to(s)), m.position(m.opposite(s))),
-                  kCoplanarSine))
-      bends = true;
-  });
-  if (f.kind(v) == VertexKind::Smooth) {
-    for_each_outgoing(m, v, add);
-  } else {  // the sector, as sector_normal walks it
+  for_each_outgoing(m, v, [&](HalfedgeId s) { add(s, !whole_ring); });
+  if (!whole_ring) {  // the sector, as sector_normal walks it
     constexpr int kMaxWalk = 4096;
     HalfedgeId s = h;
     int steps = 0;
     do {
-      add(s);
+      add(s, false);
       s = ccw_within_patch(m, f, s);
     } while (s.valid() && s != h && ++steps < kMaxWalk);
     if (!s.valid()) {
       s = cw_within_patch(m, f, h);
       steps = 0;
       while (s.valid() && s != h && ++steps < kMaxWalk) {
-        add(s);
+        add(s, false);
         s = cw_within_patch(m, f, s);
       }
     }
@@ -1400,13 +1419,12 @@ Vec3 sector_normal(const Mesh& m, const Features& f, HalfedgeId h) {
 // onto the tangent planes of n_a and n_b, scaled to the chord's length, relative to the
 // chord midpoint: (T_a - T_b) / 8. Zero when a normal has no direction or lies along the
 // chord (nothing to say).
-Vec3 hermite_offset(const Vec3& chord, const Vec3& na, const Vec3& nb) {
-  const double length = norm(chord);
+Vec3 hermite_offset(const Vec3& chord, double length, const Vec3& na, const Vec3& nb) {
   if (!(length > 0)) return {};
   const Vec3 ta = chord - dot(chord, na) * na, tb = chord - dot(chord, nb) * nb;
-  const double la = norm(ta), lb = norm(tb);
-  if (!(la > 0.1 * length) || !(lb > 0.1 * length)) return {};
-  return (length / 8.0) * ((1.0 / la) * ta - (1.0 / lb) * tb);
+  const double la2 = dot(ta, ta), lb2 = dot(tb, tb), min2 = 0.01 * (length * length);
+  if (!(la2 > min2) || !(lb2 > min2)) return {};
+  return (length / 8.0) * ((1.0 / std::sqrt(la2)) * ta - (1.0 / std::sqrt(lb2)) * tb);
 }
 
 // Whether triangle (p, q, r) turns more than 60 degrees from the unit normal n (a degenerate
@@ -1444,8 +1462,9 @@ Vec3 pull_back_folds(const Vec3& a, const Vec3& b, const std::array<Vec3, 2>& op
 namespace {
 
 template <class NormalOf>
-Vec3 guarded_edge_point(const Mesh& m, const Features& f, NormalOf&& normal_of, EdgeId e,
-                        const Vec3& lower_estimate, const Vec3& upper_estimate) {
+Vec3 guarded_edge_point(const Mesh& m, const Features& f, NormalOf&& normal_of,
+                        const std::uint8_t* flat_ring, EdgeId e, const Vec3& lower_estimate,
+                        const Vec3& upper_estimate) {
   const HalfedgeId h0 = m.halfedge(e), h1 = m.twin(h0);
   const Vec3 average = 0.5 * (lower_estimate + upper_estimate);
   if (!h1.valid()) return average;
@@ -1466,21 +1485,35 @@ Vec3 guarded_edge_point(const Mesh& m, const Features& f, NormalOf&& normal_of, 
   // analysis linearises the scheme about exactly such a net.)
   const Vec3 c0 = m.position(m.opposite(ha)), c1 = m.position(m.opposite(hb));
   const Vec3 t0 = triangle_normal(a, b, c0), t1 = triangle_normal(b, a, c1);
-  const double w0 = norm(t0), w1 = norm(t1);  // the widths across the edge, times its length
-  auto on_plane = [&](const Vec3& t) {        // (only asked for the few exactly planar candidates)
+  // The squared widths across the edge, times its length. (Squares throughout: this runs for
+  // every edge of every level, and the roots cost as much as the rest.)
+  const double w0 = dot(t0, t0), w1 = dot(t1, t1);
+  // When every face at a and at b is within kFlatSine of one face there (flat_ring, known for
+  // the batched smooth vertices), every face there is within kCoplanarSine of t0 and of t1:
+  // nothing bends, so on_plane is false, and its walks are skipped (the flat regions of a
+  // CAD part, most of its edges after a level).
+  const bool no_bend =
+      flat_ring != nullptr && flat_ring[m.from(ha).idx] && flat_ring[m.from(hb).idx];
+  auto on_plane = [&](const Vec3& t) {  // (only asked for the few exactly planar candidates)
+    if (no_bend) return false;
     bool bends = false;
     return planar_end(m, f, ha, t, bends) && planar_end(m, f, hb, t, bends) && bends;
   };
-  if ((in_plane(t0, b, a, c1) || (w0 >= kPatchWidthRatio * w1 && in_planar_patch(m, ha, t0))) &&
+  constexpr double kRatio2 = kPatchWidthRatio * kPatchWidthRatio;
+  // coplanar() first: no root, and false for almost every edge of a curved surface.
+  if (((coplanar(t0, t1) && in_plane(t0, b, a, c1)) ||
+       (w0 >= kRatio2 * w1 && in_planar_patch(m, ha, t0))) &&
       on_plane(t0))
     return mid;
-  if (w1 >= kPatchWidthRatio * w0 && in_planar_patch(m, hb, t1) && on_plane(t1)) return mid;
+  if (w1 >= kRatio2 * w0 && in_planar_patch(m, hb, t1) && on_plane(t1)) return mid;
   const Vec3 na = normal_of(ha), nb = normal_of(hb);
-  const double length = norm(chord);
-  const Vec3 hermite = hermite_offset(chord, na, nb);
-  const Vec3 da = lower_estimate - mid, db = upper_estimate - mid;
+  const double length2 = dot(chord, chord);
+  const double length = std::sqrt(length2);
+  const Vec3 hermite = hermite_offset(chord, length, na, nb);
+  const Vec3 da = lower_estimate - mid - hermite, db = upper_estimate - mid - hermite;
   const double tolerance = kHermiteSlack * norm(hermite) + 1e-3 * length;
-  const bool a_ok = norm(da - hermite) <= tolerance, b_ok = norm(db - hermite) <= tolerance;
+  const double tolerance2 = tolerance * tolerance;
+  const bool a_ok = dot(da, da) <= tolerance2, b_ok = dot(db, db) <= tolerance2;
   Vec3 point = a_ok && b_ok ? average
                : a_ok       ? lower_estimate
                : b_ok       ? upper_estimate
@@ -1489,8 +1522,7 @@ Vec3 guarded_edge_point(const Mesh& m, const Features& f, NormalOf&& normal_of, 
   // within a tenth of the narrower face's height of the chord turns no child by more than
   // about 11 degrees from its parent: not checked (most points of a fine level).
   const Vec3 offset = point - mid;
-  const double height = std::min(w0, w1) / length;
-  if (dot(offset, offset) < (0.01 * height) * height) return point;
+  if (dot(offset, offset) * length2 < 0.01 * std::min(w0, w1)) return point;
   const Vec3 n = normalized(na + nb);
   if (norm(n) == 0) return point;
   const std::array<Vec3, 2> opposite = {c0, c1};
@@ -1503,7 +1535,7 @@ Vec3 guarded_edge_point(const Mesh& m, const Features& f, NormalOf&& normal_of, 
 Vec3 lsf_guarded_edge_point(const Mesh& m, const Features& f, EdgeId e, const Vec3& lower_estimate,
                             const Vec3& upper_estimate) {
   return guarded_edge_point(
-      m, f, [&](HalfedgeId h) { return sector_normal(m, f, h); }, e, lower_estimate,
+      m, f, [&](HalfedgeId h) { return sector_normal(m, f, h); }, nullptr, e, lower_estimate,
       upper_estimate);
 }
 
@@ -1634,6 +1666,9 @@ void LsfStencil::edge_points(const Level& coarse, std::span<Vec3> out) const {
     *slots.at(m.edge(s), s.idx < m.twin(s).idx) = point;
   };
   std::vector<Vec3> vertex_normal(m.num_vertices());
+  // Per batched smooth vertex: whether all its faces are within kFlatSine of one another (then
+  // the plane rule cannot fire at an edge between two such vertices, see guarded_edge_point).
+  std::vector<std::uint8_t> flat_ring(m.num_vertices(), 0);
   parallel_for_each_range(m.num_vertices(), [&](std::size_t begin, std::size_t end) {
     Batches batches;
     for (std::size_t i = begin; i < end; ++i) {
@@ -1642,7 +1677,8 @@ void LsfStencil::edge_points(const Level& coarse, std::span<Vec3> out) const {
       const bool batched =
           kind <= VertexKind::Dart
               ? batch_smooth_vertex(m, v, slots, batches,
-                                    kind == VertexKind::Smooth ? &vertex_normal[i] : nullptr)
+                                    kind == VertexKind::Smooth ? &vertex_normal[i] : nullptr,
+                                    &flat_ring[i])
           : kind == VertexKind::Crease ? batch_crease_vertex(m, f, v, slots, batches)
                                        : false;
       if (!batched) vertex_estimates(m, f, v, sink);
@@ -1664,7 +1700,8 @@ void LsfStencil::edge_points(const Level& coarse, std::span<Vec3> out) const {
       out[e] = lsf_guarded_curve_point(m, f, edge, lsf_curve_point(m, f, m.halfedge(edge)));
       return;
     }
-    out[e] = guarded_edge_point(m, f, normal_of, edge, out[e], twin_estimate.data[e]);
+    out[e] =
+        guarded_edge_point(m, f, normal_of, flat_ring.data(), edge, out[e], twin_estimate.data[e]);
   });
   // The children with every edge point known: the estimates are no longer needed, so their
   // storage holds the per-face marks.
