@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "core/schemes/lsf.h"
 #include "tests/core/test_util.h"
@@ -79,25 +80,42 @@ double worst_normal_deg(const Mesh& m, const TrueSurface& surface) {
   return worst;
 }
 
-TEST(LsfCad, NeverWorseThanTheInputAndNoFaceOver60Degrees) {
+// The crease angle that marks only the true creases of a family: the cylinder's, cone's and
+// tube's rims (71-108 degrees) and none of the smooth families' edges (coarse tori and
+// rounded boxes have dihedrals up to ~45 degrees) at 60. The plate has none: its flat faces
+// meet its rounded sides at 6-12 degrees, less than its arcs' own dihedrals, so it keeps the
+// default.
+double true_crease_angle(CadFamily family) {
+  return family == CadFamily::Plate ? 35.0 : 60.0;
+}
+
+// Issue 17's targets for lsf on every family and the seeds above, levels 1-3: the sampled RMS
+// distance to the truth never above the input's; no face more than 60 degrees from the true
+// normal; input vertices bit for bit; closed and manifold in, closed and manifold out. With
+// `crease_angle_of(family)` as the crease angle. `two_level_ratio` gets, per family, the mean
+// over the seeds of the 2-level RMS / the input's.
+template <class CreaseAngleOf>
+void check_targets(CreaseAngleOf&& crease_angle_of, bool check_normals_everywhere,
+                   std::vector<double>& two_level_ratio) {
   for (const CadFamily family : cad_families()) {
+    double sum = 0;
     for (const std::uint64_t seed : kSeeds) {
       const CadShape shape = make_cad_shape(family, {seed, 1.0});
-      const Level coarse = make_level(to_mesh(shape.soup));
+      const Level coarse = make_level(to_mesh(shape.soup), crease_angle_of(family));
       const double input_rms = rms_distance(coarse.mesh, *shape.surface, 8);
       Level level = coarse;
-      for (int l = 1; l <= 2; ++l) {
+      for (int l = 1; l <= 3; ++l) {
         level = refine_level("lsf", level);
         const std::string where =
             shape.name + " seed " + std::to_string(seed) + " level " + std::to_string(l);
-        const double rms = rms_distance(level.mesh, *shape.surface, l == 1 ? 4 : 2);
-        // Open: the rounded box (flat faces beside fillets whose vertex normals lean by a few
-        // degrees) ends up to ~1.5x its input on some seeds (16x before issue 17's guard).
-        EXPECT_LE(rms, (family == CadFamily::RoundedBox ? 1.5 : 1.0) * input_rms) << where;
-        // Open (see bench/RESULTS.md, "LSF on CAD tessellations"): the torus, which the 35
-        // degree angle cuts with false creases, and the rounded box, whose fillet ends meet
-        // the corner patches, still have a few faces past 60 degrees.
-        if (family != CadFamily::Torus && family != CadFamily::RoundedBox) {
+        const double rms = rms_distance(level.mesh, *shape.surface, l == 1 ? 4 : (l == 2 ? 2 : 1));
+        EXPECT_LE(rms, input_rms) << where;
+        if (l == 2) sum += rms / input_rms;
+        // Open at the default 35 degrees (see bench/results-issue17-lsf.md): the torus, which
+        // the angle cuts with false creases, and the rounded box, whose fillet ends meet the
+        // corner patches, have a few faces past 60 degrees.
+        if (check_normals_everywhere ||
+            (family != CadFamily::Torus && family != CadFamily::RoundedBox)) {
           EXPECT_LE(worst_normal_deg(level.mesh, *shape.surface), 60.0) << where;
         }
         for (std::uint32_t v = 0; v < coarse.mesh.num_vertices(); ++v)
@@ -107,6 +125,32 @@ TEST(LsfCad, NeverWorseThanTheInputAndNoFaceOver60Degrees) {
           ASSERT_FALSE(level.mesh.is_boundary(HalfedgeId(h))) << where;
       }
     }
+    two_level_ratio.push_back(sum / kSeeds.size());
+  }
+}
+
+TEST(LsfCad, NeverWorseThanTheInputAndNoFaceOver60Degrees) {
+  std::vector<double> ratio;
+  check_targets([](CadFamily) { return 35.0; }, false, ratio);
+}
+
+// Issue 17 item 3: two levels at most 0.25x the input's RMS (the mean over the seeds). Met
+// with the true creases on these seeds by the cylinder (0.11), torus, tube, sphere, ellipsoid
+// and blob; missed by the cone (0.254 here; 0.26 on the bench's 10 seeds), the rounded box
+// (0.83) and the plate (0.63): for those the bound asserted is today's, so that they cannot
+// get worse unnoticed, and the target stays open (bench/results-issue17-lsf.md).
+TEST(LsfCad, WithTheTrueCreasesNoFaceOver60DegreesAndTwoLevelsAQuarterOfTheInput) {
+  std::vector<double> ratio;
+  check_targets(true_crease_angle, true, ratio);
+  ASSERT_FALSE(HasFatalFailure());
+  const auto families = cad_families();
+  for (std::size_t i = 0; i < families.size(); ++i) {
+    // Today's figures on these seeds where the target is missed.
+    const double bound = families[i] == CadFamily::Cone         ? 0.3   // 0.254
+                         : families[i] == CadFamily::RoundedBox ? 0.9   // 0.825
+                         : families[i] == CadFamily::Plate      ? 0.65  // 0.626
+                                                                : 0.25;
+    EXPECT_LE(ratio[i], bound) << cad_family_name(families[i]);
   }
 }
 
@@ -183,6 +227,30 @@ TEST(LsfCad, CoplanarFacesGiveTheChordMidpoint) {
     }
     EXPECT_GE(coplanar, 2u) << "seed " << seed;
   }
+}
+
+// The plane rule must not take a finely tessellated smooth surface for planes: a 120 x 60
+// torus's split quads are exactly planar trapezoids, with dihedrals of 3-6 degrees to their
+// neighbours. Their diagonals' points come from the fits, onto the torus, not the chords:
+// each at most a tenth of its chord midpoint's distance from the torus.
+TEST(LsfCad, FineTorusQuadDiagonalsAreNotChords) {
+  constexpr double kMajor = 3.0, kMinor = 1.0;
+  const Level coarse = make_level(to_mesh(torus_soup(120, 60, kMajor, kMinor)));
+  const Level fine = refine_level("lsf", coarse);
+  const Mesh& m = coarse.mesh;
+  auto off_torus = [&](const Vec3& p) {
+    return std::abs(std::hypot(std::hypot(p.x, p.y) - kMajor, p.z) - kMinor);
+  };
+  std::size_t diagonals = 0;
+  for (std::uint32_t e = 0; e < m.num_edges(); ++e) {
+    if (dihedral_angle_deg(m, EdgeId(e)) > 1e-6) continue;
+    ++diagonals;
+    const HalfedgeId h = m.halfedge(EdgeId(e));
+    const Vec3 mid = 0.5 * (m.position(m.from(h)) + m.position(m.to(h)));
+    EXPECT_LE(off_torus(fine.mesh.position(edge_vertex(m, EdgeId(e)))), 0.1 * off_torus(mid))
+        << "edge " << e;
+  }
+  EXPECT_EQ(diagonals, 120u * 60u);
 }
 
 }  // namespace
