@@ -1320,17 +1320,24 @@ bool in_planar_patch(const Mesh& m, HalfedgeId h, const Vec3& t) {
 }
 
 // How much of an edge end's face area (a fraction) must lie in the plane of the edge's faces
-// for that plane to rule the edge.
+// for that plane to rule the edge (at a smooth vertex, of its ring; at a crease or corner
+// vertex, of the sector: a crease-bounded plane fills it), and how much smaller than the
+// plane's largest face there its other faces must be (a fraction): a flat face beside a fillet
+// is several times wider than the fillet's strips, while the exactly planar split quads of a coarse
+// torus or cylinder are as wide as their neighbours (on a coarse torus the angle creases,
+// issue 17 item 5, cut bands whose sectors are two faces of a quad and one of the next).
 constexpr double kPlaneAreaShare = 0.5;
+constexpr double kPlaneDominance = 0.75;
 
 // Whether the faces of from(h)'s crease-bounded sector that holds h (its whole ring when it
 // is smooth) which lie in the plane of normal t (unnormalised), to the rounding of the
-// coordinates, hold at least kPlaneAreaShare of the sector's face area; `bends` is set when one
+// coordinates, hold at least kPlaneAreaShare of the sector's face area and its largest face
+// dominates the others (kPlaneDominance); `bends` is set when one
 // of from(h)'s faces, in any sector, turns from t by more than kCoplanarSine.
 bool planar_end(const Mesh& m, const Features& f, HalfedgeId h, const Vec3& t, bool& bends) {
   const VertexId v = m.from(h);
   const Vec3 p = m.position(v);
-  double planar = 0, total = 0;
+  double planar = 0, total = 0, largest_planar = 0, largest_other = 0;
   // Every face: whether it bends (and, for a smooth vertex, its share); then, at a crease or
   // corner vertex, the sector's shares.
   const bool whole_ring = f.kind(v) == VertexKind::Smooth;
@@ -1342,7 +1349,12 @@ bool planar_end(const Mesh& m, const Features& f, HalfedgeId h, const Vec3& t, b
     if (bend_only) return;
     const double area = norm(n);
     total += area;
-    if (near && in_plane(t, p, q, r, n)) planar += area;
+    if (near && in_plane(t, p, q, r, n)) {
+      planar += area;
+      largest_planar = std::max(largest_planar, area);
+    } else {
+      largest_other = std::max(largest_other, area);
+    }
   };
   for_each_outgoing(m, v, [&](HalfedgeId s) { add(s, !whole_ring); });
   if (!whole_ring) {  // the sector, as sector_normal walks it
@@ -1362,7 +1374,8 @@ bool planar_end(const Mesh& m, const Features& f, HalfedgeId h, const Vec3& t, b
       }
     }
   }
-  return total > 0 && planar >= kPlaneAreaShare * total;
+  return total > 0 && planar >= kPlaneAreaShare * total &&
+         largest_other <= kPlaneDominance * largest_planar;
 }
 
 // How much wider across an edge a planar patch's face must be than the face on the other side
