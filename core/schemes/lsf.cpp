@@ -1555,6 +1555,19 @@ Vec3 lsf_guarded_edge_point(const Mesh& m, const Features& f, EdgeId e, const Ve
 Vec3 lsf_guarded_curve_point(const Mesh& m, const Features& f, EdgeId e, const Vec3& point) {
   const HalfedgeId h = m.halfedge(e), t = m.twin(h);
   const Vec3 a = m.position(m.from(h)), b = m.position(m.to(h));
+  // As for smooth edges (guarded_edge_point): a point within a tenth of the narrower face's
+  // height of the chord turns no child by more than about 11 degrees from its parent, and is
+  // not checked (the sector normals are four walks round the ends).
+  {
+    const Vec3 chord = b - a, offset = point - 0.5 * (a + b);
+    double narrowest = std::numeric_limits<double>::infinity();
+    for (const HalfedgeId s : {h, t}) {
+      if (!s.valid()) continue;
+      const Vec3 w = cross(chord, m.position(m.opposite(s)) - a);
+      narrowest = std::min(narrowest, dot(w, w));
+    }
+    if (dot(offset, offset) * dot(chord, chord) < 0.01 * narrowest) return point;
+  }
   // Each side's children against that side's normals (sectors end at the sharp edge).
   std::array<Vec3, 2> opposite, normals;
   int sides = 0;
