@@ -743,6 +743,10 @@ struct FitBatch {
   alignas(32) double y[kMaxBatchValence][kLanes];
   alignas(32) double z[kMaxBatchValence][kLanes];
   Vec3* dest[kMaxBatchValence][kLanes];  // where P_i's estimate goes (EstimateSlots)
+  // Closed rings of smooth vertices: where the guard's normal (NormalSum::normal) and flat
+  // flag of the lane's vertex go; null for a dart (its normal is its sector's).
+  Vec3* normal[kLanes];
+  std::uint8_t* flat[kLanes];
 };
 
 // Where the estimates go (see LsfStencil::edge_points): the edge's slot of one array for the
@@ -907,6 +911,50 @@ template <int K, class Terms>
   return true;
 }
 
+// The guard's normal and flat flag of each lane's smooth vertex (FitBatch::normal): the
+// NormalSum of its ring's faces, from spoke 0 counter-clockwise as sector_normal walks it,
+// every lane at once with NormalSum::add's operations in its order (so bit for bit the
+// same), finished lane by lane by NormalSum::normal.
+[[gnu::always_inline]] inline void ring_normals(const FitBatch& b, std::size_t n) {
+  using lsf_math::detail::select;
+  const V4d zero = {0, 0, 0, 0};
+  const double inf = std::numeric_limits<double>::infinity();
+  V4d ax = zero, ay = zero, az = zero, rx = zero, ry = zero, rz = zero;
+  V4d fx = zero, fy = zero, fz = zero, shortest = {inf, inf, inf, inf}, longest = zero;
+  V4i flat = {-1, -1, -1, -1};
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t j = i + 1 == n ? 0 : i + 1;
+    const V4d e1x = load4(b.x[i]), e1y = load4(b.y[i]), e1z = load4(b.z[i]);
+    const V4d e2x = load4(b.x[j]), e2y = load4(b.y[j]), e2z = load4(b.z[j]);
+    const V4d nx = e1y * e2z - e1z * e2y, ny = e1z * e2x - e1x * e2z, nz = e1x * e2y - e1y * e2x;
+    const V4d l1 = e1x * e1x + e1y * e1y + e1z * e1z, l2 = e2x * e2x + e2y * e2y + e2z * e2z;
+    const V4d ff = fx * fx + fy * fy + fz * fz;
+    const V4i is_first = ff == 0;
+    const V4d cx = fy * nz - fz * ny, cy = fz * nx - fx * nz, cz = fx * ny - fy * nx;
+    const V4d cc = cx * cx + cy * cy + cz * cz, nn = nx * nx + ny * ny + nz * nz;
+    const V4d fn = fx * nx + fy * ny + fz * nz;
+    const V4i still_flat = (cc <= (kFlatSine * kFlatSine) * (ff * nn)) & (fn > 0);
+    flat = (is_first & flat) | (~is_first & flat & still_flat);
+    fx = select(is_first, nx, fx), fy = select(is_first, ny, fy), fz = select(is_first, nz, fz);
+    rx += nx, ry += ny, rz += nz;
+    const V4d l12 = l1 * l2;
+    const V4i positive = l12 > 0;
+    const V4d w = 1.0 / lsf_math::sqrt(l12);
+    ax = select(positive, ax + nx * w, ax), ay = select(positive, ay + ny * w, ay);
+    az = select(positive, az + nz * w, az);
+    shortest = min4(shortest, min4(l1, l2)), longest = max4(longest, max4(l1, l2));
+  }
+  for (int l = 0; l < b.lanes; ++l) {
+    if (b.normal[l] == nullptr) continue;
+    NormalSum sum;
+    sum.angle_sum = Vec3(ax[l], ay[l], az[l]), sum.area_sum = Vec3(rx[l], ry[l], rz[l]);
+    sum.first = Vec3(fx[l], fy[l], fz[l]);
+    sum.shortest = shortest[l], sum.longest = longest[l], sum.flat = flat[l] != 0;
+    *b.normal[l] = sum.normal();
+    *b.flat[l] = sum.flat && dot(sum.first, sum.first) > 0;
+  }
+}
+
 // The kernel, compiled once per instruction set below: n points per lane, a closed ring
 // (angles scaled to 2 pi) or an open crease sector (scaled to pi). Lanes from b.lanes to
 // kLanes must hold some valid sample (a copy of lane 0).
@@ -1053,6 +1101,8 @@ template <std::size_t kN>
     h[0][d] = 0.5 * c[0][d], h[1][d] = 0.5 * c[1][d], h[2][d] = 0.125 * c[2][d];
     h[3][d] = 0.25 * c[3][d], h[4][d] = 0.125 * c[4][d];
   }
+  if (closed) ring_normals(b, n);
+
   // Written straight to their destinations: every point of a ring, the inner points of a
   // sector (its two ends are the sharp spokes, whose edges take the curve rule).
   const V4d origin[3] = {load4(b.ox), load4(b.oy), load4(b.oz)};
@@ -1179,17 +1229,9 @@ bool batch_smooth_vertex(const Mesh& m, VertexId v, const EstimateSlots& slots, 
     b.dest[i][l] = slots.at(m.edge(spoke[i]), spoke[i].idx < twin.idx);
     twin = prev_spoke[i];
   }
-  if (normal) {
-    // The guard's normal of a smooth vertex from the offsets just loaded, in sector_normal's
-    // order (from m.halfedge(v), counter-clockwise): the same sums, bit for bit.
-    NormalSum sum;
-    for (std::size_t i = 0; i < n; ++i) {
-      const std::size_t j = i + 1 == n ? 0 : i + 1;
-      sum.add(Vec3(b.x[i][l], b.y[i][l], b.z[i][l]), Vec3(b.x[j][l], b.y[j][l], b.z[j][l]));
-    }
-    *normal = sum.normal();
-    *flat = sum.flat && dot(sum.first, sum.first) > 0;
-  }
+  // The guard's normal of a smooth vertex, from these offsets, in sector_normal's order (from
+  // m.halfedge(v), counter-clockwise), by the kernel (ring_normals).
+  b.normal[l] = normal, b.flat[l] = flat;
   if (b.lanes == kLanes) batches.fit(b, n, true);
   return true;
 }
