@@ -1325,7 +1325,8 @@ constexpr double kCoplanarSine = 1e-3;
 constexpr double kPatchTol = 1e-6;
 constexpr double kFloatRounding = 4.0 / (1 << 24);
 
-bool coplanar(const Vec3& t0, const Vec3& t1, double sine = kCoplanarSine) {
+[[gnu::always_inline]] inline bool coplanar(const Vec3& t0, const Vec3& t1,
+                                            double sine = kCoplanarSine) {
   const Vec3 c = cross(t0, t1);
   return dot(c, c) <= (sine * sine) * (dot(t0, t0) * dot(t1, t1)) && dot(t0, t1) > 0;
 }
@@ -1474,7 +1475,8 @@ Vec3 sector_normal(const Mesh& m, const Features& f, HalfedgeId h) {
 // onto the tangent planes of n_a and n_b, scaled to the chord's length, relative to the
 // chord midpoint: (T_a - T_b) / 8. Zero when a normal has no direction or lies along the
 // chord (nothing to say).
-Vec3 hermite_offset(const Vec3& chord, double length, const Vec3& na, const Vec3& nb) {
+[[gnu::always_inline]] inline Vec3 hermite_offset(const Vec3& chord, double length, const Vec3& na,
+                                                  const Vec3& nb) {
   if (!(length > 0)) return {};
   const Vec3 ta = chord - dot(chord, na) * na, tb = chord - dot(chord, nb) * nb;
   const double la2 = dot(ta, ta), lb2 = dot(tb, tb), min2 = 0.01 * (length * length);
@@ -1484,7 +1486,8 @@ Vec3 hermite_offset(const Vec3& chord, double length, const Vec3& na, const Vec3
 
 // Whether triangle (p, q, r) turns more than 60 degrees from the unit normal n (a degenerate
 // one does not count).
-bool turns_over_60(const Vec3& p, const Vec3& q, const Vec3& r, const Vec3& n) {
+[[gnu::always_inline]] inline bool turns_over_60(const Vec3& p, const Vec3& q, const Vec3& r,
+                                                 const Vec3& n) {
   const Vec3 t = triangle_normal(p, q, r);
   const double d = dot(t, n);
   return d < 0 ? dot(t, t) > 0 : d * d < 0.25 * dot(t, t);  // cos < 1/2, without a root
@@ -1508,17 +1511,31 @@ Vec3 pull_back_folds(const Vec3& a, const Vec3& b, const std::array<Vec3, 2>& op
     return false;
   };
   Vec3 q = point;
-  for (int i = 0; i < 8 && folds(q); ++i) q = mid + 0.5 * (q - mid);
-  return folds(q) ? mid : q;
+  bool folded = folds(q);  // (each point tested once: most are not pulled at all)
+  for (int i = 0; i < 8 && folded; ++i) {
+    q = mid + 0.5 * (q - mid);
+    folded = folds(q);
+  }
+  return folded ? mid : q;
 }
 
 }  // namespace
 
 namespace {
 
+// What the edge guard reads of a vertex, packed in one record (the edge pass reads two per
+// edge, at random): its guard normal when it has one sector (smooth or dart), and for a batched
+// smooth vertex whether all its faces are within kFlatSine of one another (then the plane rule
+// cannot fire at an edge between two such vertices, see guarded_edge_point).
+struct alignas(32) GuardVertex {
+  Vec3 normal;
+  std::uint8_t one_sector = 0;
+  std::uint8_t flat = 0;
+};
+
 template <class NormalOf>
 Vec3 guarded_edge_point(const Mesh& m, const Features& f, NormalOf&& normal_of,
-                        const std::uint8_t* flat_ring, EdgeId e, const Vec3& lower_estimate,
+                        const GuardVertex* guard, EdgeId e, const Vec3& lower_estimate,
                         const Vec3& upper_estimate) {
   const HalfedgeId h0 = m.halfedge(e), h1 = m.twin(h0);
   const Vec3 average = 0.5 * (lower_estimate + upper_estimate);
@@ -1543,12 +1560,11 @@ Vec3 guarded_edge_point(const Mesh& m, const Features& f, NormalOf&& normal_of,
   // The squared widths across the edge, times its length. (Squares throughout: this runs for
   // every edge of every level, and the roots cost as much as the rest.)
   const double w0 = dot(t0, t0), w1 = dot(t1, t1);
-  // When every face at a and at b is within kFlatSine of one face there (flat_ring, known for
+  // When every face at a and at b is within kFlatSine of one face there (flat, known for
   // the batched smooth vertices), every face there is within kCoplanarSine of t0 and of t1:
   // nothing bends, so on_plane is false, and its walks are skipped (the flat regions of a
   // CAD part, most of its edges after a level).
-  const bool no_bend =
-      flat_ring != nullptr && flat_ring[m.from(ha).idx] && flat_ring[m.from(hb).idx];
+  const bool no_bend = guard != nullptr && guard[m.from(ha).idx].flat && guard[m.from(hb).idx].flat;
   auto on_plane = [&](const Vec3& t) {  // (only asked for the few exactly planar candidates)
     if (no_bend) return false;
     bool bends = false;
@@ -1733,10 +1749,7 @@ void LsfStencil::edge_points(const Level& coarse, std::span<Vec3> out) const {
   auto sink = [&](HalfedgeId s, const Vec3& point) {
     *slots.at(m.edge(s), s.idx < m.twin(s).idx) = point;
   };
-  std::vector<Vec3> vertex_normal(m.num_vertices());
-  // Per batched smooth vertex: whether all its faces are within kFlatSine of one another (then
-  // the plane rule cannot fire at an edge between two such vertices, see guarded_edge_point).
-  std::vector<std::uint8_t> flat_ring(m.num_vertices(), 0);
+  std::vector<GuardVertex> guard(m.num_vertices());
   parallel_for_each_range(m.num_vertices(), [&](std::size_t begin, std::size_t end) {
     Batches batches;
     for (std::size_t i = begin; i < end; ++i) {
@@ -1745,8 +1758,8 @@ void LsfStencil::edge_points(const Level& coarse, std::span<Vec3> out) const {
       const bool batched =
           kind <= VertexKind::Dart
               ? batch_smooth_vertex(m, v, slots, batches,
-                                    kind == VertexKind::Smooth ? &vertex_normal[i] : nullptr,
-                                    &flat_ring[i])
+                                    kind == VertexKind::Smooth ? &guard[i].normal : nullptr,
+                                    &guard[i].flat)
           : kind == VertexKind::Crease ? batch_crease_vertex(m, f, v, slots, batches)
                                        : false;
       if (!batched) vertex_estimates(m, f, v, sink);
@@ -1754,22 +1767,53 @@ void LsfStencil::edge_points(const Level& coarse, std::span<Vec3> out) const {
       // normals are found where they are needed).
       if (kind <= VertexKind::Dart && !(batched && kind == VertexKind::Smooth) &&
           m.halfedge(v).valid())
-        vertex_normal[i] = sector_normal(m, f, m.halfedge(v));
+        guard[i].normal = sector_normal(m, f, m.halfedge(v));
+      guard[i].one_sector = kind <= VertexKind::Dart;
     }
     batches.flush();
   });
   auto normal_of = [&](HalfedgeId h) {
     const VertexId v = m.from(h);
-    return f.kind(v) <= VertexKind::Dart ? vertex_normal[v.idx] : sector_normal(m, f, h);
+    const GuardVertex& g = guard[v.idx];
+    return g.one_sector ? g.normal : sector_normal(m, f, h);
   };
-  parallel_for_each_index(m.num_edges(), [&](std::size_t e) {
-    const EdgeId edge(static_cast<std::uint32_t>(e));
-    if (f.is_sharp(edge)) {
-      out[e] = lsf_guarded_curve_point(m, f, edge, lsf_curve_point(m, f, m.halfedge(edge)));
-      return;
+  // The guard reads, per edge, the corners of its two faces, their four positions and its ends'
+  // guard records: a chain of dependent loads at random places, which the edges before it
+  // cannot hide. So they are prefetched, a stage of the chain at a time, kPrefetch edges apart
+  // (no result depends on it).
+  const std::span<const HalfedgeId> edge_halfedge = m.edge_halfedges(), twins = m.twins();
+  const std::span<const VertexId> corners = m.corner_vertices();
+  const std::span<const Vec3> positions = m.positions();
+  constexpr std::size_t kPrefetch = 6;
+  parallel_for_each_range(m.num_edges(), [&](std::size_t begin, std::size_t end) {
+    for (std::size_t e = begin; e < end; ++e) {
+      if (e + 3 * kPrefetch < end) {  // the edge's twin and its first face's corners
+        const HalfedgeId h = edge_halfedge[e + 3 * kPrefetch];
+        __builtin_prefetch(&twins[h.idx]);
+        __builtin_prefetch(&corners[h.idx]);
+      }
+      if (e + 2 * kPrefetch < end) {  // the other face's corners, the first face's positions
+        const HalfedgeId h = edge_halfedge[e + 2 * kPrefetch], t = twins[h.idx];
+        if (t.valid()) __builtin_prefetch(&corners[t.idx]);
+        const VertexId a = corners[h.idx], b = corners[Mesh::next(h).idx];
+        __builtin_prefetch(&positions[a.idx]);
+        __builtin_prefetch(&positions[b.idx]);
+        __builtin_prefetch(&positions[corners[Mesh::prev(h).idx].idx]);
+        __builtin_prefetch(&guard[a.idx]);
+        __builtin_prefetch(&guard[b.idx]);
+      }
+      if (e + kPrefetch < end) {  // the other face's far corner
+        const HalfedgeId t = twins[edge_halfedge[e + kPrefetch].idx];
+        if (t.valid()) __builtin_prefetch(&positions[corners[Mesh::prev(t).idx].idx]);
+      }
+      const EdgeId edge(static_cast<std::uint32_t>(e));
+      if (f.is_sharp(edge)) {
+        out[e] = lsf_guarded_curve_point(m, f, edge, lsf_curve_point(m, f, m.halfedge(edge)));
+        continue;
+      }
+      out[e] =
+          guarded_edge_point(m, f, normal_of, guard.data(), edge, out[e], twin_estimate.data[e]);
     }
-    out[e] =
-        guarded_edge_point(m, f, normal_of, flat_ring.data(), edge, out[e], twin_estimate.data[e]);
   });
   // The children with every edge point known: the estimates are no longer needed, so their
   // storage holds the per-face marks.
