@@ -1376,7 +1376,8 @@ constexpr double kPlaneDominance = 0.75;
 // is smooth) which lie in the plane of normal t (unnormalised), to the rounding of the
 // coordinates, hold at least kPlaneAreaShare of the sector's face area and its largest face
 // dominates the others (kPlaneDominance); `bends` is set when one
-// of from(h)'s faces, in any sector, turns from t by more than kCoplanarSine.
+// of from(h)'s faces, in any sector, turns from t by more than kCoplanarSine (only asked while
+// the answer can matter: when this returns true and `bends` was false).
 bool planar_end(const Mesh& m, const Features& f, HalfedgeId h, const Vec3& t, bool& bends) {
   const VertexId v = m.from(h);
   const Vec3 p = m.position(v);
@@ -1399,7 +1400,7 @@ bool planar_end(const Mesh& m, const Features& f, HalfedgeId h, const Vec3& t, b
       largest_other = std::max(largest_other, area);
     }
   };
-  for_each_outgoing(m, v, [&](HalfedgeId s) { add(s, !whole_ring); });
+  if (whole_ring) for_each_outgoing(m, v, [&](HalfedgeId s) { add(s, false); });
   if (!whole_ring) {  // the sector, as sector_normal walks it
     constexpr int kMaxWalk = 4096;
     HalfedgeId s = h;
@@ -1417,8 +1418,12 @@ bool planar_end(const Mesh& m, const Features& f, HalfedgeId h, const Vec3& t, b
       }
     }
   }
-  return total > 0 && planar >= kPlaneAreaShare * total &&
-         largest_other <= kPlaneDominance * largest_planar;
+  const bool rules = total > 0 && planar >= kPlaneAreaShare * total &&
+                     largest_other <= kPlaneDominance * largest_planar;
+  // The faces outside the sector only tell whether something bends, which matters only when
+  // the plane rules here, and not once a face has bent (the sector's faces were asked first).
+  if (!whole_ring && rules && !bends) for_each_outgoing(m, v, [&](HalfedgeId s) { add(s, true); });
+  return rules;
 }
 
 // How much wider across an edge a planar patch's face must be than the face on the other side
