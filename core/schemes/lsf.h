@@ -3,6 +3,7 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 #include <span>
 
 #include "core/schemes/split4_host.h"
@@ -36,9 +37,10 @@ void polar_parameters(const Vec3& origin, std::span<const Vec3> points, bool clo
 
 //! Local Surface Fitting (Suzuki, Yamamoto, Kanai, Kimura et al.; spec section 5), on the
 //! 1-to-4 host. Each edge point is the average of the two endpoint fits evaluated at half
-//! the edge's parameter. Creases and boundaries: one-sided sector fits (angles scaled to
-//! pi at crease vertices, natural at corners), and the 1-D chord-length quadratic along
-//! sharp edges, so the angle across a crease is kept. Interpolating.
+//! the edge's parameter, guarded for CAD tessellations (lsf_guarded_edge_point). Creases and
+//! boundaries: one-sided sector fits (angles scaled to pi at crease vertices, natural at corners),
+//! and the 1-D chord-length quadratic along sharp edges, so the angle across a crease is kept.
+//! Interpolating.
 class LsfStencil final : public Split4Stencil {
  public:
   void edge_points(const Level& coarse, std::span<Vec3> out) const override;
@@ -59,6 +61,31 @@ QuadricFit vertex_fit(const Mesh& mesh, const Features& features, VertexId v);
 //! through its curve neighbours in chord-length parameters evaluated at the edge's
 //! half-parameter (linear at polyline ends), averaged over both endpoints.
 Vec3 lsf_curve_point(const Mesh& mesh, const Features& features, HalfedgeId h);
+
+//! The edge point of smooth edge e from its two endpoint estimates (`lower_estimate` by the
+//! fit at the start of e's lower-numbered half-edge, `upper_estimate` by the other end's),
+//! guarded for CAD tessellations (issue 17): the chord midpoint when the edge lies in a plane
+//! (its faces coplanar to the rounding of their coordinates, the plane most of both ends'
+//! sectors and something there bending away from it); else estimates that disagree with the
+//! Hermite midpoint of the sector normals are dropped (both dropped: the Hermite midpoint),
+//! and the point is pulled towards the chord while a child face would turn more than 60
+//! degrees from them.
+Vec3 lsf_guarded_edge_point(const Mesh& mesh, const Features& features, EdgeId e,
+                            const Vec3& lower_estimate, const Vec3& upper_estimate);
+
+//! The point of sharp edge e from the 1-D rule (lsf_curve_point), pulled towards the chord
+//! while a child of a face on either side would turn more than 60 degrees from that side's
+//! normals (issue 17: creases the angle found on a coarse smooth surface); not checked when
+//! the point is within a tenth of the narrower face's height of the chord.
+Vec3 lsf_guarded_curve_point(const Mesh& mesh, const Features& features, EdgeId e,
+                             const Vec3& point);
+
+//! The last pass of LsfStencil::edge_points: `points` holds one point per edge; while a
+//! 1-to-4 child of a face turns more than 60 degrees from the face's sector normals, its three
+//! edge points are moved halfway to their chord midpoints (after six rounds onto them).
+//! `marks` has room for a byte per face (scratch).
+void lsf_guard_child_folds(const Mesh& mesh, const Features& features, std::span<Vec3> points,
+                           std::span<std::uint8_t> marks);
 
 //! Smooth and dart vertices are fitted four at a time; on x86-64 CPUs with AVX2 by a kernel
 //! built for it, else by the baseline one. Both give bit-identical results: true makes
