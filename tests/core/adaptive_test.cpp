@@ -192,16 +192,20 @@ TEST(Adaptive, TheIssuesIcosphereTighterToleranceNoLongerGivesFewerFaces) {
 }
 
 TEST(Adaptive, SaysWhereTheSchemesOwnLevelsDoNotConverge) {
-  // lsf on a coarse zipped cylinder (coarseness 2, seed 3): its uniform level 2 is further
-  // from the cylinder than level 1 (RMS 2.3e-2 against 3.1e-3 of the diagonal, measured
-  // with bench/adaptive/adaptive_sweep). Refining more cannot reach the tolerance there,
-  // and the report says so.
-  const CadShape shape = make_cad_shape(CadFamily::CappedCylinder, {3, 2.0});
-  const Mesh mesh = to_mesh(shape.soup);
-  const RefineResult r = refine(mesh, adaptive("lsf", 0.01 * bbox_diagonal(mesh), 3));
-  EXPECT_EQ(r.report.stop_reason, "max_level");
-  EXPECT_GT(r.report.edges_not_converging, 0u);
-  EXPECT_LE(r.report.edges_not_converging, r.report.edges_over_tolerance);
+  // butterfly on the zipped rounded box: next to the fillets' fans its own levels do not
+  // approach a limit at the rate a smooth scheme does (uniform butterfly there is no better
+  // than the input at L2-L3, bench/results-issue17-creases.md). Refining more cannot reach
+  // the tolerance there, and the report says so. (lsf on a coarse zipped cylinder was the
+  // example until lsf's edge points were fixed for such meshes.)
+  for (const std::uint64_t seed : {1, 2, 3}) {
+    SCOPED_TRACE(seed);
+    const CadShape shape = make_cad_shape(CadFamily::RoundedBox, {seed, 1.0});
+    const Mesh mesh = to_mesh(shape.soup);
+    const RefineResult r = refine(mesh, adaptive("butterfly", 0.01 * bbox_diagonal(mesh), 3));
+    EXPECT_EQ(r.report.stop_reason, "max_level");
+    EXPECT_GT(r.report.edges_not_converging, 0u);
+    EXPECT_LE(r.report.edges_not_converging, r.report.edges_over_tolerance);
+  }
 }
 
 // Area-weighted RMS distance of face sample points (centroid and the three edge midpoints)
