@@ -458,19 +458,35 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
     }
     return best;
   };
+  const double collapse = 1e-9 * m.diagonal;
+  auto shortest_edge = [&](FaceId face, bool before) {
+    const auto vs = refined.face_vertices(face);
+    auto at = [&](VertexId v) {
+      const Outcome& o = out[v.idx];
+      return before && o.is_new ? o.original : positions[v.idx];
+    };
+    const Vec3 a = at(vs[0]), b = at(vs[1]), c = at(vs[2]);
+    return std::min({distance(a, b), distance(b, c), distance(c, a)});
+  };
   for (int round = 0; round < 3 && snap; ++round) {
     std::vector<std::uint32_t> revert;
     for (std::size_t g = 0; g < refined.num_faces(); ++g) {
       const FaceId face(static_cast<std::uint32_t>(g));
+      // A face the pass collapsed (two corners at one point: no normal, so agreement() and
+      // the report do not see it) is treated as turned.
+      const bool collapsed =
+          shortest_edge(face, false) < collapse && shortest_edge(face, true) >= collapse;
       const double after = agreement(face, false);
-      if (after < -1.5 || after >= cos_turn) continue;
-      if (agreement(face, true) < cos_turn) continue;  // the scheme's, not the pass's
+      if (!collapsed) {
+        if (after < -1.5 || after >= cos_turn) continue;
+        if (agreement(face, true) < cos_turn) continue;  // the scheme's, not the pass's
+      }
       // A vertex snapped onto a crease curve stays: a face with its three corners on the
       // curve (butterfly makes them along zipped rims) lies across the curve's chord, and no
       // position of them both on the curve and unfolded exists.
       // Unless it landed on its neighbour (see kCurveSnapLand): it was beside the crease.
       for (VertexId v : refined.face_vertices(face))
-        if (out[v.idx].snapped && (!out[v.idx].to_curve || out[v.idx].curve_land))
+        if (out[v.idx].snapped && (!out[v.idx].to_curve || out[v.idx].curve_land || collapsed))
           revert.push_back(v.idx);
     }
     if (revert.empty()) break;
