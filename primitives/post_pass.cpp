@@ -458,7 +458,8 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
     }
     return best;
   };
-  const double collapse = 1e-9 * m.diagonal;
+  // Above float32 rounding of the coordinates (an STL stores them so): 1e-6 of the diagonal.
+  const double collapse = 1e-6 * m.diagonal;
   auto shortest_edge = [&](FaceId face, bool before) {
     const auto vs = refined.face_vertices(face);
     auto at = [&](VertexId v) {
