@@ -37,6 +37,11 @@ Vec3 vec3(const K::Point_3& p) {
   return {p.x(), p.y(), p.z()};
 }
 
+// A snap onto a crease curve that moves a vertex more than this fraction of the way towards
+// one of its neighbours and ends nearer it than this fraction of their edge is taken back if
+// it turns a face over.
+constexpr double kCurveSnapLand = 0.5;
+
 // What one output vertex ends as.
 struct Outcome {
   Vec3 position;
@@ -47,8 +52,11 @@ struct Outcome {
   // snap that turns a face over: its closest face and distance there.
   Vec3 original, fallback;
   std::uint32_t fallback_face = 0;
-  double fallback_distance = 0;
+  double fallback_distance = 0, fallback_bound = 0;
   std::uint8_t reverted = 0;
+  // A curve snap that moved it more than kCurveSnapLand of the way towards a neighbour and
+  // ended nearer it than kCurveSnapLand of their edge.
+  std::uint8_t curve_land = 0;
   std::uint8_t is_new = 0, snapped = 0, to_curve = 0, refused = 0, pulled = 0;
 };
 
@@ -253,6 +261,25 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
     auto accept = [&](const std::optional<Vec3>& t) {
       return t && is_finite(*t) && distance(*t, p) <= reach;
     };
+    // A vertex of a crease lies on it up to the scheme's chordal error; a vertex beside the
+    // crease (a thin strip along a chamfer or a letter's wall, whose faces' longest edges run
+    // along the crease) may be within 15% of its longest edge of it too, and on the curve it
+    // lands on its neighbour there (xyz cube: two vertices at the same point, their faces
+    // degenerate). Such a snap is marked: if a face of it ends turned over, it is taken back.
+    auto accept_curve = [&](const std::optional<Vec3>& t) {
+      if (!accept(t)) return false;
+      const Vec3 move = *t - self;
+      const double len = norm(move);
+      o.curve_land = 0;
+      for_each_outgoing(refined, v, [&](HalfedgeId h) {
+        const Vec3& u = refined.position(refined.to(h));
+        const double ahead = len > 0 ? dot(u - self, move) / len : 0;
+        if (ahead > 0 && len > kCurveSnapLand * ahead &&
+            distance(*t, u) < kCurveSnapLand * distance(self, u))
+          o.curve_land = 1;
+      });
+      return true;
+    };
     // A vertex within 15% of its longest edge of an input crease between two recognised
     // regions is a vertex of that crease, whatever its faces say (a folded face may vote
     // for the wrong side).
@@ -279,7 +306,7 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
       const std::optional<Vec3> t =
           project_to_intersection(m.regions[std::size_t(crease_a)].primitive,
                                   m.regions[std::size_t(crease_b)].primitive, p, curve_tol);
-      if (accept(t)) {
+      if (accept_curve(t)) {
         o.to_curve = 1;
         o.allowance = std::max(o.allowance, crease_allowance);
         return t;
@@ -290,7 +317,7 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
       const Primitive& a = m.regions[std::size_t(found[0].second)].primitive;
       const Primitive& b = m.regions[std::size_t(found[1].second)].primitive;
       const std::optional<Vec3> t = project_to_intersection(a, b, p, curve_tol);
-      if (accept(t)) {
+      if (accept_curve(t)) {
         o.to_curve = 1;
         return t;
       }
@@ -325,9 +352,13 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
       o.fallback_distance = d;
       if (bound_on) {
         const double bound = user_bound ? *params.max_deviation : m.bound[face];
+        o.fallback_bound = bound;
         if (d > bound) {
           std::size_t back_face = face;
-          o.fallback = q + (p - q) * (bound / d);
+          // Just inside the bound (by 1e-14 of the diagonal, far above the coordinates'
+          // rounding): a snap taken back lands here and must still meet it.
+          const double inside = std::max(0.5 * bound, bound - 1e-14 * m.diagonal);
+          o.fallback = q + (p - q) * (inside / d);
           o.fallback_distance = distance(o.fallback, closest(o.fallback, back_face));
           o.fallback_face = static_cast<std::uint32_t>(back_face);
         }
@@ -427,28 +458,48 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
     }
     return best;
   };
+  // Above float32 rounding of the coordinates (an STL stores them so): 1e-6 of the diagonal.
+  const double collapse = 1e-6 * m.diagonal;
+  auto shortest_edge = [&](FaceId face, bool before) {
+    const auto vs = refined.face_vertices(face);
+    auto at = [&](VertexId v) {
+      const Outcome& o = out[v.idx];
+      return before && o.is_new ? o.original : positions[v.idx];
+    };
+    const Vec3 a = at(vs[0]), b = at(vs[1]), c = at(vs[2]);
+    return std::min({distance(a, b), distance(b, c), distance(c, a)});
+  };
   for (int round = 0; round < 3 && snap; ++round) {
     std::vector<std::uint32_t> revert;
     for (std::size_t g = 0; g < refined.num_faces(); ++g) {
       const FaceId face(static_cast<std::uint32_t>(g));
+      // A face the pass collapsed (two corners at one point: no normal, so agreement() and
+      // the report do not see it) is treated as turned.
+      const bool collapsed =
+          shortest_edge(face, false) < collapse && shortest_edge(face, true) >= collapse;
       const double after = agreement(face, false);
-      if (after < -1.5 || after >= cos_turn) continue;
-      if (agreement(face, true) < cos_turn) continue;  // the scheme's, not the pass's
+      if (!collapsed) {
+        if (after < -1.5 || after >= cos_turn) continue;
+        if (agreement(face, true) < cos_turn) continue;  // the scheme's, not the pass's
+      }
       // A vertex snapped onto a crease curve stays: a face with its three corners on the
       // curve (butterfly makes them along zipped rims) lies across the curve's chord, and no
       // position of them both on the curve and unfolded exists.
+      // Unless it landed on its neighbour (see kCurveSnapLand): it was beside the crease.
       for (VertexId v : refined.face_vertices(face))
-        if (out[v.idx].snapped && !out[v.idx].to_curve) revert.push_back(v.idx);
+        if (out[v.idx].snapped && (!out[v.idx].to_curve || out[v.idx].curve_land || collapsed))
+          revert.push_back(v.idx);
     }
     if (revert.empty()) break;
     for (std::uint32_t i : revert) {
       Outcome& o = out[i];
-      if (!o.snapped || o.to_curve) continue;
+      if (!o.snapped) continue;
       o.snapped = o.to_curve = 0;
       o.reverted = 1;
       o.position = positions[i] = o.fallback;
       o.face = o.fallback_face;
       o.distance_after = o.fallback_distance;
+      o.bound = o.fallback_bound;
       o.pulled = o.fallback != o.original;
       o.pull_back = distance(o.fallback, o.original);
       o.snap_move = 0;

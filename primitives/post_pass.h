@@ -41,7 +41,9 @@ struct PostPassReport {
   std::size_t snapped = 0;           //!< moved onto one primitive
   std::size_t snapped_to_curve = 0;  //!< moved onto the intersection of two primitives
   std::size_t snap_refused = 0;      //!< whose snap would have moved them too far
-  //! Snaps taken back because they turned a face more than kFoldDegrees from the input.
+  //! Snaps taken back because they turned a face more than kFoldDegrees from the input, or
+  //! collapsed it (two corners at one point: it has no normal, and worst_normal_change_deg
+  //! and faces_turned_over_60_deg skip it).
   std::size_t snaps_reverted = 0;
   double max_snap_move = 0;        //!< mm
   std::size_t pulled_back = 0;     //!< moved back within the deviation bound

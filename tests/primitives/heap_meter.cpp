@@ -3,8 +3,12 @@
 //
 // The heap the primitives tests allocate, for the memory prediction's check: every global
 // operator new and delete of this test binary goes through here and is counted (live bytes
-// by malloc_usable_size, and their peak).
+// by malloc_usable_size, and their peak). Not under AddressSanitizer (heap_meter_active()):
+// a replaced operator new would hand ASan's malloc blocks to operator delete without its
+// new/delete mismatch and sized-delete checks, and the figures would include its redzones.
 #include "tests/primitives/heap_meter.h"
+
+#ifndef STLREFINE_HEAP_METER_OFF
 
 #include <malloc.h>
 
@@ -111,3 +115,21 @@ void operator delete(void* p, const std::nothrow_t&) noexcept {
 void operator delete[](void* p, const std::nothrow_t&) noexcept {
   release(p);
 }
+
+#else  // STLREFINE_HEAP_METER_OFF
+
+namespace stlrefine::test {
+
+std::uint64_t heap_live_bytes() {
+  return 0;
+}
+std::uint64_t heap_reset_peak() {
+  return 0;
+}
+std::uint64_t heap_peak_bytes() {
+  return 0;
+}
+
+}  // namespace stlrefine::test
+
+#endif  // STLREFINE_HEAP_METER_OFF
