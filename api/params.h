@@ -60,20 +60,22 @@ struct SliceRequest {
 //! The post-pass after refinement (issue 17 items 4 and 6): recognised primitives and the
 //! deviation bound (primitives/).
 struct PrimitiveOptions {
-  //! `primitives`: auto (default) recognises planes, spheres, cylinders, cones and tori on
-  //! the input and puts the new vertices of their regions on them; off does not.
-  bool enabled = true;
+  //! `primitives`: auto recognises planes, spheres, cylinders, cones and tori on the input
+  //! and puts the new vertices of their regions on them; off (the default) does not. Off by
+  //! default because the snaps still turn thin faces along some rims over (gearwheel,
+  //! featuretype: bench/RESULTS.md, issue 17), which the deviation bound alone does not.
+  bool enabled = false;
   //! `primitive_tol`: a region is recognised when every input vertex of it lies within this
   //! fraction of the bounding box diagonal of the primitive, (0, 1e-2], default 1e-6.
   double tolerance = 1e-6;
   //! `max_deviation`: mm, [0, 1e6], or `auto` (the default: the local sagitta of the input,
-  //! see primitives::PostPassParams); 0 = off. With primitives=off and no max_deviation
-  //! there is no post-pass at all (the behaviour before it existed).
+  //! see primitives::PostPassParams); 0 = no bound (the pass then only measures).
   std::optional<double> max_deviation;
   bool max_deviation_given = false;  //!< `max_deviation` was given (`auto` included)
 
-  //! True when the post-pass runs.
-  bool post_pass() const { return enabled || max_deviation_given; }
+  //! True when the post-pass runs: always, since max_deviation=auto is the default (it
+  //! bounds interpolating schemes and measures the others for the report).
+  bool post_pass() const { return enabled || max_deviation_given || !max_deviation; }
 };
 
 //! What `refine` needs besides the STL bytes.

@@ -469,15 +469,16 @@ int main(int argc, char** argv) {
   refine_cmd->add_option("--primitives", refine.primitives,
                          "auto: recognise planes, spheres, cylinders, cones and tori on the "
                          "input and put the new vertices of their regions exactly on them; "
-                         "off: do not (auto)");
+                         "off: do not (off; auto can still turn thin faces along some rims "
+                         "over)");
   refine_cmd->add_option("--primitive-tol", refine.primitive_tol,
                          "A region is recognised when every input vertex of it lies within "
                          "this fraction of the bounding box diagonal of the primitive "
                          "(0, 0.01] (1e-6)");
   refine_cmd->add_option("--max-deviation", refine.max_deviation,
                          "No output vertex farther than this from the input surface (mm, "
-                         "[0, 1e6]; 0 = off; auto = the input's local chordal error, default "
-                         "with --primitives auto)");
+                         "[0, 1e6]; 0 = no bound, only measured; auto = the input's local "
+                         "chordal error, the default for interpolating schemes)");
   refine_cmd->add_option("--slice", refine.slice,
                          "Also slice the refined mesh with this layer height (mm)");
   refine_cmd->add_option("--slice-format", refine.slice_format,

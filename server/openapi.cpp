@@ -63,8 +63,9 @@ const std::map<std::string, ParamDoc>& param_docs() {
         "loop-g2: gradual modification (PU Remark 5.3) over this many steps, 0..8; 0 = off."}},
       {"primitives",
        {"string",
-        "auto (default): recognise planes, spheres, cylinders, cones and tori on the input "
-        "and put the new vertices of their regions exactly on them; off: do not."}},
+        "auto: recognise planes, spheres, cylinders, cones and tori on the input and put "
+        "the new vertices of their regions exactly on them; off (default): do not (auto can "
+        "still turn thin faces along some rims over)."}},
       {"primitive_tol",
        {"number",
         "A region is recognised when every input vertex lies within this fraction of the "
@@ -72,8 +73,9 @@ const std::map<std::string, ParamDoc>& param_docs() {
       {"max_deviation",
        {"string",
         "No output vertex farther than this (mm, 0..1e6) from the input surface: vertices "
-        "are pulled back towards it and counted in the report. auto (default with "
-        "primitives=auto): the input's local chordal error; 0 = off."}},
+        "are pulled back towards it and counted in the report. auto (default; interpolating "
+        "schemes only, the others are measured): the input's local chordal error; 0 = no "
+        "bound, only measured."}},
       {"adaptive_angle",
        {"number",
         "Degrees, 0..180: curvature-adaptive refinement where the normals of neighbouring "

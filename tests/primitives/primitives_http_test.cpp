@@ -67,7 +67,8 @@ TEST(PrimitivesHttp, BadValuesAreProblemsNamingTheField) {
 TEST(PrimitivesHttp, ReportHeaderCarriesTheFigures) {
   InProcessDaemon d(server::DaemonConfig{});
   httplib::Client client = d.client();
-  auto r = client.Post("/v1/refine?levels=1&max_deviation=auto", gearwheel(), "model/stl");
+  auto r = client.Post("/v1/refine?levels=1&max_deviation=auto&primitives=auto", gearwheel(),
+                       "model/stl");
   ASSERT_TRUE(r);
   ASSERT_EQ(r->status, 200) << r->body;
   const Json report = Json::parse(r->get_header_value("X-Stlrefine-Report"));

@@ -393,7 +393,8 @@ api::RefineOutcome run(const std::string& stl, const api::RawParams& raw) {
 
 TEST(PrimitivesApi, ReportListsRegions) {
   const std::string stl = stl_of(cad_mesh(CadFamily::CappedCylinder, 1));
-  const api::RefineOutcome out = run(stl, {{"scheme", "lsf"}, {"levels", "2"}});
+  const api::RefineOutcome out =
+      run(stl, {{"scheme", "lsf"}, {"levels", "2"}, {"primitives", "auto"}});
   const auto& prim = out.report.at("primitives");
   EXPECT_EQ(prim.at("mode"), "auto");
   ASSERT_EQ(prim.at("regions_found"), 3u);
@@ -416,8 +417,9 @@ TEST(PrimitivesApi, ReportListsRegions) {
 TEST(PrimitivesApi, OffIsTheOldOutput) {
   const Mesh input = cad_mesh(CadFamily::Tube, 2);
   const std::string stl = stl_of(input);
-  const api::RefineOutcome out =
-      run(stl, {{"scheme", "butterfly"}, {"levels", "2"}, {"primitives", "off"}});
+  const api::RefineOutcome out = run(
+      stl,
+      {{"scheme", "butterfly"}, {"levels", "2"}, {"primitives", "off"}, {"max_deviation", "0"}});
   const Mesh reread =
       api::ingest_stl(std::span<const std::uint8_t>(
                           reinterpret_cast<const std::uint8_t*>(stl.data()), stl.size()),
@@ -426,9 +428,11 @@ TEST(PrimitivesApi, OffIsTheOldOutput) {
   RefineParams params;
   params.levels = 2;
   EXPECT_EQ(out.stl, stl_of(refine(reread, params).mesh));
-  EXPECT_FALSE(out.report.contains("deviation"));
+  // Measured only: nothing moved.
+  EXPECT_EQ(out.report.at("deviation").at("pulled_back"), 0);
   EXPECT_EQ(out.report.at("primitives").at("mode"), "off");
-  const api::RefineOutcome on = run(stl, {{"scheme", "butterfly"}, {"levels", "2"}});
+  const api::RefineOutcome on =
+      run(stl, {{"scheme", "butterfly"}, {"levels", "2"}, {"primitives", "auto"}});
   EXPECT_NE(on.stl, out.stl);
 }
 
@@ -469,7 +473,11 @@ TEST(PrimitivesApi, Parameters) {
   EXPECT_TRUE(a.primitives.post_pass());
   const api::RefineRequest b = api::parse_refine_params({{"max_deviation", "0"}}, {});
   EXPECT_EQ(b.primitives.max_deviation, 0.0);
-  EXPECT_TRUE(api::parse_refine_params({}, {}).primitives.enabled);
+  // Defaults: no snapping (it still turns thin rim faces over), the deviation bound on.
+  const api::RefineRequest d = api::parse_refine_params({}, {});
+  EXPECT_FALSE(d.primitives.enabled);
+  EXPECT_FALSE(d.primitives.max_deviation);
+  EXPECT_TRUE(d.primitives.post_pass());
 }
 
 }  // namespace
@@ -534,10 +542,12 @@ TEST(PrimitivesMemory, RunRefineAsksBeforeTheSurface) {
   const std::string stl = write_stl(mesh, StlFormat::Binary);
   const auto* data = reinterpret_cast<const std::uint8_t*>(stl.data());
   const std::span<const std::uint8_t> body(data, stl.size());
-  api::RawParams raw{{"scheme", "butterfly"}, {"levels", "2"}};
+  api::RawParams raw{{"scheme", "butterfly"}, {"levels", "2"}, {"primitives", "auto"}};
   const api::RefineRequest request = api::parse_refine_params(raw, {});
   const std::uint64_t surface =
       InputSurface::predict_bytes(mesh.num_vertices(), mesh.num_faces(), true);
+  const std::uint64_t plain_surface =
+      InputSurface::predict_bytes(mesh.num_vertices(), mesh.num_faces(), false);
 
   std::vector<std::uint64_t> asked;
   const MemoryGrowFn refuse_first = [&](std::uint64_t b) {
@@ -560,15 +570,17 @@ TEST(PrimitivesMemory, RunRefineAsksBeforeTheSurface) {
     with.push_back(b);
     return true;
   });
-  raw.emplace_back("primitives", "off");
+  raw.back().second = "off";  // the deviation bound's surface alone, without regions
   api::run_refine(body, api::parse_refine_params(raw, {}), {}, nullptr, [&](std::uint64_t b) {
     without.push_back(b);
     return true;
   });
-  // with: the surface, refine's figures, the post-pass's, the rest; without: refine's, the
-  // rest.
-  ASSERT_EQ(with.size(), without.size() + 2);
-  for (std::size_t i = 0; i + 1 < without.size(); ++i) EXPECT_EQ(with[i + 1], without[i] + surface);
+  // Both: the surface, refine's figures, the post-pass's, the rest; refine's figures hold the
+  // surface they keep beside them.
+  ASSERT_EQ(with.size(), without.size());
+  ASSERT_GE(with.size(), 4u);
+  for (std::size_t i = 1; i + 2 < with.size(); ++i)
+    EXPECT_EQ(with[i] - without[i], surface - plain_surface);
   EXPECT_GE(with[with.size() - 2], stl.size() + surface + InputSurface::predict_apply_bytes(0));
   // A refusal of the post-pass's own figure, after refining.
   std::size_t call = 0;
