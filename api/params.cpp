@@ -300,12 +300,16 @@ RefineRequest parse_refine_params(const RawParams& params, const RequestLimits& 
       request.primitives.tolerance = t;
     } else if (name == "max_deviation") {
       request.primitives.max_deviation_given = true;
-      if (value != "auto") {
+      request.primitives.measure = value != "off";
+      if (value == "off") {
+        request.primitives.max_deviation = 0;
+      } else if (value != "auto") {
         const double d = parse_number(name, value);
         if (!(d >= 0 && d <= 1e6))
           throw invalid(name, "out_of_range",
                         "max_deviation = " + shown(value) +
-                            " is outside [0, 1e6] mm (0 = off; auto = the local default)");
+                            " is outside [0, 1e6] mm (0 = no bound; auto = the local default; "
+                            "off = not even measured)");
         request.primitives.max_deviation = d;
       }
     } else if (name == "slice") {

@@ -72,10 +72,14 @@ struct PrimitiveOptions {
   //! see primitives::PostPassParams); 0 = no bound (the pass then only measures).
   std::optional<double> max_deviation;
   bool max_deviation_given = false;  //!< `max_deviation` was given (`auto` included)
+  //! False for `max_deviation=off`: with primitives=off no post-pass at all (no bound, no
+  //! measurement, none of its time and memory: the refinement as it was before the pass).
+  bool measure = true;
 
-  //! True when the post-pass runs: always, since max_deviation=auto is the default (it
-  //! bounds interpolating schemes and measures the others for the report).
-  bool post_pass() const { return enabled || max_deviation_given || !max_deviation; }
+  //! True when the post-pass runs: unless max_deviation=off with primitives=off, since
+  //! max_deviation=auto is the default (it bounds interpolating schemes and measures the
+  //! others for the report).
+  bool post_pass() const { return enabled || measure; }
 };
 
 //! What `refine` needs besides the STL bytes.

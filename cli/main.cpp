@@ -478,7 +478,8 @@ int main(int argc, char** argv) {
   refine_cmd->add_option("--max-deviation", refine.max_deviation,
                          "No output vertex farther than this from the input surface (mm, "
                          "[0, 1e6]; 0 = no bound, only measured; auto = the input's local "
-                         "chordal error, the default for interpolating schemes)");
+                         "chordal error, the default for interpolating schemes; off = neither "
+                         "bound nor measured, the fastest)");
   refine_cmd->add_option("--slice", refine.slice,
                          "Also slice the refined mesh with this layer height (mm)");
   refine_cmd->add_option("--slice-format", refine.slice_format,

@@ -75,7 +75,8 @@ const std::map<std::string, ParamDoc>& param_docs() {
         "No output vertex farther than this (mm, 0..1e6) from the input surface: vertices "
         "are pulled back towards it and counted in the report. auto (default; interpolating "
         "schemes only, the others are measured): the input's local chordal error; 0 = no "
-        "bound, only measured."}},
+        "bound, only measured; off = neither bound nor measured (with primitives=off: no "
+        "post-pass, its time and memory saved)."}},
       {"adaptive_angle",
        {"number",
         "Degrees, 0..180: curvature-adaptive refinement where the normals of neighbouring "

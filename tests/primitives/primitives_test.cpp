@@ -419,7 +419,7 @@ TEST(PrimitivesApi, OffIsTheOldOutput) {
   const std::string stl = stl_of(input);
   const api::RefineOutcome out = run(
       stl,
-      {{"scheme", "butterfly"}, {"levels", "2"}, {"primitives", "off"}, {"max_deviation", "0"}});
+      {{"scheme", "butterfly"}, {"levels", "2"}, {"primitives", "off"}, {"max_deviation", "off"}});
   const Mesh reread =
       api::ingest_stl(std::span<const std::uint8_t>(
                           reinterpret_cast<const std::uint8_t*>(stl.data()), stl.size()),
@@ -428,8 +428,7 @@ TEST(PrimitivesApi, OffIsTheOldOutput) {
   RefineParams params;
   params.levels = 2;
   EXPECT_EQ(out.stl, stl_of(refine(reread, params).mesh));
-  // Measured only: nothing moved.
-  EXPECT_EQ(out.report.at("deviation").at("pulled_back"), 0);
+  EXPECT_FALSE(out.report.contains("deviation"));  // no post-pass at all
   EXPECT_EQ(out.report.at("primitives").at("mode"), "off");
   const api::RefineOutcome on =
       run(stl, {{"scheme", "butterfly"}, {"levels", "2"}, {"primitives", "auto"}});
@@ -478,6 +477,9 @@ TEST(PrimitivesApi, Parameters) {
   EXPECT_FALSE(d.primitives.enabled);
   EXPECT_FALSE(d.primitives.max_deviation);
   EXPECT_TRUE(d.primitives.post_pass());
+  EXPECT_FALSE(api::parse_refine_params({{"max_deviation", "off"}}, {}).primitives.post_pass());
+  EXPECT_TRUE(api::parse_refine_params({{"max_deviation", "off"}, {"primitives", "auto"}}, {})
+                  .primitives.post_pass());
 }
 
 }  // namespace
