@@ -1,6 +1,6 @@
 #!/bin/sh
 # Issue 17 items 4, 6, 7: the post-pass on the shared CAD meshes, per scheme, primitives=off
-# (measured only: --max-deviation 0) and auto (default). Prints one markdown row per run.
+# (measured only: --max-deviation 0) and auto (--primitives auto; the default is off). Prints one markdown row per run.
 # usage: bench/primitives_table.sh BUILD_DIR MESH_DIR
 set -eu
 bin=$1/bin/stlrefine
@@ -17,7 +17,7 @@ for m in fandisk featuretype_open gearwheel round tray_bottom xyz_cube_20mm; do
       --primitives off --max-deviation 0 --report "$tmp/off.json" >/dev/null
     mv "$tmp/o.stl" "$tmp/off.stl"
     "$bin" refine "$dir/$m.stl" -o "$tmp/o.stl" --scheme $s --levels $l --threads 1 \
-      --report "$tmp/auto.json" >/dev/null
+      --primitives auto --report "$tmp/auto.json" >/dev/null
     python3 - "$tmp/off.json" "$tmp/auto.json" "$m" "$s" "$l" "$tmp/off.stl" "$tmp/o.stl" <<'PY'
 import json, struct, sys
 def collapsed(path):
