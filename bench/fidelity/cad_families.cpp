@@ -29,6 +29,7 @@
 #include "core/refine.h"
 #include "core/schemes/scheme.h"
 #include "tests/support/cad_like.h"
+#include "tests/support/mesh_queries.h"
 
 namespace stlrefine::fidelity {
 namespace {
@@ -63,14 +64,7 @@ struct SeedResult {
   std::vector<std::vector<Outcome>> runs;  //!< [column][level]
 };
 
-double bbox_diagonal(const Mesh& mesh) {
-  Vec3 lo = mesh.position(VertexId(0)), hi = lo;
-  for (const Vec3& p : mesh.positions()) {
-    lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
-    hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
-  }
-  return distance(lo, hi);
-}
+using test::bbox_diagonal;
 
 std::string sci(double v) {
   char buf[32];

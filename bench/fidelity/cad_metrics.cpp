@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "core/mesh/build_mesh.h"
+#include "tests/support/mesh_queries.h"
 
 namespace stlrefine::fidelity {
 
@@ -22,13 +23,7 @@ CadMetrics measure_cad(const Mesh& mesh, const test::TrueSurface& surface, std::
                                std::sqrt(double(samples) / double(std::max<std::size_t>(nf, 1))))),
                            1, 16);
   auto dist = [&](const Vec3& p) { return distance(p, surface.closest_point(p).point); };
-  Vec3 lo = mesh.num_vertices() ? mesh.position(VertexId(0)) : Vec3{}, hi = lo;
-  for (std::uint32_t v = 0; v < mesh.num_vertices(); ++v) {
-    const Vec3& p = mesh.position(VertexId(v));
-    lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
-    hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
-  }
-  const double crease_snap = 1e-6 * distance(lo, hi);
+  const double crease_snap = 1e-6 * test::bbox_diagonal(mesh);
   double sum_w = 0, sum_d2 = 0, sum_a2 = 0, total_area = 0;
   for (std::uint32_t f = 0; f < nf; ++f) {
     const auto fv = mesh.face_vertices(FaceId(f));

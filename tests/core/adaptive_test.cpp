@@ -118,15 +118,6 @@ TEST(Adaptive, EveryOutputVertexIsAVertexOfTheUniformLevelReached) {
   }
 }
 
-double bbox_diagonal(const Mesh& mesh) {
-  Vec3 lo = mesh.position(VertexId(0)), hi = lo;
-  for (const Vec3& p : mesh.positions()) {
-    lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
-    hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
-  }
-  return distance(lo, hi);
-}
-
 TEST(Adaptive, EveryCadLikeFamilyRefinesWatertightAndSaysWhyItStopped) {
   // The uniform regions are cut from the level below by rings of faces; a cut that pinched
   // a vertex (two fans meeting only there) crashed the 1-to-4 step on the region.

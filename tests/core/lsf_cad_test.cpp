@@ -29,15 +29,6 @@ using namespace test;
 
 constexpr std::array<std::uint64_t, 3> kSeeds{1, 2, 3};
 
-double bbox_diagonal(const Mesh& m) {
-  Vec3 lo = m.position(VertexId(0)), hi = lo;
-  for (const Vec3& p : m.positions()) {
-    lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
-    hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
-  }
-  return distance(lo, hi);
-}
-
 // Area-weighted RMS distance to the surface over the centroids of a k x k split of every
 // face; coarse meshes get a finer split, so every level is sampled about as densely.
 double rms_distance(const Mesh& m, const TrueSurface& surface, int k) {

@@ -33,6 +33,7 @@
 #include "primitives/regions.h"
 #include "tests/primitives/heap_meter.h"
 #include "tests/support/cad_like.h"
+#include "tests/support/mesh_queries.h"
 
 namespace stlrefine::primitives {
 namespace {
@@ -40,12 +41,7 @@ namespace {
 using test::CadFamily;
 
 double diagonal(const Mesh& mesh) {
-  Vec3 lo = mesh.position(VertexId(0)), hi = lo;
-  for (const Vec3& p : mesh.positions()) {
-    lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
-    hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
-  }
-  return distance(lo, hi);
+  return test::bbox_diagonal(mesh);
 }
 
 struct Refined {

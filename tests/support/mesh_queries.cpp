@@ -44,6 +44,16 @@ std::vector<RingEntry> ring(const Mesh& mesh, VertexId v) {
   return out;
 }
 
+double bbox_diagonal(const Mesh& mesh) {
+  if (mesh.num_vertices() == 0) return 0;
+  Vec3 lo = mesh.position(VertexId(0)), hi = lo;
+  for (const Vec3& p : mesh.positions()) {
+    lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
+    hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
+  }
+  return distance(lo, hi);
+}
+
 Level make_level(Mesh mesh, double crease_angle_deg) {
   Level level;
   level.mesh = std::move(mesh);

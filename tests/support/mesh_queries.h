@@ -40,6 +40,8 @@ inline VertexId edge_vertex(const Mesh& coarse, EdgeId e) {
 
 //! A Level whose features come from detect_features(mesh, crease_angle_deg) in angle mode.
 Level make_level(Mesh mesh, double crease_angle_deg = 35.0);
+//! The length of the diagonal of the mesh's axis-aligned bounding box (0 without vertices).
+double bbox_diagonal(const Mesh& mesh);
 //! A Level whose sharp edges are exactly `sharp` (plus the boundary, which is forced).
 Level make_level_with_sharp(Mesh mesh, const std::vector<std::pair<VertexId, VertexId>>& sharp);
 
