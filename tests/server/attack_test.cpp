@@ -551,11 +551,13 @@ TEST(Attack, ClientsThatNeverReadTheirAnswerHoldNoWorker) {
   Child child(daemon_argv({"--compute-slots", "2", "--threads", "3", "--write-timeout", "4"}));
   const int port = start(child);
   ASSERT_GT(port, 0);
-  // Six clients ask for ~40 MB answers and never read them.
+  // Six clients ask for ~40 MB answers and never read them. (No deviation pass: under ASan
+  // it makes the six computations outlast the 20 s below; this test is about the answers.)
   std::vector<std::unique_ptr<RawConnection>> sinks;
   for (int i = 0; i < 6; ++i) {
     sinks.push_back(std::make_unique<RawConnection>(port));
-    ASSERT_TRUE(sinks.back()->send(post_text("/v1/refine?levels=3", "model/stl", fandisk())));
+    ASSERT_TRUE(sinks.back()->send(
+        post_text("/v1/refine?levels=3&max_deviation=off", "model/stl", fandisk())));
   }
   std::this_thread::sleep_for(100ms);
   // The workers computed and handed the answers to the event loop: others are served.
