@@ -496,6 +496,31 @@ namespace {
 // The post-pass's memory (issue 16's admission): what detect_regions, the input surface and
 // apply allocate on the heap stays within the prediction, and the prediction is not far above
 // it (within 4 times), on CAD-like meshes and a shared CAD mesh.
+// The heap of region detection + the input surface (peak, and what the surface keeps), and
+// of apply on the input refined by butterfly, 2 levels.
+struct PostPassHeap {
+  std::uint64_t build_peak = 0, held = 0, apply_peak = 0;
+  std::size_t output_vertices = 0;
+};
+
+PostPassHeap measure_post_pass_heap(const Mesh& input) {
+  RefineParams params;
+  params.levels = 2;
+  Mesh output = refine(input, params).mesh;
+  const Features features = detect_features(input, params.features);
+  PostPassHeap heap;
+  heap.output_vertices = output.num_vertices();
+  const std::uint64_t base = test::heap_reset_peak();
+  const RegionMap regions = detect_regions(input, features, {});
+  const InputSurface surface(input, features, &regions);
+  heap.build_peak = test::heap_peak_bytes() - base;
+  heap.held = test::heap_live_bytes() - base;
+  const std::uint64_t before_apply = test::heap_reset_peak();
+  surface.apply(output, {});
+  heap.apply_peak = test::heap_peak_bytes() - before_apply;
+  return heap;
+}
+
 TEST(PrimitivesMemory, PredictionBoundsTheHeap) {
   if (!test::heap_meter_active())
     GTEST_SKIP() << "the heap meter is off under ASan (its allocator); the Release run checks";
@@ -506,24 +531,11 @@ TEST(PrimitivesMemory, PredictionBoundsTheHeap) {
   for (const auto& named : inputs) {
     const Mesh& input = named.second;
     SCOPED_TRACE(named.first);
-    RefineParams params;
-    params.levels = 2;
-    Mesh output = refine(input, params).mesh;
-    const Features features = detect_features(input, params.features);
-    const std::uint64_t base = test::heap_reset_peak();
-    std::uint64_t held = 0, peak_build = 0;
-    {
-      const RegionMap regions = detect_regions(input, features, {});
-      const InputSurface surface(input, features, &regions);
-      peak_build = test::heap_peak_bytes() - base;
-      held = test::heap_live_bytes() - base;
-      const std::uint64_t before_apply = test::heap_reset_peak();
-      surface.apply(output, {});
-      const std::uint64_t apply = test::heap_peak_bytes() - before_apply;
-      EXPECT_LE(apply, InputSurface::predict_apply_bytes(output.num_vertices()));
-      EXPECT_GE(4 * apply, InputSurface::predict_apply_bytes(output.num_vertices()) -
-                               (std::uint64_t{1} << 20));
-    }
+    const PostPassHeap heap = measure_post_pass_heap(input);
+    const std::uint64_t apply = heap.apply_peak, peak_build = heap.build_peak, held = heap.held;
+    EXPECT_LE(apply, InputSurface::predict_apply_bytes(heap.output_vertices));
+    EXPECT_GE(4 * apply,
+              InputSurface::predict_apply_bytes(heap.output_vertices) - (std::uint64_t{1} << 20));
     const std::uint64_t predicted =
         InputSurface::predict_bytes(input.num_vertices(), input.num_faces(), true);
     std::printf("%s: faces %zu build peak %llu held %llu predicted %llu\n", named.first.c_str(),
@@ -689,27 +701,15 @@ TEST(PrimitivesMeasure, DISABLED_SharedMeshMemory) {
     const std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)),
                                           std::istreambuf_iterator<char>());
     const Mesh input = api::ingest_stl(bytes, 0).result.mesh;
-    RefineParams params;
-    params.levels = 2;
-    Mesh output = refine(input, params).mesh;
-    const Features features = detect_features(input, params.features);
-    const std::uint64_t base = test::heap_reset_peak();
-    std::uint64_t build = 0, apply = 0;
-    {
-      const RegionMap regions = detect_regions(input, features, {});
-      const InputSurface surface(input, features, &regions);
-      build = test::heap_peak_bytes() - base;
-      const std::uint64_t before = test::heap_reset_peak();
-      surface.apply(output, {});
-      apply = test::heap_peak_bytes() - before;
-    }
+    const PostPassHeap heap = measure_post_pass_heap(input);
+    const std::uint64_t build = heap.build_peak, apply = heap.apply_peak;
     std::printf(
         "| %s | %zu | %llu | %llu | %llu | %llu |\n", name, input.num_faces(),
         static_cast<unsigned long long>(build),
         static_cast<unsigned long long>(
             InputSurface::predict_bytes(input.num_vertices(), input.num_faces(), true)),
         static_cast<unsigned long long>(apply),
-        static_cast<unsigned long long>(InputSurface::predict_apply_bytes(output.num_vertices())));
+        static_cast<unsigned long long>(InputSurface::predict_apply_bytes(heap.output_vertices)));
   }
 }
 
