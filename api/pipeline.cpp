@@ -15,6 +15,7 @@
 #include "core/features/features.h"
 #include "core/io/stl.h"
 #include "core/mesh/mesh_stats.h"
+#include "core/parallel.h"
 #include "core/schemes/lsf_curvature.h"
 #include "core/schemes/scheme.h"
 #include "primitives/post_pass.h"
@@ -128,6 +129,7 @@ RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineReques
   if (measure_only) reported.max_deviation = 0;
   std::size_t snap_turned_faces = 0;  // > 0: the snaps were withdrawn, see below
   if (surface) {
+    const CancelScope cancel_scope(cancel);  // a disconnect or deadline stops the pass too
     primitives::PostPassParams pp;
     pp.snap = prim.enabled && !measure_only;
     pp.max_deviation = reported.max_deviation;

@@ -6,9 +6,6 @@
 #include <CGAL/AABB_tree.h>
 #include <CGAL/AABB_triangle_primitive.h>
 #include <CGAL/Simple_cartesian.h>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <array>
@@ -16,9 +13,11 @@
 #include <cmath>
 #include <iterator>
 #include <limits>
+#include <mutex>
 #include <numbers>
 
 #include "core/geometry/point_triangle.h"
+#include "core/parallel.h"
 #include "primitives/chordal.h"
 
 namespace stlrefine::primitives {
@@ -66,6 +65,7 @@ struct InputSurface::Impl {
   std::vector<Vec3> positions;
   std::vector<std::array<std::uint32_t, 3>> faces;
   std::vector<Vec3> normals;  // unit (zero for a degenerate face)
+  std::vector<double> span;   // longest edge
   // Per face: the default deviation bound, the input's chordal error there (chordal_bounds).
   std::vector<double> bound;
   std::vector<std::int32_t> face_region;  // empty without regions
@@ -89,6 +89,7 @@ InputSurface::InputSurface(const Mesh& mesh, const Features& features, const Reg
   m.faces.resize(nf);
   m.across_crease.assign(nf, {-1, -1, -1});
   m.normals.resize(nf);
+  m.span.resize(nf);
   m.triangles.reserve(nf);
   for (std::size_t f = 0; f < nf; ++f) {
     const auto vs = mesh.face_vertices(FaceId(static_cast<std::uint32_t>(f)));
@@ -97,6 +98,7 @@ InputSurface::InputSurface(const Mesh& mesh, const Features& features, const Reg
     m.triangles.emplace_back(point3(a), point3(b), point3(c));
     const Vec3 n = cross(b - a, c - a);
     m.normals[f] = norm(n) > 0 ? normalized(n) : Vec3{};
+    m.span[f] = std::max({distance(a, b), distance(b, c), distance(c, a)});
     for (int k = 0; k < 3; ++k) {
       const HalfedgeId h = Mesh::halfedge(FaceId(static_cast<std::uint32_t>(f)), k);
       if (!mesh.is_boundary(h) && features.is_sharp(mesh, h))
@@ -148,7 +150,7 @@ std::uint64_t InputSurface::predict_bytes(std::uint64_t input_vertices, std::uin
   // face: n - 1 nodes of a box and two pointers), the search tree's point and id (32) and its
   // kd nodes; vectors grown by doubling may hold up to twice their size.
   const std::uint64_t held = 2 * (24 * input_vertices) +
-                             2 * (12 + 24 + 8 + 4 + 12 + 72) * input_faces +
+                             2 * (12 + 24 + 8 + 8 + 4 + 12 + 72) * input_faces +
                              (8 + 64 + 2 * 32 + 48) * input_faces;
   // detect_regions, before the surface exists: components, patches (a copy of every vertex per
   // face it touches, normals and centroids), stamps, bounds and face flags.
@@ -180,7 +182,40 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
   const double curve_tol = 1e-12 * m.diagonal;
   std::vector<Outcome> out(nv);
 
-  auto closest = [&](const Vec3& p, std::size_t& face) {
+  // The closest point on the input. From a hint (the face a nearby point was closest to):
+  // only the faces whose boxes meet the ball through the hint's closest point can be closer,
+  // and they are few (the refined surface lies within the chordal error of the input); a
+  // ball wider than the hint face falls back to the tree's own search.
+  auto closest = [&](const Vec3& p, std::size_t& face, std::size_t hint = SIZE_MAX) {
+    if (hint < m.faces.size()) {
+      const auto on = [&](std::size_t f) {
+        const auto& t = m.faces[f];
+        return closest_point_on_triangle(p, m.positions[t[0]], m.positions[t[1]],
+                                         m.positions[t[2]]);
+      };
+      Vec3 best = on(hint);
+      double r = distance(p, best);
+      if (r <= m.span[hint]) {
+        thread_local std::vector<Tree::Primitive_id> ids;
+        ids.clear();
+        const double s = r * (1 + 1e-12) + 1e-300;
+        m.tree.all_intersected_primitives(
+            CGAL::Bbox_3(p.x - s, p.y - s, p.z - s, p.x + s, p.y + s, p.z + s),
+            std::back_inserter(ids));
+        face = hint;
+        for (const auto& id : ids) {
+          const std::size_t f = m.face_of(id);
+          const Vec3 q = on(f);
+          const double d = distance(p, q);
+          if (d < r) {
+            r = d;
+            best = q;
+            face = f;
+          }
+        }
+        return best;
+      }
+    }
     const auto hit = m.tree.closest_point_and_primitive(point3(p));
     face = m.face_of(hit.second);
     return vec3(hit.first);
@@ -333,14 +368,17 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
     return std::nullopt;
   };
 
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nv), [&](const auto& range) {
-    for (std::size_t i = range.begin(); i != range.end(); ++i) {
+  parallel_for_each_range(nv, [&](std::size_t begin, std::size_t end) {
+    // Vertices near in index are near in space (a level's new vertices follow its edges).
+    std::size_t previous_face = SIZE_MAX;
+    for (std::size_t i = begin; i != end; ++i) {
       Outcome& o = out[i];
       const VertexId v(static_cast<std::uint32_t>(i));
       Vec3 p = refined.position(v);
       o.position = p;
       std::size_t face = 0;
-      Vec3 q = closest(p, face);
+      Vec3 q = closest(p, face, previous_face);
+      previous_face = face;
       const auto& t = m.faces[face];
       o.face = static_cast<std::uint32_t>(face);
       if (p == m.positions[t[0]] || p == m.positions[t[1]] || p == m.positions[t[2]]) continue;
@@ -359,7 +397,7 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
           // rounding): a snap taken back lands here and must still meet it.
           const double inside = std::max(0.5 * bound, bound - 1e-14 * m.diagonal);
           o.fallback = q + (p - q) * (inside / d);
-          o.fallback_distance = distance(o.fallback, closest(o.fallback, back_face));
+          o.fallback_distance = distance(o.fallback, closest(o.fallback, back_face, face));
           o.fallback_face = static_cast<std::uint32_t>(back_face);
         }
       }
@@ -380,7 +418,7 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
           // error there is a wrong region: refused (a snapped vertex is never pulled back,
           // so the bound it is held to is the one it must already meet).
           std::size_t to_face = 0;
-          const Vec3 to_q = closest(*target, to_face);
+          const Vec3 to_q = closest(*target, to_face, face);
           const double to_d = distance(*target, to_q);
           if (to_d <= std::max(m.bound[to_face], o.allowance)) {
             o.snapped = 1;
@@ -404,7 +442,7 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
           o.pulled = 1;
           o.pull_back = distance(back, p);
           p = back;
-          d = distance(p, closest(p, face));
+          d = distance(p, closest(p, face, face));
         }
       }
       o.distance_after = d;
@@ -442,7 +480,7 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
     const Vec3 a = at(vs[0]), b = at(vs[1]), c = at(vs[2]);
     const Vec3 centre = (a + b + c) * (1.0 / 3);
     std::size_t near_face = 0;
-    const double r = distance(centre, closest(centre, near_face)) +
+    const double r = distance(centre, closest(centre, near_face, out[vs[0].idx].face)) +
                      std::max({distance(a, b), distance(b, c), distance(c, a)});
     const CGAL::Bbox_3 box(centre.x - r, centre.y - r, centre.z - r, centre.x + r, centre.y + r,
                            centre.z + r);
@@ -526,23 +564,21 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
     double worst = 0;
     std::size_t over = 0;
   };
-  const Turn turn = tbb::parallel_reduce(
-      tbb::blocked_range<std::size_t>(0, refined.num_faces()), Turn{},
-      [&](const auto& range, Turn acc) {
-        for (std::size_t g = range.begin(); g != range.end(); ++g) {
-          double best = agreement(FaceId(static_cast<std::uint32_t>(g)), false);
-          if (best < -1.5) continue;  // degenerate, or no corner's closest face has a normal
-          best = std::clamp(best, -1.0, 1.0);
-          acc.worst = std::max(acc.worst, std::acos(best) * 180 / std::numbers::pi);
-          acc.over += best < cos_turn;
-        }
-        return acc;
-      },
-      [](Turn a, const Turn& b) {
-        a.worst = std::max(a.worst, b.worst);
-        a.over += b.over;
-        return a;
-      });
+  Turn turn;
+  std::mutex turn_mutex;
+  parallel_for_each_range(refined.num_faces(), [&](std::size_t begin, std::size_t end) {
+    Turn acc;
+    for (std::size_t g = begin; g != end; ++g) {
+      double best = agreement(FaceId(static_cast<std::uint32_t>(g)), false);
+      if (best < -1.5) continue;  // degenerate, or no corner's closest face has a normal
+      best = std::clamp(best, -1.0, 1.0);
+      acc.worst = std::max(acc.worst, std::acos(best) * 180 / std::numbers::pi);
+      acc.over += best < cos_turn;
+    }
+    const std::lock_guard lock(turn_mutex);
+    turn.worst = std::max(turn.worst, acc.worst);
+    turn.over += acc.over;
+  });
   report.worst_normal_change_deg = turn.worst;
   report.faces_turned_over_60_deg = turn.over;
   report.default_bound = bound_on && !user_bound;

@@ -87,6 +87,8 @@ class InputSurface {
   //! when it would move a vertex farther than half its longest incident edge, or farther from the
   //! input than the bound it is held to (see PostPassParams::max_deviation). Every new vertex
   //! ends within its bound: report.max_distance <= report.max_bound.
+  //! Under a CancelScope (core/parallel.h) a raised flag stops it within a chunk of work:
+  //! Error(Cancelled), `refined` partly moved.
   PostPassReport apply(Mesh& refined, const PostPassParams& params) const;
 
   //! Bytes the input surface holds from its construction to its destruction (its copy of the

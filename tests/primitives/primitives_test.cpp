@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -27,6 +28,7 @@
 #include "core/geometry/point_triangle.h"
 #include "core/io/stl.h"
 #include "core/mesh/build_mesh.h"
+#include "core/parallel.h"
 #include "core/refine.h"
 #include "primitives/chordal.h"
 #include "primitives/post_pass.h"
@@ -351,6 +353,46 @@ TEST(PrimitivesDeviation, UserBoundNeverExceeded) {
       EXPECT_GT(r.post.pulled_back, 0u);
       EXPECT_GT(r.post.max_distance_before, *pp.max_deviation);
     }
+}
+
+TEST(PrimitivesDeviation, MeasuredDistanceIsTheGlobalClosest) {
+  // The pass searches each vertex's closest input face from a nearby vertex's (a small ball
+  // in the tree): the distances it reports are the brute-force ones, on thin parts (the
+  // plate: the far side is 12 mm away, the nearest face may not be a neighbour's) too.
+  for (CadFamily family : {CadFamily::Plate, CadFamily::Tube, CadFamily::Blob})
+    for (const char* scheme : {"butterfly", "loop"}) {
+      SCOPED_TRACE(std::string(test::cad_family_name(family)) + " " + scheme);
+      const Mesh input = cad_mesh(family, 11);
+      PostPassParams measure;
+      measure.snap = false;
+      measure.max_deviation = 0;
+      const Refined r = refine_with(input, scheme, 2, measure, false);
+      double worst = 0;
+      for (std::size_t i = 0; i < r.output.num_vertices(); ++i) {
+        const Vec3& p = r.output.position(VertexId(static_cast<std::uint32_t>(i)));
+        worst = std::max(worst, distance_to(input, p));
+      }
+      ASSERT_GT(worst, 0);
+      EXPECT_NEAR(r.post.max_distance_before, worst, 1e-12 * diagonal(input));
+      EXPECT_NEAR(r.post.max_distance, worst, 1e-12 * diagonal(input));
+    }
+}
+
+TEST(PrimitivesDeviation, ARaisedCancelFlagStopsThePass) {
+  const Mesh input = cad_mesh(CadFamily::Blob, 3);
+  RefineParams params;
+  params.levels = 3;
+  const Features features = detect_features(input, params.features);
+  const InputSurface surface(input, features, nullptr);
+  Mesh output = refine(input, params).mesh;
+  std::atomic<bool> cancel{true};
+  const CancelScope scope(&cancel);
+  try {
+    surface.apply(output, {});
+    FAIL() << "the pass ran to its end with the flag raised";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::Cancelled);
+  }
 }
 
 TEST(PrimitivesDeviation, DefaultBoundIsTheInputsChordalError) {

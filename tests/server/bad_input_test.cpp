@@ -575,10 +575,13 @@ TEST_F(BadInput, TwoHundredSlowSocketsDoNotDelayHealthz) {
 TEST_F(BadInput, AClientDisconnectingMidResponseFreesItsSlotAndDescriptor) {
   expect_good_request_still_works();
   const std::size_t fds_before = open_fds();
-  // (a) Mid-response: 31 MB of answer, 64 KiB read, then a reset.
+  // (a) Mid-response: 31 MB of answer, 64 KiB read, then a reset. Without the deviation
+  // pass: the test is about the answer in flight, and under ASan on a slow runner the pass
+  // made the computation alone outlast the test's timeout.
   {
     const int fd = connect_loopback(port_);
-    ASSERT_TRUE(send_all(fd, post_text("/v1/refine?levels=4", "model/stl", gearwheel_)));
+    ASSERT_TRUE(
+        send_all(fd, post_text("/v1/refine?levels=4&max_deviation=off", "model/stl", gearwheel_)));
     char buffer[65536];
     std::size_t got = 0;
     while (got < sizeof buffer) {
