@@ -27,13 +27,12 @@ namespace {
 using K = CGAL::Simple_cartesian<double>;
 using Triangles = std::vector<K::Triangle_3>;
 using AabbPrimitive = CGAL::AABB_triangle_primitive<K, Triangles::const_iterator>;
-using Tree = CGAL::AABB_tree<CGAL::AABB_traits<K, AabbPrimitive>>;
+using AabbTraits = CGAL::AABB_traits<K, AabbPrimitive>;
+using Tree = CGAL::AABB_tree<AabbTraits>;
+using TreeNode = CGAL::AABB_node<AabbTraits>;
 
 K::Point_3 point3(const Vec3& p) {
   return {p.x, p.y, p.z};
-}
-Vec3 vec3(const K::Point_3& p) {
-  return {p.x(), p.y(), p.z()};
 }
 
 // A snap onto a crease curve that moves a vertex more than this fraction of the way towards
@@ -65,7 +64,6 @@ struct InputSurface::Impl {
   std::vector<Vec3> positions;
   std::vector<std::array<std::uint32_t, 3>> faces;
   std::vector<Vec3> normals;  // unit (zero for a degenerate face)
-  std::vector<double> span;   // longest edge
   // Per face: the default deviation bound, the input's chordal error there (chordal_bounds).
   std::vector<double> bound;
   std::vector<std::int32_t> face_region;  // empty without regions
@@ -79,7 +77,90 @@ struct InputSurface::Impl {
   std::size_t face_of(const Tree::Primitive_id& id) const {
     return static_cast<std::size_t>(id - triangles.begin());
   }
+  Vec3 closest_on(std::size_t f, const Vec3& p) const {
+    const auto& t = faces[f];
+    return closest_point_on_triangle(p, positions[t[0]], positions[t[1]], positions[t[2]]);
+  }
+
+  // The tree's boxes, our triangles: CGAL's own queries test a triangle against a box or
+  // project with its general constructions, several times slower than these traversals.
+  //! The closest point of the input to p and its face, searched nearer boxes first; `hint`
+  //! (a face near p: a neighbour's) bounds the search from the start.
+  Vec3 closest(const Vec3& p, std::size_t& face, std::size_t hint) const;
+  //! fn(face, distance) for every face within r of p, in the tree's order.
+  template <class Fn>
+  void for_each_face_within(const Vec3& p, double r, Fn&& fn) const;
 };
+
+namespace {
+
+double squared_distance_to_box(const Vec3& p, const CGAL::Bbox_3& box) {
+  auto gap = [](double c, double lo, double hi) { return c < lo ? lo - c : c > hi ? c - hi : 0.0; };
+  const double x = gap(p.x, box.xmin(), box.xmax()), y = gap(p.y, box.ymin(), box.ymax()),
+               z = gap(p.z, box.zmin(), box.zmax());
+  return x * x + y * y + z * z;
+}
+
+}  // namespace
+
+Vec3 InputSurface::Impl::closest(const Vec3& p, std::size_t& face, std::size_t hint) const {
+  struct Nearest {
+    using Priority [[maybe_unused]] = double;  // read by CGAL's traversal_with_priority
+    const Impl& m;
+    Vec3 p, best;
+    double best2 = INFINITY;
+    std::size_t face = 0;
+    bool go_further() const { return true; }
+    void intersection(const K::Point_3&, const AabbPrimitive& primitive) {
+      const std::size_t f = m.face_of(primitive.id());
+      const Vec3 q = m.closest_on(f, p);
+      const Vec3 d = q - p;
+      if (const double d2 = dot(d, d); d2 < best2) {
+        best2 = d2;
+        best = q;
+        face = f;
+      }
+    }
+    bool do_intersect(const K::Point_3&, const TreeNode& node) const {
+      return squared_distance_to_box(p, node.bbox()) < best2;
+    }
+    std::pair<bool, double> do_intersect_with_priority(const K::Point_3&,
+                                                       const TreeNode& node) const {
+      const double d2 = squared_distance_to_box(p, node.bbox());
+      return {d2 < best2, -d2};
+    }
+  };
+  Nearest search{*this, p, p};
+  if (hint < faces.size()) {
+    search.best = closest_on(hint, p);
+    search.best2 = dot(search.best - p, search.best - p);
+    search.face = hint;
+  }
+  if (search.best2 > 0) tree.traversal_with_priority(point3(p), search);
+  face = search.face;
+  return search.best;
+}
+
+template <class Fn>
+void InputSurface::Impl::for_each_face_within(const Vec3& p, double r, Fn&& fn) const {
+  struct Within {
+    const Impl& m;
+    Vec3 p;
+    double r;
+    Fn& fn;
+    bool go_further() const { return true; }
+    void intersection(const K::Point_3&, const AabbPrimitive& primitive) {
+      const std::size_t f = m.face_of(primitive.id());
+      const double d = distance(p, m.closest_on(f, p));
+      if (d <= r) fn(f, d);
+    }
+    bool do_intersect(const K::Point_3&, const TreeNode& node) const {
+      return squared_distance_to_box(p, node.bbox()) <= r * r;
+    }
+  };
+  Within within{*this, p, r, fn};
+  tree.traversal(point3(p), within);
+}
 
 InputSurface::InputSurface(const Mesh& mesh, const Features& features, const RegionMap* regions)
     : impl_(std::make_unique<Impl>()) {
@@ -89,7 +170,6 @@ InputSurface::InputSurface(const Mesh& mesh, const Features& features, const Reg
   m.faces.resize(nf);
   m.across_crease.assign(nf, {-1, -1, -1});
   m.normals.resize(nf);
-  m.span.resize(nf);
   m.triangles.reserve(nf);
   for (std::size_t f = 0; f < nf; ++f) {
     const auto vs = mesh.face_vertices(FaceId(static_cast<std::uint32_t>(f)));
@@ -98,7 +178,6 @@ InputSurface::InputSurface(const Mesh& mesh, const Features& features, const Reg
     m.triangles.emplace_back(point3(a), point3(b), point3(c));
     const Vec3 n = cross(b - a, c - a);
     m.normals[f] = norm(n) > 0 ? normalized(n) : Vec3{};
-    m.span[f] = std::max({distance(a, b), distance(b, c), distance(c, a)});
     for (int k = 0; k < 3; ++k) {
       const HalfedgeId h = Mesh::halfedge(FaceId(static_cast<std::uint32_t>(f)), k);
       if (!mesh.is_boundary(h) && features.is_sharp(mesh, h))
@@ -138,7 +217,6 @@ InputSurface::InputSurface(const Mesh& mesh, const Features& features, const Reg
   }
   m.tree.insert(m.triangles.begin(), m.triangles.end());
   m.tree.build();
-  m.tree.accelerate_distance_queries();
 }
 
 InputSurface::~InputSurface() = default;
@@ -147,16 +225,15 @@ std::uint64_t InputSurface::predict_bytes(std::uint64_t input_vertices, std::uin
                                           bool regions) {
   // Per vertex: positions (24). Per face: corner indices (12), normal (24), bound (8), region
   // (4), crease links (12), the CGAL triangle (72), the tree's primitive (8) and node (64 per
-  // face: n - 1 nodes of a box and two pointers), the search tree's point and id (32) and its
-  // kd nodes; vectors grown by doubling may hold up to twice their size.
+  // face: n - 1 nodes of a box and two pointers; no search tree: the queries are our own
+  // traversals); vectors grown by doubling may hold up to twice their size.
   const std::uint64_t held = 2 * (24 * input_vertices) +
-                             2 * (12 + 24 + 8 + 8 + 4 + 12 + 72) * input_faces +
-                             (8 + 64 + 2 * 32 + 48) * input_faces;
+                             2 * (12 + 24 + 8 + 4 + 12 + 72) * input_faces + (8 + 64) * input_faces;
   // detect_regions, before the surface exists: components, patches (a copy of every vertex per
   // face it touches, normals and centroids), stamps, bounds and face flags.
   const std::uint64_t detect =
       regions ? (3 * 24 + 2 * 24 + 8 + 4 + 4 + 16 + 16) * 2 * input_faces + 8 * input_vertices : 0;
-  return held + detect + (std::uint64_t{1} << 16);
+  return held + detect + (std::uint64_t{1} << 14);
 }
 
 std::uint64_t InputSurface::predict_apply_bytes(std::uint64_t output_vertices) {
@@ -182,43 +259,8 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
   const double curve_tol = 1e-12 * m.diagonal;
   std::vector<Outcome> out(nv);
 
-  // The closest point on the input. From a hint (the face a nearby point was closest to):
-  // only the faces whose boxes meet the ball through the hint's closest point can be closer,
-  // and they are few (the refined surface lies within the chordal error of the input); a
-  // ball wider than the hint face falls back to the tree's own search.
   auto closest = [&](const Vec3& p, std::size_t& face, std::size_t hint = SIZE_MAX) {
-    if (hint < m.faces.size()) {
-      const auto on = [&](std::size_t f) {
-        const auto& t = m.faces[f];
-        return closest_point_on_triangle(p, m.positions[t[0]], m.positions[t[1]],
-                                         m.positions[t[2]]);
-      };
-      Vec3 best = on(hint);
-      double r = distance(p, best);
-      if (r <= m.span[hint]) {
-        thread_local std::vector<Tree::Primitive_id> ids;
-        ids.clear();
-        const double s = r * (1 + 1e-12) + 1e-300;
-        m.tree.all_intersected_primitives(
-            CGAL::Bbox_3(p.x - s, p.y - s, p.z - s, p.x + s, p.y + s, p.z + s),
-            std::back_inserter(ids));
-        face = hint;
-        for (const auto& id : ids) {
-          const std::size_t f = m.face_of(id);
-          const Vec3 q = on(f);
-          const double d = distance(p, q);
-          if (d < r) {
-            r = d;
-            best = q;
-            face = f;
-          }
-        }
-        return best;
-      }
-    }
-    const auto hit = m.tree.closest_point_and_primitive(point3(p));
-    face = m.face_of(hit.second);
-    return vec3(hit.first);
+    return m.closest(p, face, hint);
   };
 
   auto snap_target = [&](VertexId v, const Vec3& p, double d, Outcome& o) -> std::optional<Vec3> {
@@ -231,21 +273,12 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
       longest = std::max(longest, distance(self, refined.position(refined.to(h))));
     });
     const double r = d + 0.25 * longest + 1e-9 * m.diagonal;
-    const CGAL::Bbox_3 box(p.x - r, p.y - r, p.z - r, p.x + r, p.y + r, p.z + r);
-    std::vector<Tree::Primitive_id> ids;
-    m.tree.all_intersected_primitives(box, std::back_inserter(ids));
     std::vector<std::size_t> near;
     std::vector<double> near_distance;
-    for (const auto& id : ids) {
-      const std::size_t f = m.face_of(id);
-      const auto& t = m.faces[f];
-      const double dist =
-          point_triangle_distance(p, m.positions[t[0]], m.positions[t[1]], m.positions[t[2]]);
-      if (dist <= r) {
-        near.push_back(f);
-        near_distance.push_back(dist);
-      }
-    }
+    m.for_each_face_within(p, r, [&](std::size_t f, double dist) {
+      near.push_back(f);
+      near_distance.push_back(dist);
+    });
     if (near.empty()) return std::nullopt;
     std::array<std::int32_t, 8> region{};
     std::array<int, 8> votes{};
@@ -482,18 +515,9 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
     std::size_t near_face = 0;
     const double r = distance(centre, closest(centre, near_face, out[vs[0].idx].face)) +
                      std::max({distance(a, b), distance(b, c), distance(c, a)});
-    const CGAL::Bbox_3 box(centre.x - r, centre.y - r, centre.z - r, centre.x + r, centre.y + r,
-                           centre.z + r);
-    std::vector<Tree::Primitive_id> ids;
-    m.tree.all_intersected_primitives(box, std::back_inserter(ids));
-    for (const auto& id : ids) {
-      const std::size_t f = m.face_of(id);
-      if (m.normals[f] == Vec3{}) continue;
-      const auto& t = m.faces[f];
-      if (point_triangle_distance(centre, m.positions[t[0]], m.positions[t[1]],
-                                  m.positions[t[2]]) <= r)
-        best = std::max(best, dot(n, m.normals[f]) / len);
-    }
+    m.for_each_face_within(centre, r, [&](std::size_t f, double) {
+      if (m.normals[f] != Vec3{}) best = std::max(best, dot(n, m.normals[f]) / len);
+    });
     return best;
   };
   // Above float32 rounding of the coordinates (an STL stores them so): 1e-6 of the diagonal.
