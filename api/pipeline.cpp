@@ -131,6 +131,7 @@ RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineReques
   if (surface) {
     const CancelScope cancel_scope(cancel);  // a disconnect or deadline stops the pass too
     primitives::PostPassParams pp;
+    pp.refined_features = &refined.features;
     pp.snap = prim.enabled && !measure_only;
     pp.max_deviation = reported.max_deviation;
     // With snapping, two copies of the positions: the refinement's and the snapped ones.
@@ -168,6 +169,7 @@ RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineReques
     }
     post->detect_seconds = detect_seconds;
     surface.reset();
+    refined.features = Features{};  // the rest needs only the mesh
   }
   if (grow) {
     // The hierarchy is gone; the mesh, its STL (and contours) are what the rest holds.

@@ -319,6 +319,7 @@ RefineResult run_levels(Mesh mesh, const RefineParams& params, const Scheme& sch
   r.sharp_edges_out = level.features.num_sharp_edges();
   r.fold_fallbacks = stats.fold_fallbacks;
   result.mesh = std::move(level.mesh);
+  result.features = std::move(level.features);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (progress) progress(1.0, "done");
   return result;

@@ -147,6 +147,10 @@ struct RefineReport {
 struct RefineResult {
   Mesh mesh;
   RefineReport report;
+  //! The output's sharp edges and vertex kinds, as the hosts carried them from the input
+  //! (a new vertex on a sharp edge is a crease vertex): what tells the post-pass
+  //! (primitives/) which new vertices lie on a crease.
+  Features features;
 };
 
 //! Predicted face count; \throw Error(BudgetExceeded, field "max_faces") with the

@@ -348,11 +348,19 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
       });
       return true;
     };
+    // Only a crease vertex of the refined mesh goes onto a curve (when its features are
+    // known): a vertex off the creases stays on its own region's surface.
+    const bool on_crease =
+        !params.refined_features || params.refined_features->kind(v) >= VertexKind::Crease;
     // A vertex within 15% of its longest edge of an input crease between two recognised
-    // regions is a vertex of that crease, whatever its faces say (a folded face may vote
-    // for the wrong side).
+    // regions: a crease vertex is a vertex of that crease, whatever its faces say (a folded
+    // face may vote for the wrong side); a vertex off the creases goes onto it only when it
+    // lies beyond the other side's surface (a cap vertex of a fan sliver just outside the
+    // rim: on its plane it would still be outside the part, and its sliver, between two rim
+    // vertices, would turn over once they are on the rim).
     double crease_gap = 0.15 * longest;
     std::int32_t crease_a = -1, crease_b = -1;
+    std::size_t crease_face_a = 0, crease_face_b = 0;
     double crease_allowance = 0;
     for (std::size_t f : near)
       for (int k = 0; k < 3; ++k) {
@@ -367,9 +375,22 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
           crease_gap = gap;
           crease_a = ra;
           crease_b = rb;
+          crease_face_a = f;
+          crease_face_b = std::size_t(g);
           crease_allowance = std::max(m.bound[f], m.bound[std::size_t(g)]);
         }
       }
+    auto beyond = [&](std::int32_t region, std::size_t face) {
+      const std::optional<Vec3> t = m.regions[std::size_t(region)].primitive.project(p);
+      return t && dot(p - *t, m.normals[face]) > 0;
+    };
+    if (crease_a >= 0 && !on_crease) {
+      // Beyond the side it did not vote for.
+      const bool own_a = found.front().second == crease_a, own_b = found.front().second == crease_b;
+      if (!((own_a && beyond(crease_b, crease_face_b)) ||
+            (own_b && beyond(crease_a, crease_face_a))))
+        crease_a = -1;
+    }
     if (crease_a >= 0) {
       const std::optional<Vec3> t =
           project_to_intersection(m.regions[std::size_t(crease_a)].primitive,
@@ -384,14 +405,18 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
     if (found.size() == 2) {
       const Primitive& a = m.regions[std::size_t(found[0].second)].primitive;
       const Primitive& b = m.regions[std::size_t(found[1].second)].primitive;
-      const std::optional<Vec3> t = project_to_intersection(a, b, p, curve_tol);
-      if (accept_curve(t)) {
-        o.to_curve = 1;
-        return t;
+      if (on_crease) {
+        const std::optional<Vec3> t = project_to_intersection(a, b, p, curve_tol);
+        if (accept_curve(t)) {
+          o.to_curve = 1;
+          return t;
+        }
       }
-      // The curve is out of reach: keep planes planar.
+      // Off a crease, or the curve is out of reach: keep planes planar; else the region
+      // most of its faces voted for (a tangent join).
       if (a.type == PrimitiveType::Plane) tries.push_back(a.project(p));
       if (b.type == PrimitiveType::Plane) tries.push_back(b.project(p));
+      if (!on_crease && tries.empty()) tries.push_back(a.project(p));
     } else if (found.size() == 1) {
       tries.push_back(m.regions[std::size_t(found[0].second)].primitive.project(p));
     }

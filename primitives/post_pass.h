@@ -33,6 +33,11 @@ struct PostPassParams {
   //! - 0: off;
   //! - > 0: this bound for every output vertex, snapped or not.
   std::optional<double> max_deviation;
+  //! The refined mesh's features (RefineResult::features): a new vertex goes onto the
+  //! intersection curve of two primitives only when it is a crease vertex there. Without
+  //! them any vertex near an input crease may (fan slivers of a cap along its rim then put
+  //! cap vertices on the rim and turn faces over).
+  const Features* refined_features = nullptr;
 };
 
 //! What the post-pass did, for the report.
