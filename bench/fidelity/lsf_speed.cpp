@@ -103,7 +103,8 @@ int main(int argc, char** argv) {
     rows.push_back(row);
     if (!stencil_only) continue;
     const auto made = stlrefine::make_scheme(scheme, stlrefine::scheme_options(row.params));
-    const auto* split4 = dynamic_cast<const stlrefine::Split4Scheme*>(made.get());
+    const auto* split4 =
+        dynamic_cast<const stlrefine::HostScheme<stlrefine::Split4Stencil>*>(made.get());
     if (!split4) {
       std::fprintf(stderr, "--stencil-only: %s is not a 1-to-4 scheme\n", scheme.c_str());
       return 1;
@@ -118,7 +119,8 @@ int main(int argc, char** argv) {
   // One stencil pass over every level but the last; returns the face count it leads to.
   auto run_stencil = [&](std::size_t i, std::uint64_t* hash) {
     const auto made = stlrefine::make_scheme(rows[i].params.scheme);
-    const auto& stencil = dynamic_cast<const stlrefine::Split4Scheme&>(*made).stencil();
+    const auto& stencil =
+        dynamic_cast<const stlrefine::HostScheme<stlrefine::Split4Stencil>&>(*made).stencil();
     std::size_t faces = 0;
     std::uint64_t h = 1469598103934665603ull;
     for (const stlrefine::Level& level : levels_of[i]) {
