@@ -101,7 +101,7 @@ InputSurface::InputSurface(const Mesh& mesh, const Features& features, const Reg
     m.span[f] = std::max({distance(a, b), distance(b, c), distance(c, a)});
     for (int k = 0; k < 3; ++k) {
       const HalfedgeId h = Mesh::halfedge(FaceId(static_cast<std::uint32_t>(f)), k);
-      if (!mesh.is_boundary(h) && features.is_sharp(mesh, h))
+      if (!mesh.is_boundary(h) && features.is_sharp(mesh.edge(h)))
         m.across_crease[f][std::size_t(k)] =
             static_cast<std::int32_t>(Mesh::face(mesh.twin(h)).idx);
     }
