@@ -25,6 +25,7 @@ inline constexpr int kLanes = 4;
 inline constexpr std::size_t kMinBatchValence = 5;  // below five points the general solve decides
 inline constexpr std::size_t kMaxBatchValence = 12;
 
+//! Up to kLanes samples of the same size, one per lane, and where their estimates go.
 struct FitBatch {
   int lanes = 0;
   alignas(32) double ox[kLanes], oy[kLanes], oz[kLanes];  // the vertices V

@@ -2,10 +2,11 @@
 // Copyright (c) 2026 stlrefine authors
 #pragma once
 
-// LSF's per-edge rules besides the fits (lsf.h): the guard of issue 17 that checks each edge
+// LSF's per-edge rules besides the fits (lsf.h): the 1-D rule of sharp edges
+// (lsf_curve_point, defined in lsf_rules.cpp) and the guard of issue 17 that checks each edge
 // point against the surface's normals (sector normals, planar patches, the Hermite midpoint,
 // the pull-back of folding children). Internal to the lsf*.cpp files: the stencil (lsf.cpp)
-// runs it, the batch kernels (lsf_kernels.cpp) find the smooth vertices' guard normals.
+// runs them, the batch kernels (lsf_kernels.cpp) find the smooth vertices' guard normals.
 
 #include <algorithm>
 #include <cmath>
