@@ -45,7 +45,7 @@
 
 #include "api/params.h"
 #include "api/pipeline.h"
-#include "core/analysis/spectrum_report.h"
+#include "cli/spectrum_report.h"
 #include "core/error.h"
 #include "core/schemes/butterfly.h"
 #include "core/schemes/loop.h"

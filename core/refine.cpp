@@ -53,12 +53,12 @@ SchemeOptions scheme_options(const RefineParams& params) {
 }
 
 const Split4Stencil* adaptive_scheme(const Scheme& scheme) {
-  const auto* split4 = dynamic_cast<const Split4Scheme*>(&scheme);
+  const auto* split4 = dynamic_cast<const HostScheme<Split4Stencil>*>(&scheme);
   return split4 && split4->interpolating() ? &split4->stencil() : nullptr;
 }
 
 const Sqrt3Stencil* adaptive_sqrt3_scheme(const Scheme& scheme) {
-  const auto* sqrt3 = dynamic_cast<const Sqrt3Scheme*>(&scheme);
+  const auto* sqrt3 = dynamic_cast<const HostScheme<Sqrt3Stencil>*>(&scheme);
   return sqrt3 ? &sqrt3->stencil() : nullptr;
 }
 
@@ -300,7 +300,7 @@ RefineResult run_levels(Mesh mesh, const RefineParams& params, const Scheme& sch
     if (meter.on()) {
       // The coarse level next to everything the step makes (exact counts).
       meter.set_level(i);
-      const auto* split4 = dynamic_cast<const Split4Scheme*>(&scheme);
+      const auto* split4 = dynamic_cast<const HostScheme<Split4Stencil>*>(&scheme);
       meter.need(level_bytes(level) +
                  (split4 ? split4_step_bytes(level, split4->stencil()) : sqrt3_step_bytes(level)));
     }

@@ -13,6 +13,7 @@
 #include "core/features/features.h"
 #include "core/mesh/array_pool.h"
 #include "core/mesh/mesh.h"
+#include "core/progress.h"
 #include "core/schemes/scheme.h"
 
 namespace stlrefine {
@@ -65,9 +66,6 @@ const Split4Stencil* adaptive_scheme(const Scheme& scheme);
 class Sqrt3Stencil;
 //! The stencil of a sqrt3 scheme (every one has the forward adaptive mode), or null.
 const Sqrt3Stencil* adaptive_sqrt3_scheme(const Scheme& scheme);
-
-//! Progress sink: fraction in [0, 1] and a short stage name ("level 2/3").
-using ProgressFn = std::function<void(double fraction, std::string_view stage)>;
 
 //! Memory admission while a refinement grows. Called with the peak bytes the refinement
 //! will hold from now on (its arrays as they are about to grow, a true upper bound for the

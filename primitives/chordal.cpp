@@ -15,7 +15,7 @@ std::vector<double> chordal_bounds(const Mesh& mesh, const Features& features, d
     const Vec3 n = mesh.face_normal(FaceId(static_cast<std::uint32_t>(f)));
     normal[f] = norm(n) > 0 ? normalized(n) : Vec3{};
   }
-  auto stops = [&](HalfedgeId h) { return mesh.is_boundary(h) || features.is_sharp(mesh, h); };
+  auto stops = [&](HalfedgeId h) { return mesh.is_boundary(h) || features.is_sharp(mesh.edge(h)); };
   // The largest |n . t| over the faces of f's sector at the corner h leaves (the faces
   // around it reached from f without crossing a sharp or boundary edge).
   auto sector_tilt = [&](HalfedgeId h0, const Vec3& t) {
@@ -53,7 +53,7 @@ std::vector<double> chordal_bounds(const Mesh& mesh, const Features& features, d
       double tilt_a = sector_tilt(h, t), tilt_b = sector_tilt(Mesh::next(h), t);
       // A crease is also a chord of the curve the faces across it follow (an annulus cap's
       // rim curves in the cap's own plane: only the wall's normals show it).
-      if (!mesh.is_boundary(h) && features.is_sharp(mesh, h)) {
+      if (!mesh.is_boundary(h) && features.is_sharp(mesh.edge(h))) {
         const HalfedgeId w = mesh.twin(h);  // from b to a
         tilt_a = std::max(tilt_a, sector_tilt(Mesh::next(w), t));
         tilt_b = std::max(tilt_b, sector_tilt(w, t));

@@ -180,7 +180,7 @@ InputSurface::InputSurface(const Mesh& mesh, const Features& features, const Reg
     m.normals[f] = norm(n) > 0 ? normalized(n) : Vec3{};
     for (int k = 0; k < 3; ++k) {
       const HalfedgeId h = Mesh::halfedge(FaceId(static_cast<std::uint32_t>(f)), k);
-      if (!mesh.is_boundary(h) && features.is_sharp(mesh, h))
+      if (!mesh.is_boundary(h) && features.is_sharp(mesh.edge(h)))
         m.across_crease[f][std::size_t(k)] =
             static_cast<std::int32_t>(Mesh::face(mesh.twin(h)).idx);
     }

@@ -144,7 +144,7 @@ RegionMap detect_regions(const Mesh& mesh, const Features& features, const Regio
       components.back().push_back(f);
       for (int k = 0; k < 3; ++k) {
         const HalfedgeId h = Mesh::halfedge(FaceId(f), k);
-        if (mesh.is_boundary(h) || features.is_sharp(mesh, h)) continue;
+        if (mesh.is_boundary(h) || features.is_sharp(mesh.edge(h))) continue;
         const std::uint32_t g = Mesh::face(mesh.twin(h)).idx;
         if (component[g] < 0) {
           component[g] = id;
@@ -306,7 +306,7 @@ RegionMap detect_regions(const Mesh& mesh, const Features& features, const Regio
         stack.pop_back();
         for (int k = 0; k < 3; ++k) {
           const HalfedgeId h = Mesh::halfedge(FaceId(f), k);
-          if (mesh.is_boundary(h) || features.is_sharp(mesh, h)) continue;
+          if (mesh.is_boundary(h) || features.is_sharp(mesh.edge(h))) continue;
           const std::uint32_t g = Mesh::face(mesh.twin(h)).idx;
           if (taken[g] || !fits(g)) continue;
           taken[g] = 2;

@@ -17,7 +17,7 @@
 
 #include "core/geometry/vec3.h"
 #include "core/mesh/mesh.h"
-#include "core/refine.h"  // ProgressFn: one progress mechanism for refine and slice
+#include "core/progress.h"
 
 namespace stlrefine::slicer {
 

@@ -74,11 +74,17 @@ int main(int argc, char** argv) {
                "report the fastest run instead of the minimum of the round medians (a "
                "loaded machine only ever slows a run down)");
   app.add_flag("--baseline-kernels", baseline_kernels,
-               "LSF's batch fits on the portable SSE2 kernel even where the CPU has AVX2");
+               "LSF's batch fits on the portable SSE2 kernel even where the CPU has AVX2 "
+               "(with --stencil-only: refine() builds its schemes by name)");
   app.add_flag("--stencil-only", stencil_only,
                "time the split4 stencil's points() on levels 0..levels-1 only (uniform)");
   CLI11_PARSE(app, argc, argv);
-  stlrefine::set_lsf_baseline_kernels(baseline_kernels);
+  if (baseline_kernels && !stencil_only) {
+    std::fprintf(stderr, "--baseline-kernels needs --stencil-only\n");
+    return 1;
+  }
+  // --baseline-kernels: lsf's stencil with the baseline kernel (stlrefine::LsfKernel).
+  const stlrefine::LsfStencil lsf_baseline(stlrefine::LsfKernel::Baseline);
 
   const stlrefine::IngestResult ingest =
       stlrefine::build_mesh(stlrefine::weld(stlrefine::read_stl_file(input)));
@@ -103,7 +109,8 @@ int main(int argc, char** argv) {
     rows.push_back(row);
     if (!stencil_only) continue;
     const auto made = stlrefine::make_scheme(scheme, stlrefine::scheme_options(row.params));
-    const auto* split4 = dynamic_cast<const stlrefine::Split4Scheme*>(made.get());
+    const auto* split4 =
+        dynamic_cast<const stlrefine::HostScheme<stlrefine::Split4Stencil>*>(made.get());
     if (!split4) {
       std::fprintf(stderr, "--stencil-only: %s is not a 1-to-4 scheme\n", scheme.c_str());
       return 1;
@@ -118,7 +125,10 @@ int main(int argc, char** argv) {
   // One stencil pass over every level but the last; returns the face count it leads to.
   auto run_stencil = [&](std::size_t i, std::uint64_t* hash) {
     const auto made = stlrefine::make_scheme(rows[i].params.scheme);
-    const auto& stencil = dynamic_cast<const stlrefine::Split4Scheme&>(*made).stencil();
+    const stlrefine::Split4Stencil& stencil =
+        baseline_kernels && rows[i].params.scheme == "lsf"
+            ? lsf_baseline
+            : dynamic_cast<const stlrefine::HostScheme<stlrefine::Split4Stencil>&>(*made).stencil();
     std::size_t faces = 0;
     std::uint64_t h = 1469598103934665603ull;
     for (const stlrefine::Level& level : levels_of[i]) {

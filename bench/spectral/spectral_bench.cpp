@@ -233,7 +233,7 @@ struct Algorithm {
 
 std::unique_ptr<Scheme> by_name(const std::string& name, const SchemeOptions& options = {}) {
   if (name == "butterfly-8pt")
-    return std::make_unique<Split4Scheme>(
+    return std::make_unique<HostScheme<Split4Stencil>>(
         "butterfly-8pt",
         std::make_unique<ButterflyStencil>(ButterflyStencil::Extraordinary::EightPoint));
   return make_scheme(name, options);
@@ -242,9 +242,10 @@ std::unique_ptr<Scheme> by_name(const std::string& name, const SchemeOptions& op
 // One step, with or without the host's fold guard.
 Level step(const Scheme& scheme, const Level& coarse, bool guard, std::size_t& fold_fallbacks) {
   StepStats stats;
-  Level fine = guard ? scheme.refine_once(coarse, stats)
-                     : split4(coarse, static_cast<const Split4Scheme&>(scheme).stencil(), stats,
-                              FoldGuard::Off);
+  Level fine = guard
+                   ? scheme.refine_once(coarse, stats)
+                   : split4(coarse, static_cast<const HostScheme<Split4Stencil>&>(scheme).stencil(),
+                            stats, FoldGuard::Off);
   fold_fallbacks += stats.fold_fallbacks;
   return fine;
 }

@@ -28,8 +28,9 @@ constexpr int kMargin = 2;
 }  // namespace
 
 Refiner Refiner::of(const Scheme& scheme) {
-  if (const auto* s = dynamic_cast<const Split4Scheme*>(&scheme)) return of(s->stencil());
-  if (const auto* s = dynamic_cast<const Sqrt3Scheme*>(&scheme)) {
+  if (const auto* s = dynamic_cast<const HostScheme<Split4Stencil>*>(&scheme))
+    return of(s->stencil());
+  if (const auto* s = dynamic_cast<const HostScheme<Sqrt3Stencil>*>(&scheme)) {
     Refiner r;
     r.scale_ = 3;
     r.step_ = [s](const Level& coarse) {

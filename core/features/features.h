@@ -56,7 +56,6 @@ class Features {
                              BigVector<std::array<VertexId, 2>> curve_neighbours);
 
   bool is_sharp(EdgeId e) const { return sharp_edge_[e.idx] != 0; }
-  bool is_sharp(const Mesh& mesh, HalfedgeId h) const { return is_sharp(mesh.edge(h)); }
   VertexKind kind(VertexId v) const { return kind_[v.idx]; }
   //! True for crease and corner vertices: their ring is cut into sectors by sharp edges.
   bool cuts_ring(VertexId v) const { return kind_[v.idx] >= VertexKind::Crease; }

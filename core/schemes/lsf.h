@@ -35,6 +35,11 @@ QuadricFit fit_quadric(const Vec3& origin, std::span<const Vec3> points,
 void polar_parameters(const Vec3& origin, std::span<const Vec3> points, bool closed,
                       double total_angle, std::span<std::array<double, 2>> params);
 
+//! Which kernel fits smooth and dart vertices (and crease sectors) four at a time: Auto, on
+//! x86-64 CPUs with AVX2 the one built for it, else the baseline one; Baseline, always the
+//! baseline one. Both give bit-identical results (the tests that compare them choose).
+enum class LsfKernel { Auto, Baseline };
+
 //! Local Surface Fitting (Suzuki, Yamamoto, Kanai, Kimura et al.; spec section 5), on the
 //! 1-to-4 host. Each edge point is the average of the two endpoint fits evaluated at half
 //! the edge's parameter, guarded for CAD tessellations (lsf_guarded_edge_point). Creases and
@@ -43,6 +48,7 @@ void polar_parameters(const Vec3& origin, std::span<const Vec3> points, bool clo
 //! Interpolating.
 class LsfStencil final : public Split4Stencil {
  public:
+  explicit LsfStencil(LsfKernel kernel = LsfKernel::Auto) : kernel_(kernel) {}
   void edge_points(const Level& coarse, std::span<Vec3> out) const override;
   bool interpolating() const override { return true; }
 
@@ -51,6 +57,9 @@ class LsfStencil final : public Split4Stencil {
   //! sector, so each vertex is fitted once per level, not once per edge.
   static void half_edge_estimates(const Mesh& mesh, const Features& features, VertexId v,
                                   std::span<Vec3> per_halfedge);
+
+ private:
+  LsfKernel kernel_;
 };
 
 //! The fit at v used for curvature: the whole ring (smooth, dart) or the first sector
@@ -86,10 +95,5 @@ Vec3 lsf_guarded_curve_point(const Mesh& mesh, const Features& features, EdgeId 
 //! `marks` has room for a byte per face (scratch).
 void lsf_guard_child_folds(const Mesh& mesh, const Features& features, std::span<Vec3> points,
                            std::span<std::uint8_t> marks);
-
-//! Smooth and dart vertices are fitted four at a time; on x86-64 CPUs with AVX2 by a kernel
-//! built for it, else by the baseline one. Both give bit-identical results: true makes
-//! every later fit use the baseline kernel (for the tests that compare the two).
-void set_lsf_baseline_kernels(bool baseline_only);
 
 }  // namespace stlrefine

@@ -32,7 +32,7 @@
 // 32-byte vectors (V4d) in the signatures of internal inline functions: GCC warns that
 // their ABI differs with and without AVX, which cannot matter for functions never called
 // across translation units built with different flags. Deliberately not popped: it holds
-// for the includer's own V4d functions and calls (lsf.cpp, the tests) too.
+// for the includer's own V4d functions and calls (lsf_kernels.cpp, the tests) too.
 #if defined(__clang__)
 #pragma clang diagnostic ignored "-Wunknown-warning-option"
 #endif

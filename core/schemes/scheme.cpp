@@ -30,38 +30,41 @@ struct SchemeEntry {
 constexpr std::array<SchemeEntry, 8> kSchemes = {{
     {"butterfly",
      [](const SchemeOptions&) -> std::unique_ptr<Scheme> {
-       return std::make_unique<Split4Scheme>("butterfly", std::make_unique<ButterflyStencil>());
+       return std::make_unique<HostScheme<Split4Stencil>>("butterfly",
+                                                          std::make_unique<ButterflyStencil>());
      }},
     {"loop",
      [](const SchemeOptions&) -> std::unique_ptr<Scheme> {
-       return std::make_unique<Split4Scheme>("loop", std::make_unique<LoopStencil>());
+       return std::make_unique<HostScheme<Split4Stencil>>("loop", std::make_unique<LoopStencil>());
      }},
     {"lsf",
      [](const SchemeOptions&) -> std::unique_ptr<Scheme> {
-       return std::make_unique<Split4Scheme>("lsf", std::make_unique<LsfStencil>());
+       return std::make_unique<HostScheme<Split4Stencil>>("lsf", std::make_unique<LsfStencil>());
      }},
     {"sqrt3",
      [](const SchemeOptions&) -> std::unique_ptr<Scheme> {
-       return std::make_unique<Sqrt3Scheme>("sqrt3", std::make_unique<KobbeltStencil>());
+       return std::make_unique<HostScheme<Sqrt3Stencil>>("sqrt3",
+                                                         std::make_unique<KobbeltStencil>());
      }},
     {"sqrt3-interp",
      [](const SchemeOptions&) -> std::unique_ptr<Scheme> {
-       return std::make_unique<Sqrt3Scheme>("sqrt3-interp",
-                                            std::make_unique<LabsikGreinerStencil>());
+       return std::make_unique<HostScheme<Sqrt3Stencil>>("sqrt3-interp",
+                                                         std::make_unique<LabsikGreinerStencil>());
      }},
     {"sqrt3-unified",
      [](const SchemeOptions& o) -> std::unique_ptr<Scheme> {
-       return std::make_unique<Sqrt3Scheme>(
+       return std::make_unique<HostScheme<Sqrt3Stencil>>(
            "sqrt3-unified", std::make_unique<LinLuoStencil>(o.alpha, o.alpha_features));
      }},
     {"loop-g2",
      [](const SchemeOptions& o) -> std::unique_ptr<Scheme> {
-       return std::make_unique<Split4Scheme>("loop-g2",
-                                             make_loop_g2_stencil(o.kappa, o.ramp_steps));
+       return std::make_unique<HostScheme<Split4Stencil>>(
+           "loop-g2", make_loop_g2_stencil(o.kappa, o.ramp_steps));
      }},
     {"butterfly-g1",
      [](const SchemeOptions&) -> std::unique_ptr<Scheme> {
-       return std::make_unique<Split4Scheme>("butterfly-g1", make_butterfly_g1_stencil());
+       return std::make_unique<HostScheme<Split4Stencil>>("butterfly-g1",
+                                                          make_butterfly_g1_stencil());
      }},
 }};
 

@@ -330,12 +330,6 @@ Features split4_features(const Mesh& m, const Features& coarse, BigVector<std::u
 
 }  // namespace
 
-std::uint64_t Split4Scheme::predict_faces(std::uint64_t faces, int levels) const {
-  // Saturates instead of overflowing, so absurd requests still compare as too large.
-  for (int i = 0; i < levels; ++i) faces = faces > (UINT64_MAX >> 2) ? UINT64_MAX : faces * 4;
-  return faces;
-}
-
 std::uint64_t split4_step_bytes(const Level& coarse, const Split4Stencil& stencil) {
   const Mesh& m = coarse.mesh;
   const std::size_t nv = m.num_vertices(), ne = m.num_edges(), nf = m.num_faces();

@@ -4,10 +4,9 @@
 
 #include <cstdint>
 #include <functional>
-#include <memory>
 #include <span>
-#include <string_view>
 
+#include "core/schemes/host_scheme.h"
 #include "core/schemes/scheme.h"
 
 namespace stlrefine {
@@ -87,22 +86,13 @@ std::uint64_t guard_folds_work_bytes(const Mesh& coarse);
 //! Heap bytes split4(coarse, stencil) allocates at most, the fine level included.
 std::uint64_t split4_step_bytes(const Level& coarse, const Split4Stencil& stencil);
 
-//! A Scheme made of the 1-to-4 host and one stencil.
-class Split4Scheme final : public Scheme {
- public:
-  Split4Scheme(std::string_view name, std::unique_ptr<Split4Stencil> stencil)
-      : name_(name), stencil_(std::move(stencil)) {}
-  std::string_view name() const override { return name_; }
-  bool interpolating() const override { return stencil_->interpolating(); }
-  std::uint64_t predict_faces(std::uint64_t faces, int levels) const override;
-  Level refine_once(const Level& coarse, StepStats& stats) const override {
-    return split4(coarse, *stencil_, stats);
+//! The 1-to-4 host of HostScheme<Split4Stencil> (host_scheme.h).
+template <>
+struct Host<Split4Stencil> {
+  static constexpr unsigned kFacesPerFace = 4;
+  static Level step(const Level& coarse, const Split4Stencil& stencil, StepStats& stats) {
+    return split4(coarse, stencil, stats);
   }
-  const Split4Stencil& stencil() const { return *stencil_; }
-
- private:
-  std::string_view name_;
-  std::unique_ptr<Split4Stencil> stencil_;
 };
 
 }  // namespace stlrefine

@@ -17,12 +17,6 @@
 
 namespace stlrefine {
 
-std::uint64_t Sqrt3Scheme::predict_faces(std::uint64_t faces, int levels) const {
-  // Saturates instead of overflowing, so absurd requests still compare as too large.
-  for (int i = 0; i < levels; ++i) faces = faces > UINT64_MAX / 3 ? UINT64_MAX : faces * 3;
-  return faces;
-}
-
 namespace {
 
 constexpr std::uint8_t kNoSharpCorner = 3;

@@ -4,10 +4,9 @@
 
 #include <array>
 #include <cstdint>
-#include <memory>
 #include <span>
-#include <string_view>
 
+#include "core/schemes/host_scheme.h"
 #include "core/schemes/scheme.h"
 
 namespace stlrefine {
@@ -90,22 +89,13 @@ Level sqrt3_refine(const Level& coarse, const Sqrt3Stencil& stencil, StepStats& 
 //! built-in stencils (their scratch: at most 32 B per coarse vertex).
 std::uint64_t sqrt3_step_bytes(const Level& coarse);
 
-//! A Scheme made of the sqrt3 host and one stencil.
-class Sqrt3Scheme final : public Scheme {
- public:
-  Sqrt3Scheme(std::string_view name, std::unique_ptr<Sqrt3Stencil> stencil)
-      : name_(name), stencil_(std::move(stencil)) {}
-  std::string_view name() const override { return name_; }
-  bool interpolating() const override { return stencil_->interpolating(); }
-  std::uint64_t predict_faces(std::uint64_t faces, int levels) const override;
-  Level refine_once(const Level& coarse, StepStats& stats) const override {
-    return sqrt3_refine(coarse, *stencil_, stats);
+//! The sqrt3 host of HostScheme<Sqrt3Stencil> (host_scheme.h).
+template <>
+struct Host<Sqrt3Stencil> {
+  static constexpr unsigned kFacesPerFace = 3;
+  static Level step(const Level& coarse, const Sqrt3Stencil& stencil, StepStats& stats) {
+    return sqrt3_refine(coarse, stencil, stats);
   }
-  const Sqrt3Stencil& stencil() const { return *stencil_; }
-
- private:
-  std::string_view name_;
-  std::unique_ptr<Sqrt3Stencil> stencil_;
 };
 
 }  // namespace stlrefine

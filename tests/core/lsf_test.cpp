@@ -518,15 +518,13 @@ TEST(LsfFastMath, QuadVersionsGiveTheScalarResultInEachLane) {
 // the same edge points bit for bit, on rings of every valence (3 and 4 and above 12 take
 // the one-vertex path inside the stencil too), with darts, creases, corners, boundaries, a
 // mesh large enough to be split between tasks, and with either batch kernel.
-class LsfBatchedFits : public ::testing::TestWithParam<bool> {
- protected:
-  void TearDown() override { set_lsf_baseline_kernels(false); }
-};
+class LsfBatchedFits : public ::testing::TestWithParam<LsfKernel> {};
 
 // Edge points of `level` and the next two levels by the stencil against the one-vertex
-// path, bit for bit; the last level has at least `min_vertices` vertices.
-void expect_batched_equal_one_vertex(Level level, std::size_t min_vertices) {
-  const LsfStencil stencil;
+// path, bit for bit, with the given batch kernel; the last level has at least `min_vertices`
+// vertices.
+void expect_batched_equal_one_vertex(Level level, std::size_t min_vertices, LsfKernel kernel) {
+  const LsfStencil stencil(kernel);
   for (int l = 0; l < 3; ++l) {
     const Mesh& m = level.mesh;
     std::vector<Vec3> points(m.num_edges());
@@ -563,7 +561,6 @@ void expect_batched_equal_one_vertex(Level level, std::size_t min_vertices) {
 }
 
 TEST_P(LsfBatchedFits, EqualTheOneVertexPathBitForBit) {
-  set_lsf_baseline_kernels(GetParam());
   IndexedSoup soup = icosphere_soup(3, 2.0);
   const int valences[] = {3, 4, 7, 9, 12, 13, 16};
   for (int i = 0; i < 7; ++i)
@@ -601,13 +598,12 @@ TEST_P(LsfBatchedFits, EqualTheOneVertexPathBitForBit) {
   }
   Level level{Mesh(mesh), Features(mesh, std::move(sharp))};
   ASSERT_EQ(level.features.count(VertexKind::Dart), 2u);
-  expect_batched_equal_one_vertex(std::move(level), 2 * 4096);  // split between tasks
+  expect_batched_equal_one_vertex(std::move(level), 2 * 4096, GetParam());  // split between tasks
 }
 
 // The same with detected creases (crease vertices' sectors are batched too) and corners: a
 // cube and two capped cylinders (the 7-sided one's side edges are sharp too), jittered.
 TEST_P(LsfBatchedFits, EqualTheOneVertexPathBitForBitAtCreases) {
-  set_lsf_baseline_kernels(GetParam());
   IndexedSoup soup = merged(cube_soup(2.0), translated(cylinder_soup(13, 1.5, 2.5), {5, 0, 0}));
   soup = merged(soup, translated(cylinder_soup(7, 1.0, 1.0), {0, 5, 0}));
   std::mt19937_64 rng(7);
@@ -616,11 +612,14 @@ TEST_P(LsfBatchedFits, EqualTheOneVertexPathBitForBitAtCreases) {
   Level level = level_of(soup);
   ASSERT_GT(level.features.count(VertexKind::Crease), 20u);
   ASSERT_GT(level.features.count(VertexKind::Corner), 0u);
-  expect_batched_equal_one_vertex(std::move(level), 0);
+  expect_batched_equal_one_vertex(std::move(level), 0, GetParam());
 }
 
-INSTANTIATE_TEST_SUITE_P(Kernels, LsfBatchedFits, ::testing::Values(false, true),
-                         [](const auto& info) { return info.param ? "Baseline" : "Best"; });
+INSTANTIATE_TEST_SUITE_P(Kernels, LsfBatchedFits,
+                         ::testing::Values(LsfKernel::Auto, LsfKernel::Baseline),
+                         [](const auto& info) {
+                           return info.param == LsfKernel::Baseline ? "Baseline" : "Best";
+                         });
 
 }  // namespace
 }  // namespace stlrefine

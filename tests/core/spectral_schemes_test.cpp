@@ -303,8 +303,9 @@ TEST(ButterflyG1, InterpolatesTheInputAndChangesTheSurface) {
     for (std::uint32_t v = 0; v < coarse.mesh.num_vertices(); ++v)
       EXPECT_EQ(g1.mesh.position(VertexId(v)), coarse.mesh.position(VertexId(v))) << n << " " << v;
     // Not vacuous: from step 3 on the apexes have three clean rings and the masks apply.
-    const Split4Scheme original("original", std::make_unique<ButterflyStencil>(
-                                                ButterflyStencil::Extraordinary::EightPoint));
+    const HostScheme<Split4Stencil> original(
+        "original",
+        std::make_unique<ButterflyStencil>(ButterflyStencil::Extraordinary::EightPoint));
     Level plain = coarse;
     StepStats stats;
     for (int i = 0; i < 3; ++i) plain = original.refine_once(plain, stats);
@@ -319,7 +320,7 @@ TEST(ButterflyG1, InterpolatesTheInputAndChangesTheSurface) {
 
 TEST(ButterflyG1, FirstStepIsThePlainOriginalButterfly) {
   const Level coarse = closed_level(9);
-  const Split4Scheme original(
+  const HostScheme<Split4Stencil> original(
       "original", std::make_unique<ButterflyStencil>(ButterflyStencil::Extraordinary::EightPoint));
   StepStats stats;
   const Level a = original.refine_once(coarse, stats);
@@ -361,7 +362,7 @@ TEST(SpectralSchemes, CarriedIrregularVerticesChangeNothing) {
                             make_level(to_mesh(cylinder_soup(12, 1.0, 2.0)), 35)};
   for (const char* name : {"loop-g2", "butterfly-g1"}) {
     const auto scheme = make_scheme(name);
-    const auto& stencil = static_cast<const Split4Scheme&>(*scheme).stencil();
+    const auto& stencil = static_cast<const HostScheme<Split4Stencil>&>(*scheme).stencil();
     for (std::size_t i = 0; i < inputs.size(); ++i) {
       Level carried = inputs[i];
       StepStats stats;
@@ -412,7 +413,7 @@ TEST(SpectralSchemes, NoMasksWithoutCleanRings) {
                       b.mesh.positions().begin(), b.mesh.positions().end());
   };
   EXPECT_TRUE(same(*make_scheme("loop-g2"), *make_scheme("loop")));
-  const Split4Scheme original(
+  const HostScheme<Split4Stencil> original(
       "original", std::make_unique<ButterflyStencil>(ButterflyStencil::Extraordinary::EightPoint));
   EXPECT_TRUE(same(*make_scheme("butterfly-g1"), original));
 }

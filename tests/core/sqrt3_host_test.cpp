@@ -265,7 +265,7 @@ TEST(Sqrt3Host, EvenStepRefusesAFaceWithTwoSharpEdges) {
 }
 
 TEST(Sqrt3Host, PredictsThreeTimesTheFacesPerStep) {
-  const Sqrt3Scheme scheme("test", std::make_unique<LinearSqrt3Stencil>());
+  const HostScheme<Sqrt3Stencil> scheme("test", std::make_unique<LinearSqrt3Stencil>());
   EXPECT_EQ(scheme.predict_faces(20, 0), 20u);
   EXPECT_EQ(scheme.predict_faces(20, 1), 60u);
   EXPECT_EQ(scheme.predict_faces(20, 4), 1620u);

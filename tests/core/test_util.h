@@ -80,7 +80,7 @@ class UnguardedSqrt3 final : public Sqrt3Stencil {
 //! `levels` steps of the named scheme without a fold guard (refine_levels for others).
 inline Level refine_levels_unguarded(std::string_view scheme, Level level, int levels) {
   const auto s = make_scheme(scheme);
-  const auto* sqrt3 = dynamic_cast<const Sqrt3Scheme*>(s.get());
+  const auto* sqrt3 = dynamic_cast<const HostScheme<Sqrt3Stencil>*>(s.get());
   if (!sqrt3) return refine_levels(scheme, std::move(level), levels);
   const UnguardedSqrt3 stencil(sqrt3->stencil());
   StepStats stats;

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // Copyright (c) 2026 stlrefine authors
-#include "core/analysis/spectrum_report.h"
+#include "cli/spectrum_report.h"
 
 #include <cmath>
 #include <cstdio>

@@ -1,0 +1,455 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#include "core/schemes/lsf_rules.h"
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include "core/parallel.h"
+#include "core/schemes/crease_rules.h"
+
+namespace stlrefine {
+
+// The least ratio of the chord beyond an endpoint to the edge's own chord for which the
+// 1-D rule fits its quadratic (spec 5 gap 3); below it the endpoint's estimate is linear.
+constexpr double kCurveSpacingRatio = 0.2;
+
+Vec3 lsf_curve_point(const Mesh& m, const Features& f, HalfedgeId h) {
+  const VertexId a = m.from(h), b = m.to(h);
+  // Quadratic through (prev, x, next) at chord parameters (-d0, 0, d1), evaluated at d1/2.
+  auto endpoint_estimate = [&](VertexId x, VertexId next) {
+    const Vec3& px = m.position(x);
+    const Vec3& pn = m.position(next);
+    const VertexId before = f.curve_beyond(x, next);
+    if (!before.valid()) return 0.5 * (px + pn);  // polyline end: linear
+    const Vec3& pb = m.position(before);
+    const double d0 = distance(pb, px), d1 = distance(px, pn);
+    // A neighbour beyond much nearer than the edge is long (an arc's last short chord before
+    // a long straight one, issue 17's plate outline): its bend, extrapolated over the long
+    // edge, would bow a straight edge by a large fraction of its length. Linear, as at an end.
+    if (d0 <= 0 || d1 <= 0 || d0 < kCurveSpacingRatio * d1) return 0.5 * (px + pn);
+    const double w_before = -d1 * d1 / (4.0 * d0 * (d0 + d1));
+    const double w_x = (d0 + 0.5 * d1) / (2.0 * d0);
+    const double w_next = (d0 + 0.5 * d1) / (2.0 * (d0 + d1));
+    return w_before * pb + w_x * px + w_next * pn;
+  };
+  return 0.5 * (endpoint_estimate(a, b) + endpoint_estimate(b, a));
+}
+
+namespace lsf {
+
+// --- The edge-point guard (issue 17) --------------------------------------------------------
+//
+// The two endpoint fits are only as good as their samples: on CAD tessellations (fans,
+// zipped strips, regions whose every vertex is a crease vertex, flat faces beside fillets) a
+// one-sided or mixed sample extrapolates, by up to the edge's length. Each estimate is
+// checked against what the surface's normals allow, and the edge point is built from the
+// estimates that pass, in this order of preference:
+//  1. the mean of the endpoint estimates that agree with the normals (both, or the better
+//     conditioned one);
+//  2. else the cubic Hermite midpoint of the edge from those normals (the chord midpoint when
+//     the normals say the edge is straight: a planar region stays planar);
+// and finally pulled back towards the chord while one of its child faces would turn more than
+// 60 degrees from the normals.
+
+// The normal of from(h)'s faces within the crease-bounded sector that holds half-edge h: on
+// even rings weighted by the faces' angles at the vertex, on fans and zippers by their areas.
+// Unit, or zero when the sector has no direction.
+Vec3 sector_normal(const Mesh& m, const Features& f, HalfedgeId h) {
+  // A smooth or dart vertex has one sector, its whole ring: walked from its own half-edge, so
+  // the sum is the same, bit for bit, whichever spoke asks (and equals the per-vertex cache).
+  if (f.kind(m.from(h)) <= VertexKind::Dart) h = m.halfedge(m.from(h));
+  const Vec3 p = m.position(m.from(h));
+  NormalSum sum;
+  auto add = [&](HalfedgeId s) {
+    sum.add(m.position(m.to(s)) - p, m.position(m.to(Mesh::next(s))) - p);
+  };
+  constexpr int kMaxWalk = 4096;  // a valence no mesh has; only guards a broken one
+  // A smooth vertex has no sharp spoke and no boundary: its ring is walked without looking
+  // at the features.
+  const bool smooth = f.kind(m.from(h)) == VertexKind::Smooth;
+  HalfedgeId s = h;
+  int steps = 0;
+  do {  // counter-clockwise up to a sharp spoke (or all the way round)
+    add(s);
+    s = smooth ? m.ccw_rotated(s) : ccw_within_patch(m, f, s);
+  } while (s.valid() && s != h && ++steps < kMaxWalk);
+  if (!s.valid() && !smooth) {  // then clockwise from h, the faces on its other side
+    s = cw_within_patch(m, f, h);
+    steps = 0;
+    while (s.valid() && s != h && ++steps < kMaxWalk) {
+      add(s);
+      s = cw_within_patch(m, f, s);
+    }
+  }
+  // Angle weights suit even rings (a hull's); on a fan or zipper (spokes of very different
+  // lengths) the few short spokes' faces may belong to another surface piece (a fillet's end
+  // touching a rounded corner): there the area-weighted normal, dominated by the long faces,
+  // is the better guess.
+  return sum.normal();
+}
+
+namespace {
+
+// Faces whose normals are closer than this (sine of the angle) are coplanar: far below any
+// dihedral of a curved surface's tessellation, above the rounding of float STL coordinates.
+constexpr double kCoplanarSine = 1e-3;
+
+// Planar patches are told by exact coplanarity, to the rounding of the coordinates: a corner
+// within kPatchTol of the face's size plus kFloatRounding of its coordinates' magnitude (four
+// float32 ulps: float STL coordinates of a CAD plane) from the plane. Not an angle: no two
+// faces of a tessellated smooth surface are that flat, however fine.
+constexpr double kPatchTol = 1e-6;
+constexpr double kFloatRounding = 4.0 / (1 << 24);
+
+[[gnu::always_inline]] inline bool coplanar(const Vec3& t0, const Vec3& t1,
+                                            double sine = kCoplanarSine) {
+  const Vec3 c = cross(t0, t1);
+  return dot(c, c) <= (sine * sine) * (dot(t0, t0) * dot(t1, t1)) && dot(t0, t1) > 0;
+}
+
+// Whether face (p, q, r), of normal n = (q - p) x (r - p), lies, facing the same way, in the
+// plane through p of normal t (unnormalised), to the rounding above (squared, without a root:
+// the tolerance is taken as the root of the sum of its two terms' squares, times sqrt 2).
+bool in_plane(const Vec3& t, const Vec3& p, const Vec3& q, const Vec3& r, const Vec3& n) {
+  if (!(dot(n, t) > 0)) return false;
+  const double magnitude = std::max({std::abs(p.x), std::abs(p.y), std::abs(p.z)});
+  const Vec3 pq = q - p, pr = r - p;
+  const double size2 = std::max(dot(pq, pq), dot(pr, pr));
+  const double tol2 = 2.0 * ((kPatchTol * kPatchTol) * size2 +
+                             (kFloatRounding * magnitude) * (kFloatRounding * magnitude));
+  const double dq = dot(pq, t), dr = dot(pr, t);
+  return std::max(dq * dq, dr * dr) <= tol2 * dot(t, t);
+}
+
+bool in_plane(const Vec3& t, const Vec3& p, const Vec3& q, const Vec3& r) {
+  return in_plane(t, p, q, r, cross(q - p, r - p));
+}
+
+// Whether the face of h (normal t, unnormalised) is coplanar with the face across one of its
+// two other edges.
+bool in_planar_patch(const Mesh& m, HalfedgeId h, const Vec3& t) {
+  for (const HalfedgeId side : {Mesh::next(h), Mesh::prev(h)}) {
+    const HalfedgeId across = m.twin(side);
+    if (!across.valid()) continue;
+    const Vec3 p = m.position(m.from(across)), q = m.position(m.to(across)),
+               r = m.position(m.opposite(across));
+    if (coplanar(t, triangle_normal(p, q, r)) && in_plane(t, p, q, r)) return true;
+  }
+  return false;
+}
+
+// How much of an edge end's face area (a fraction) must lie in the plane of the edge's faces
+// for that plane to rule the edge (at a smooth vertex, of its ring; at a crease or corner
+// vertex, of the sector: a crease-bounded plane fills it), and how much smaller than the
+// plane's largest face there its other faces must be (a fraction): a flat face beside a fillet
+// is several times wider than the fillet's strips, while the exactly planar split quads of a coarse
+// torus or cylinder are as wide as their neighbours (on a coarse torus the angle creases,
+// issue 17 item 5, cut bands whose sectors are two faces of a quad and one of the next).
+constexpr double kPlaneAreaShare = 0.5;
+constexpr double kPlaneDominance = 0.75;
+
+// Whether the faces of from(h)'s crease-bounded sector that holds h (its whole ring when it
+// is smooth) which lie in the plane of normal t (unnormalised), to the rounding of the
+// coordinates, hold at least kPlaneAreaShare of the sector's face area and its largest face
+// dominates the others (kPlaneDominance); `bends` is set when one
+// of from(h)'s faces, in any sector, turns from t by more than kCoplanarSine (only asked while
+// the answer can matter: when this returns true and `bends` was false).
+bool planar_end(const Mesh& m, const Features& f, HalfedgeId h, const Vec3& t, bool& bends) {
+  const VertexId v = m.from(h);
+  const Vec3 p = m.position(v);
+  double planar = 0, total = 0, largest_planar = 0, largest_other = 0;
+  // Every face: whether it bends (and, for a smooth vertex, its share); then, at a crease or
+  // corner vertex, the sector's shares.
+  const bool whole_ring = f.kind(v) == VertexKind::Smooth;
+  auto add = [&](HalfedgeId s, bool bend_only) {
+    const Vec3 q = m.position(m.to(s)), r = m.position(m.opposite(s));
+    const Vec3 n = cross(q - p, r - p);
+    const bool near = coplanar(t, n);
+    bends = bends || !near;
+    if (bend_only) return;
+    const double area = norm(n);
+    total += area;
+    if (near && in_plane(t, p, q, r, n)) {
+      planar += area;
+      largest_planar = std::max(largest_planar, area);
+    } else {
+      largest_other = std::max(largest_other, area);
+    }
+  };
+  if (whole_ring) for_each_outgoing(m, v, [&](HalfedgeId s) { add(s, false); });
+  if (!whole_ring) {  // the sector, as sector_normal walks it
+    constexpr int kMaxWalk = 4096;
+    HalfedgeId s = h;
+    int steps = 0;
+    do {
+      add(s, false);
+      s = ccw_within_patch(m, f, s);
+    } while (s.valid() && s != h && ++steps < kMaxWalk);
+    if (!s.valid()) {
+      s = cw_within_patch(m, f, h);
+      steps = 0;
+      while (s.valid() && s != h && ++steps < kMaxWalk) {
+        add(s, false);
+        s = cw_within_patch(m, f, s);
+      }
+    }
+  }
+  const bool rules = total > 0 && planar >= kPlaneAreaShare * total &&
+                     largest_other <= kPlaneDominance * largest_planar;
+  // The faces outside the sector only tell whether something bends, which matters only when
+  // the plane rules here, and not once a face has bent (the sector's faces were asked first).
+  if (!whole_ring && rules && !bends) for_each_outgoing(m, v, [&](HalfedgeId s) { add(s, true); });
+  return rules;
+}
+
+// How much wider across an edge a planar patch's face must be than the face on the other side
+// for the edge to count as the patch's straight border.
+constexpr double kPatchWidthRatio = 2.0;
+
+// How far an endpoint estimate may be from the Hermite midpoint of the normals, as a fraction
+// of the Hermite midpoint's own offset from the chord (plus 1e-3 of the chord).
+constexpr double kHermiteSlack = 1.0;
+
+// The child-fold pass: how many halving rounds before the edges of a face still folding go to
+// their chords, and the cosine of the screening angle (45 degrees) against the parent face.
+constexpr int kFoldRounds = 6;
+constexpr double kScreenCosine = 0.7071067811865476;
+
+// The midpoint of the cubic Hermite curve from a to b whose tangents are the chord projected
+// onto the tangent planes of n_a and n_b, scaled to the chord's length, relative to the
+// chord midpoint: (T_a - T_b) / 8. Zero when a normal has no direction or lies along the
+// chord (nothing to say).
+[[gnu::always_inline]] inline Vec3 hermite_offset(const Vec3& chord, double length, const Vec3& na,
+                                                  const Vec3& nb) {
+  if (!(length > 0)) return {};
+  const Vec3 ta = chord - dot(chord, na) * na, tb = chord - dot(chord, nb) * nb;
+  const double la2 = dot(ta, ta), lb2 = dot(tb, tb), min2 = 0.01 * (length * length);
+  if (!(la2 > min2) || !(lb2 > min2)) return {};
+  return (length / 8.0) * ((1.0 / std::sqrt(la2)) * ta - (1.0 / std::sqrt(lb2)) * tb);
+}
+
+// Whether triangle (p, q, r) turns more than 60 degrees from the unit normal n (a degenerate
+// one does not count).
+[[gnu::always_inline]] inline bool turns_over_60(const Vec3& p, const Vec3& q, const Vec3& r,
+                                                 const Vec3& n) {
+  const Vec3 t = triangle_normal(p, q, r);
+  const double d = dot(t, n);
+  return d < 0 ? dot(t, t) > 0 : d * d < 0.25 * dot(t, t);  // cos < 1/2, without a root
+}
+
+// Pulls the edge point of edge a -> b towards the chord midpoint while a 1-to-4 child of one
+// of its faces would turn more than 60 degrees from that face's normal (the other edges' points
+// taken at their midpoints); at the midpoint when halving eight times is not enough. Face k
+// is (a, b, opposite[k]) when normals[k] is its outward normal and (b, a, opposite[k]) when
+// -normals[k] is (the test below is the same with both signs flipped).
+Vec3 pull_back_folds(const Vec3& a, const Vec3& b, const std::array<Vec3, 2>& opposite,
+                     const std::array<Vec3, 2>& normals, int sides, const Vec3& point) {
+  const Vec3 mid = 0.5 * (a + b);
+  auto folds = [&](const Vec3& q) {
+    for (int k = 0; k < sides; ++k) {
+      const Vec3 c = opposite[k], n = normals[k];
+      const Vec3 ac = 0.5 * (a + c), bc = 0.5 * (b + c);
+      if (turns_over_60(a, q, ac, n) || turns_over_60(q, b, bc, n) || turns_over_60(q, bc, ac, n))
+        return true;
+    }
+    return false;
+  };
+  Vec3 q = point;
+  bool folded = folds(q);  // (each point tested once: most are not pulled at all)
+  for (int i = 0; i < 8 && folded; ++i) {
+    q = mid + 0.5 * (q - mid);
+    folded = folds(q);
+  }
+  return folded ? mid : q;
+}
+
+}  // namespace
+
+Vec3 guarded_edge_point(const GuardNormals& normal_of, EdgeId e, const Vec3& lower_estimate,
+                        const Vec3& upper_estimate) {
+  const Mesh& m = normal_of.mesh;
+  const Features& f = normal_of.features;
+  const GuardVertex* guard = normal_of.guard;
+  const HalfedgeId h0 = m.halfedge(e), h1 = m.twin(h0);
+  const Vec3 average = 0.5 * (lower_estimate + upper_estimate);
+  if (!h1.valid()) return average;
+  // ha runs a -> b; its estimate is a's fit.
+  const HalfedgeId ha = h0.idx < h1.idx ? h0 : h1, hb = m.twin(ha);
+  const Vec3 a = m.position(m.from(ha)), b = m.position(m.to(ha));
+  const Vec3 mid = 0.5 * (a + b), chord = b - a;
+  // Planar regions stay planar. Both faces in one plane, or a face of a planar patch
+  // (coplanar with a neighbour across one of its other edges) at least twice as wide across
+  // the edge as the face on the other side (a flat face ending at a fillet, tangent or at a
+  // shallow crease: issue 17's rounded box and plate), "in one plane" meaning to the rounding
+  // of the coordinates (in_plane), never by an angle: a smooth surface's tessellation, however
+  // fine, has no two faces that flat. The plane then rules the edge when it is most of both
+  // ends' neighbourhoods and the rest bends away for real (planar_end): the one-sided or mixed
+  // fits there bow a straight edge. (A regular cylinder's split quads are exactly planar too,
+  // but they are a small part of their corners' rings: they keep their fits. Near a flat net
+  // nothing bends by more than kCoplanarSine, so the fits, linear there, decide: the spectral
+  // analysis linearises the scheme about exactly such a net.)
+  const Vec3 c0 = m.position(m.opposite(ha)), c1 = m.position(m.opposite(hb));
+  const Vec3 t0 = triangle_normal(a, b, c0), t1 = triangle_normal(b, a, c1);
+  // The squared widths across the edge, times its length. (Squares throughout: this runs for
+  // every edge of every level, and the roots cost as much as the rest.)
+  const double w0 = dot(t0, t0), w1 = dot(t1, t1);
+  // When every face at a and at b is within kFlatSine of one face there (flat, known for
+  // the batched smooth vertices), every face there is within kCoplanarSine of t0 and of t1:
+  // nothing bends, so on_plane is false, and its walks are skipped (the flat regions of a
+  // CAD part, most of its edges after a level).
+  const bool no_bend = guard != nullptr && guard[m.from(ha).idx].flat && guard[m.from(hb).idx].flat;
+  auto on_plane = [&](const Vec3& t) {  // (only asked for the few exactly planar candidates)
+    if (no_bend) return false;
+    bool bends = false;
+    return planar_end(m, f, ha, t, bends) && planar_end(m, f, hb, t, bends) && bends;
+  };
+  constexpr double kRatio2 = kPatchWidthRatio * kPatchWidthRatio;
+  // coplanar() first: no root, and false for almost every edge of a curved surface.
+  if (((coplanar(t0, t1) && in_plane(t0, b, a, c1)) ||
+       (w0 >= kRatio2 * w1 && in_planar_patch(m, ha, t0))) &&
+      on_plane(t0))
+    return mid;
+  if (w1 >= kRatio2 * w0 && in_planar_patch(m, hb, t1) && on_plane(t1)) return mid;
+  const Vec3 na = normal_of(ha), nb = normal_of(hb);
+  const double length2 = dot(chord, chord);
+  const double length = std::sqrt(length2);
+  const Vec3 hermite = hermite_offset(chord, length, na, nb);
+  const Vec3 da = lower_estimate - mid - hermite, db = upper_estimate - mid - hermite;
+  const double tolerance = kHermiteSlack * norm(hermite) + 1e-3 * length;
+  const double tolerance2 = tolerance * tolerance;
+  const bool a_ok = dot(da, da) <= tolerance2, b_ok = dot(db, db) <= tolerance2;
+  Vec3 point = a_ok && b_ok ? average
+               : a_ok       ? lower_estimate
+               : b_ok       ? upper_estimate
+                            : mid + hermite;
+  // The fold guard against the normals: the children of both faces at the edge. A point
+  // within a tenth of the narrower face's height of the chord turns no child by more than
+  // about 11 degrees from its parent: not checked (most points of a fine level).
+  const Vec3 offset = point - mid;
+  if (dot(offset, offset) * length2 < 0.01 * std::min(w0, w1)) return point;
+  const Vec3 n = normalized(na + nb);
+  if (norm(n) == 0) return point;
+  const std::array<Vec3, 2> opposite = {c0, c1};
+  const std::array<Vec3, 2> normals = {n, -n};  // hb's face seen from a -> b is reversed
+  return pull_back_folds(a, b, opposite, normals, 2, point);
+}
+namespace {
+
+// Whether a 1-to-4 child of face `face`, with the edge points `points`, turns more than 60
+// degrees from the face's sector normals (the sum over its three corners). Screened first
+// against the face itself: a child within 45 degrees of its parent is not checked further.
+bool child_folds(const GuardNormals& normal_of, std::span<const Vec3> points, FaceId face) {
+  const Mesh& m = normal_of.mesh;
+  const HalfedgeId h0 = Mesh::halfedge(face, 0), h1 = Mesh::halfedge(face, 1),
+                   h2 = Mesh::halfedge(face, 2);
+  const Vec3 a = m.position(m.from(h0)), b = m.position(m.from(h1)), c = m.position(m.from(h2));
+  const Vec3 ab = points[m.edge(h0).idx], bc = points[m.edge(h1).idx], ca = points[m.edge(h2).idx];
+  const std::array<std::array<Vec3, 3>, 4> children = {
+      {{a, ab, ca}, {ab, b, bc}, {ca, bc, c}, {ab, bc, ca}}};
+  const Vec3 parent = triangle_normal(a, b, c);
+  const double parent2 = dot(parent, parent);
+  bool suspect = false;
+  for (const auto& t : children) {  // cos < kScreenCosine, without a root
+    const Vec3 n = triangle_normal(t[0], t[1], t[2]);
+    const double d = dot(n, parent);
+    suspect = suspect || d < 0 || d * d < (kScreenCosine * kScreenCosine) * (dot(n, n) * parent2);
+  }
+  if (!suspect) return false;
+  const Vec3 n = normalized(normal_of(h0) + normal_of(h1) + normal_of(h2));
+  if (norm(n) == 0) return false;
+  for (const auto& t : children)
+    if (turns_over_60(t[0], t[1], t[2], n)) return true;
+  return false;
+}
+
+}  // namespace
+
+void guard_child_folds(const GuardNormals& normal_of, std::span<Vec3> points,
+                       std::span<std::uint8_t> marks) {
+  const Mesh& m = normal_of.mesh;
+  const std::size_t nf = m.num_faces();
+  auto midpoint = [&](EdgeId e) {
+    const HalfedgeId h = m.halfedge(e);
+    return 0.5 * (m.position(m.from(h)) + m.position(m.to(h)));
+  };
+  // Every face once (in parallel), then only the folding faces and their neighbours: the
+  // faces whose edge points the last round moved.
+  std::atomic<bool> any{false};
+  parallel_for_each_index(nf, [&](std::size_t i) {
+    marks[i] = child_folds(normal_of, points, FaceId(static_cast<std::uint32_t>(i)));
+    if (marks[i]) any.store(true, std::memory_order_relaxed);
+  });
+  if (!any.load()) return;
+  std::vector<std::uint32_t> folding;
+  for (std::size_t i = 0; i < nf; ++i)
+    if (marks[i]) folding.push_back(static_cast<std::uint32_t>(i));
+  std::vector<std::uint32_t> candidates;
+  for (int round = 0; round <= kFoldRounds && !folding.empty(); ++round) {
+    // Halfway back towards the chord (the last round: onto it), each edge of each folding
+    // face; an edge of two folding faces moves twice.
+    candidates.clear();
+    for (const std::uint32_t i : folding) {
+      for (int k = 0; k < 3; ++k) {
+        const HalfedgeId h = Mesh::halfedge(FaceId(i), k);
+        const EdgeId e = m.edge(h);
+        const Vec3 mid = midpoint(e);
+        points[e.idx] = round == kFoldRounds ? mid : mid + 0.5 * (points[e.idx] - mid);
+        candidates.push_back(i);
+        if (m.twin(h).valid()) candidates.push_back(Mesh::face(m.twin(h)).idx);
+      }
+    }
+    std::sort(candidates.begin(), candidates.end());
+    candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+    folding.clear();
+    for (const std::uint32_t i : candidates)
+      if (child_folds(normal_of, points, FaceId(i))) folding.push_back(i);
+  }
+}
+}  // namespace lsf
+
+Vec3 lsf_guarded_edge_point(const Mesh& m, const Features& f, EdgeId e, const Vec3& lower_estimate,
+                            const Vec3& upper_estimate) {
+  return lsf::guarded_edge_point(lsf::GuardNormals{m, f}, e, lower_estimate, upper_estimate);
+}
+
+Vec3 lsf_guarded_curve_point(const Mesh& m, const Features& f, EdgeId e, const Vec3& point) {
+  const HalfedgeId h = m.halfedge(e), t = m.twin(h);
+  const Vec3 a = m.position(m.from(h)), b = m.position(m.to(h));
+  // As for smooth edges (guarded_edge_point): a point within a tenth of the narrower face's
+  // height of the chord turns no child by more than about 11 degrees from its parent, and is
+  // not checked (the sector normals are four walks round the ends).
+  {
+    const Vec3 chord = b - a, offset = point - 0.5 * (a + b);
+    double narrowest = std::numeric_limits<double>::infinity();
+    for (const HalfedgeId s : {h, t}) {
+      if (!s.valid()) continue;
+      const Vec3 w = cross(chord, m.position(m.opposite(s)) - a);
+      narrowest = std::min(narrowest, dot(w, w));
+    }
+    if (dot(offset, offset) * dot(chord, chord) < 0.01 * narrowest) return point;
+  }
+  // Each side's children against that side's normals (sectors end at the sharp edge).
+  std::array<Vec3, 2> opposite, normals;
+  int sides = 0;
+  for (const HalfedgeId s : {h, t}) {
+    if (!s.valid()) continue;
+    const Vec3 n =
+        normalized(lsf::sector_normal(m, f, s) + lsf::sector_normal(m, f, Mesh::next(s)));
+    if (norm(n) == 0) continue;
+    // Seen from a -> b: the face of t runs b -> a, so its corners are swapped back below.
+    opposite[sides] = m.position(m.opposite(s));
+    normals[sides] = s == h ? n : -n;
+    ++sides;
+  }
+  return lsf::pull_back_folds(a, b, opposite, normals, sides, point);
+}
+void lsf_guard_child_folds(const Mesh& m, const Features& f, std::span<Vec3> points,
+                           std::span<std::uint8_t> marks) {
+  lsf::guard_child_folds(lsf::GuardNormals{m, f}, points, marks);
+}
+}  // namespace stlrefine

@@ -1,0 +1,93 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#pragma once
+
+// LSF's per-edge rules besides the fits (lsf.h): the 1-D rule of sharp edges
+// (lsf_curve_point, defined in lsf_rules.cpp) and the guard of issue 17 that checks each edge
+// point against the surface's normals (sector normals, planar patches, the Hermite midpoint,
+// the pull-back of folding children). Internal to the lsf*.cpp files: the stencil (lsf.cpp)
+// runs them, the batch kernels (lsf_kernels.cpp) find the smooth vertices' guard normals.
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <span>
+
+#include "core/schemes/lsf.h"
+
+namespace stlrefine::lsf {
+
+// The guard's sector normal (issue 17, see sector_normal below), summed face by face: on even
+// rings weighted by the sine of each face's angle at the vertex, on fans and zippers by the
+// faces' areas, blended by the ratio of the longest to the shortest spoke (kEvenSpokes to
+// kUnevenSpokes). e1, e2: the face's two spokes, counter-clockwise.
+inline constexpr double kEvenSpokes = 3.0, kUnevenSpokes = 12.0;
+// `flat`: every face so far within kFlatSine of the first one (see flat_ring below).
+inline constexpr double kFlatSine = 0.5e-3;
+struct NormalSum {
+  Vec3 angle_sum, area_sum, first;
+  double shortest = std::numeric_limits<double>::infinity(), longest = 0;
+  bool flat = true;
+
+  void add(const Vec3& e1, const Vec3& e2) {
+    const Vec3 n = cross(e1, e2);
+    const double l1 = dot(e1, e1), l2 = dot(e2, e2);
+    if (dot(first, first) == 0) {
+      first = n;
+    } else if (flat) {
+      const Vec3 c = cross(first, n);
+      flat = dot(c, c) <= (kFlatSine * kFlatSine) * (dot(first, first) * dot(n, n)) &&
+             dot(first, n) > 0;
+    }
+    area_sum += n;
+    if (l1 * l2 > 0) angle_sum += (1.0 / std::sqrt(l1 * l2)) * n;
+    shortest = std::min(shortest, std::min(l1, l2));
+    longest = std::max(longest, std::max(l1, l2));
+  }
+  Vec3 normal() const {
+    const double ratio = longest > 0 && shortest > 0 ? std::sqrt(longest / shortest) : 1.0;
+    const double w = std::clamp((ratio - kEvenSpokes) / (kUnevenSpokes - kEvenSpokes), 0.0, 1.0);
+    return normalized((1.0 - w) * normalized(angle_sum) + w * normalized(area_sum));
+  }
+};
+//! The guard's normal of from(h)'s faces within the crease-bounded sector that holds h (its
+//! whole ring at a smooth or dart vertex): NormalSum::normal of them. Unit, or zero when the
+//! sector has no direction.
+Vec3 sector_normal(const Mesh& m, const Features& f, HalfedgeId h);
+
+// What the edge guard reads of a vertex, packed in one record (the edge pass reads two per
+// edge, at random): its guard normal when it has one sector (smooth or dart), and for a batched
+// smooth vertex whether all its faces are within kFlatSine of one another (then the plane rule
+// cannot fire at an edge between two such vertices, see guarded_edge_point).
+struct alignas(32) GuardVertex {
+  Vec3 normal;
+  std::uint8_t one_sector = 0;
+  std::uint8_t flat = 0;
+};
+
+//! The guard's normal source: `guard`'s record of from(h) when it has one sector, else
+//! sector_normal (walked). Without records (null) always walked.
+struct GuardNormals {
+  const Mesh& mesh;
+  const Features& features;
+  const GuardVertex* guard = nullptr;
+  Vec3 operator()(HalfedgeId h) const {
+    if (guard != nullptr) {
+      const GuardVertex& g = guard[mesh.from(h).idx];
+      if (g.one_sector) return g.normal;
+    }
+    return sector_normal(mesh, features, h);
+  }
+};
+
+//! lsf_guarded_edge_point (lsf.h) with the normals from `normals` (and, with records, the
+//! flat flags that skip the plane rule's walks).
+Vec3 guarded_edge_point(const GuardNormals& normals, EdgeId e, const Vec3& lower_estimate,
+                        const Vec3& upper_estimate);
+
+//! lsf_guard_child_folds (lsf.h) with the normals from `normals`.
+void guard_child_folds(const GuardNormals& normals, std::span<Vec3> points,
+                       std::span<std::uint8_t> marks);
+
+}  // namespace stlrefine::lsf
