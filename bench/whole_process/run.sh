@@ -33,9 +33,9 @@ run() {
   local name=$1; shift
   for r in $(seq "$reps"); do
     rm -f "$work/out.stl"
-    /usr/bin/time -f "%e %M" -o "$work/time" "$@" > "$work/stdout" 2> "$work/stderr" || {
+    /usr/bin/time -f "%e %M %U %S" -o "$work/time" "$@" > "$work/stdout" 2> "$work/stderr" || {
       echo "$name failed: $(tail -3 "$work/stderr")"; return; }
-    read -r wall kib < "$work/time"
+    read -r wall kib usr sys < "$work/time"
     out_bytes=$(stat -c %s "$work/out.stl")
     extra=""
     if [[ -s "$work/report.json" ]]; then
@@ -54,13 +54,16 @@ PY
       rm -f "$work/report.json"
     fi
     [[ -s "$work/stdout" ]] && extra="$extra $(cat "$work/stdout")"
-    printf '| %s | %d | %s | %.1f | %.2f | %s |\n' "$name" "$r" "$wall" "$(echo "$kib/1024" | bc -l)" \
+    printf '| %s | %d | %s | %.2f | %.1f | %.2f | %s |\n' "$name" "$r" "$wall" "$(echo "$usr+$sys" | bc -l)" \
+      "$(echo "$kib/1024" | bc -l)" \
       "$(echo "$kib*1024/($in_bytes+$out_bytes)" | bc -l)" "$extra"
   done
 }
 
-echo "| process | rep | wall s | peak RSS MiB | peak / (in + out STL) | phases (s) |"
-echo "|---|---|---|---|---|---|"
+echo "load average before: $(cut -d' ' -f1-3 /proc/loadavg) (2 cores shared with other builds)"
+echo
+echo "| process | rep | wall s | CPU s (user+sys) | peak RSS MiB | peak / (in + out STL) | phases (s) |"
+echo "|---|---|---|---|---|---|---|"
 for scheme in loop butterfly; do
   for dev in auto off; do
     run "stlrefine refine --scheme $scheme --levels 2 --max-deviation $dev" \
@@ -68,9 +71,16 @@ for scheme in loop butterfly; do
       --max-deviation "$dev" --report "$work/report.json"
   done
 done
+for scheme in loop butterfly; do
+  for dev in "" "-off" "-off-string"; do
+    run "in-process, per phase: ours-$scheme$dev" "$peer" "ours-$scheme$dev" "$work/scan.stl" 2 "$work/out.stl"
+  done
+done
 run "CGAL Loop_subdivision (read_polygon_mesh, write_STL)" "$peer" cgal-loop "$work/scan.stl" 2 "$work/out.stl"
 run "OpenMesh ModifiedButterflyT (read_mesh, write_mesh)" "$peer" openmesh-butterfly "$work/scan.stl" 2 "$work/out.stl"
 
+echo
+echo "load average: $(cut -d' ' -f1-3 /proc/loadavg)"
 echo
 echo "| daemon request | rep | client wall s | daemon RSS before MiB | daemon peak RSS MiB | peak / (in + out STL) | (peak - before) / (in + out) |"
 echo "|---|---|---|---|---|---|---|"
@@ -78,7 +88,7 @@ port=$(( 20000 + $$ % 20000 ))
 for query in "scheme=loop&levels=2" "scheme=loop&levels=2&max_deviation=off" \
              "scheme=butterfly&levels=2" "scheme=butterfly&levels=2&max_deviation=off"; do
   for r in $(seq "$reps"); do
-    "$daemon" --port "$port" --data-dir "$work/data" --compute-slots 1 2> "$work/daemon.log" &
+    "$daemon" --port "$port" --data-dir "$work/data" --compute-slots 1 > /dev/null 2> "$work/daemon.log" &
     pid=$!
     for _ in $(seq 100); do curl -sf "http://127.0.0.1:$port/healthz" > /dev/null && break; sleep 0.1; done
     before=$(awk '/VmRSS/ {print $2}' /proc/$pid/status)
