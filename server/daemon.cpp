@@ -1078,8 +1078,7 @@ void Daemon::Impl::compute(const Request& req, ReadRequest& read, Response& res,
       } else if (refined.stream()) {
         // 84 + 50 n bytes, known now, made on the event loop piece by piece from the float
         // positions and corners (12 bytes a vertex and a face, not 50 a face): the mesh goes.
-        auto stl = std::make_shared<const BinaryStl>(refined.mesh);
-        refined.mesh = Mesh();
+        auto stl = std::make_shared<const BinaryStl>(std::move(refined.mesh));
         lease.reset();
         keep_answer(stl->memory_bytes());
         res.set_header(kReportHeader, report);

@@ -14,12 +14,12 @@
 //                                                       ModifiedButterflyT -> write_mesh (binary)
 // Prints one line: peer, faces in/out, seconds read/refine/write/total, peak RSS (MiB,
 // getrusage of this process). Hand-run; never a ctest test.
-#include <sys/resource.h>
-
 #include <CGAL/Simple_cartesian.h>
 #include <CGAL/Subdivision_method_3/subdivision_methods_3.h>
 #include <CGAL/Surface_mesh.h>
 #include <CGAL/boost/graph/IO/polygon_mesh_io.h>
+#include <sys/resource.h>
+
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -163,7 +163,9 @@ Phases openmesh_butterfly(const std::string& in, int levels, const std::string& 
 
 int main(int argc, char** argv) {
   if (argc != 5) {
-    std::fprintf(stderr, "usage: peer_whole ours-SCHEME[-off]|cgal-loop|openmesh-butterfly IN.stl LEVELS OUT.stl\n");
+    std::fprintf(
+        stderr,
+        "usage: peer_whole ours-SCHEME[-off]|cgal-loop|openmesh-butterfly IN.stl LEVELS OUT.stl\n");
     return 2;
   }
   const std::string peer = argv[1];
@@ -187,9 +189,10 @@ int main(int argc, char** argv) {
       return 2;
     }
     const double total = since(start) - p.untimed;
-    std::printf("%s faces %zu -> %zu read %.3f refine %.3f%s write %.3f total %.3f peak_rss_mib %.1f\n",
-                peer.c_str(), p.in_faces, p.out_faces, p.read, p.refine, p.more.c_str(), p.write, total,
-                peak_mib());
+    std::printf(
+        "%s faces %zu -> %zu read %.3f refine %.3f%s write %.3f total %.3f peak_rss_mib %.1f\n",
+        peer.c_str(), p.in_faces, p.out_faces, p.read, p.refine, p.more.c_str(), p.write, total,
+        peak_mib());
   } catch (const std::exception& e) {
     std::fprintf(stderr, "%s\n", e.what());
     return 1;

@@ -111,9 +111,9 @@ constexpr std::uint64_t binary_stl_size(std::uint64_t faces) {
 }
 
 //! The binary STL of write_stl(mesh), byte for byte, given to `sink` in pieces of about
-//! 1.6 MB as it is made: the whole file is never in memory. A position that is not finite as
-//! a float throws (Error(Internal)) when its facet is reached: pieces before it were given.
-//! 	hrow Error(BudgetExceeded) over 2^32-1 faces, before any byte.
+//! 1.6 MB as it is made (each piece on the TBB pool): the whole file is never in memory. A position
+//! that is not finite as a float throws (Error(Internal)) when its facet is reached: pieces before
+//! it were given. 	hrow Error(BudgetExceeded) over 2^32-1 faces, before any byte.
 void write_binary_stl(const Mesh& mesh, const ByteSink& sink,
                       std::string_view solid_name = "stlrefine");
 
@@ -126,6 +126,10 @@ class BinaryStl {
   //! 	hrow Error(Internal, "non_finite") as write_stl; Error(BudgetExceeded) over 2^32-1
   //! faces.
   explicit BinaryStl(const Mesh& mesh, std::string_view solid_name = "stlrefine");
+  //! The same, taking the mesh apart as it goes (its double positions are freed before the
+  //! corners are copied): the peak is the mesh and the float positions, not the mesh and
+  //! all of this object. The mesh is gone afterwards.
+  explicit BinaryStl(Mesh&& mesh, std::string_view solid_name = "stlrefine");
   //! 84 + 50 n.
   std::uint64_t size() const { return binary_stl_size(corners_.size() / 3); }
   //! Writes bytes [offset, offset + out.size()) of the file into `out`.
@@ -137,6 +141,11 @@ class BinaryStl {
   }
 
  private:
+  //! The positions rounded to float; the mesh's own are freed when `release` is set.
+  void take_positions(const Mesh& mesh, BigVector<Vec3>* release);
+  //! The corners, checking that every corner's position is finite as a float.
+  void take_corners(const Mesh& mesh);
+
   std::array<char, 84> header_;
   std::vector<float> positions_;        // 3 per vertex
   std::vector<std::uint32_t> corners_;  // 3 per face

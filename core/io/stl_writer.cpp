@@ -12,6 +12,7 @@
 
 #include "core/error.h"
 #include "core/io/stl.h"
+#include "core/parallel.h"
 
 namespace stlrefine {
 namespace {
@@ -181,23 +182,49 @@ void write_binary_stl(const Mesh& mesh, const ByteSink& sink, std::string_view s
   std::string chunk(kFacetBytes * std::min(faces, kChunkFaces), '\0');
   for (std::size_t first = 0; first < faces; first += kChunkFaces) {
     const std::size_t count = std::min(kChunkFaces, faces - first);
-    store_facets(mesh, first, count, chunk.data());
+    try {  // the records of a piece are made in parallel (the bytes do not depend on it)
+      parallel_for_each_range(count, [&](std::size_t begin, std::size_t end) {
+        store_facets(mesh, first + begin, end - begin, chunk.data() + kFacetBytes * begin);
+      });
+    } catch (const Error& e) {
+      if (e.code() == ErrorCode::Cancelled) throw;
+      // Which failing face a parallel pass reports is not fixed: report the first, as
+      // write_stl does.
+      store_facets(mesh, first, count, chunk.data());
+      throw;
+    }
     sink(std::string_view(chunk.data(), kFacetBytes * count));
   }
 }
 
 BinaryStl::BinaryStl(const Mesh& mesh, std::string_view solid_name)
     : header_(binary_header(mesh.num_faces(), solid_name)) {
+  take_positions(mesh, nullptr);
+  take_corners(mesh);
+}
+
+BinaryStl::BinaryStl(Mesh&& mesh, std::string_view solid_name)
+    : header_(binary_header(mesh.num_faces(), solid_name)) {
+  Mesh taken = std::move(mesh);
+  take_positions(taken, &taken.mutable_positions());
+  take_corners(taken);
+}
+
+void BinaryStl::take_positions(const Mesh& mesh, BigVector<Vec3>* release) {
   const std::span<const Vec3> positions = mesh.positions();
-  const std::span<const VertexId> corners = mesh.corner_vertices();
   positions_.resize(3 * positions.size());
   for (std::size_t v = 0; v < positions.size(); ++v) {
     positions_[3 * v] = static_cast<float>(positions[v].x);
     positions_[3 * v + 1] = static_cast<float>(positions[v].y);
     positions_[3 * v + 2] = static_cast<float>(positions[v].z);
   }
+  if (release) BigVector<Vec3>().swap(*release);
+}
+
+void BinaryStl::take_corners(const Mesh& mesh) {
   // The check write_stl makes as it goes (the first face with a corner not finite as a
   // float), made here before any byte is asked for.
+  const std::span<const VertexId> corners = mesh.corner_vertices();
   corners_.resize(corners.size());
   for (std::size_t c = 0; c < corners.size(); ++c) {
     const std::uint32_t v = corners[c].idx;

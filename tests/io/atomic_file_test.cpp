@@ -154,6 +154,11 @@ TEST(StreamedStl, AnyRangeOfTheHeldStlIsTheFilesBytes) {
   std::string all(whole.size(), '\0');
   stl.read(0, all);
   EXPECT_EQ(all, whole);
+  // Made from a mesh it takes apart: the same bytes.
+  const BinaryStl taken(fine_sphere(), "solid part");
+  std::string all_taken(whole.size(), '\0');
+  taken.read(0, all_taken);
+  EXPECT_EQ(all_taken, whole);
   // Ranges starting and ending inside the header and inside facets.
   for (const auto& [offset, length] :
        std::initializer_list<std::pair<std::size_t, std::size_t>>{{0, 1},
