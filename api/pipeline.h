@@ -70,8 +70,10 @@ RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineReques
 //! that stream its bytes (write_binary_stl, BinaryStl in core/io/stl.h) to a file or a
 //! socket. Binary output: `outcome.stl` is empty and `mesh` is the refined mesh; the report
 //! is run_refine's, with output.bytes the STL's size (84 + 50 n) and seconds.write 0 (the
-//! bytes are made later). ASCII output is written as run_refine does (its size is known only
-//! once written): `outcome.stl` holds it and `mesh` is empty.
+//! bytes are made later: the CLI and the job runner, which write the report after the STL,
+//! put their streamed write's time there and in seconds.total). ASCII output is written as
+//! run_refine does (its size is known only once written): `outcome.stl` holds it and `mesh` is
+//! empty.
 struct RefinedMesh {
   RefineOutcome outcome;
   Mesh mesh;
