@@ -144,6 +144,9 @@ void peer_of(int fd, std::string& ip, int& port) {
 // Answers are written in pieces of at most this much per connection and wake-up, so one
 // fast client cannot hold the event loop.
 constexpr std::uint64_t kWriteSlice = 8 << 20;
+// And made bodies (Answer::made) in at most this many pieces of FrontEnd::kMadePiece (1 MiB,
+// about 21,000 STL facets).
+constexpr std::size_t kMadePiecesPerRound = 4;
 
 }  // namespace
 
@@ -480,6 +483,8 @@ void FrontEnd::flush(Connection& c) {
   const std::uint64_t body_end = head_end + a.body.size();
   const std::uint64_t file_end = body_end + a.file_length;
   std::uint64_t budget = kWriteSlice;
+  // Making a piece costs the event loop time that sending one does not: fewer per round.
+  std::size_t pieces = kMadePiecesPerRound;
   while (c.sent < a.size()) {
     if (budget == 0) return update_events(c);  // the rest on a later round
     ssize_t n;
@@ -497,6 +502,7 @@ void FrontEnd::flush(Connection& c) {
     } else {
       const std::uint64_t at = c.sent - file_end;
       if (at < c.piece_at || at >= c.piece_at + c.piece.size()) {
+        if (pieces-- == 0) return update_events(c);  // the rest on a later round
         // The next piece, made where it is sent; what the kernel took of the last is gone.
         c.piece.resize(
             static_cast<std::size_t>(std::min<std::uint64_t>(kMadePiece, a.made_length - at)));
