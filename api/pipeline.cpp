@@ -63,9 +63,13 @@ InfoOutcome run_info(std::span<const std::uint8_t> bytes, const InfoRequest& req
   return out;
 }
 
-RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineRequest& request,
-                         const ProgressFn& progress, const std::atomic<bool>* cancel,
-                         const MemoryGrowFn& grow) {
+namespace {
+
+// run_refine; with `keep` and binary output, the STL is not written: the refined mesh is
+// moved to *keep and the report gives the STL's size (84 + 50 n) and no write time.
+RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRequest& request,
+                             const ProgressFn& progress, const std::atomic<bool>* cancel,
+                             const MemoryGrowFn& grow, Mesh* keep) {
   const auto start = Clock::now();
   request.refine.validate();  // a bad parameter is reported before the file is read
   RefineTimes times;
@@ -182,13 +186,15 @@ RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineReques
 
   phase = Clock::now();
   RefineOutcome out;
-  out.stl = write_stl(refined.mesh, request.output_format);
+  const bool stream = keep && request.output_format == StlFormat::Binary;
+  if (!stream) out.stl = write_stl(refined.mesh, request.output_format);
+  const std::size_t stl_size = stream ? binary_stl_size(refined.mesh.num_faces()) : out.stl.size();
   times.write = seconds_since(phase);
   slicer::SliceStats slice_stats;
   if (request.slice)
     out.contours = slice_to_string(refined.mesh, *request.slice, &slice_stats, progress, cancel);
   times.total = seconds_since(start);
-  out.report = refine_report(in, refined.report, request, out.stl.size(), times);
+  out.report = refine_report(in, refined.report, request, stl_size, times);
   if (post && !measure_only) {
     out.report["primitives"] =
         primitives_report_json(regions ? &*regions : nullptr, *post, request.primitives);
@@ -207,6 +213,23 @@ RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineReques
   if (post) out.report["deviation"] = deviation_report_json(*post, reported);
   if (request.slice)
     out.report["slice"] = slice_stats_json(slice_stats, *request.slice, out.contours->size());
+  if (stream) *keep = std::move(refined.mesh);
+  return out;
+}
+
+}  // namespace
+
+RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineRequest& request,
+                         const ProgressFn& progress, const std::atomic<bool>* cancel,
+                         const MemoryGrowFn& grow) {
+  return refine_outcome(bytes, request, progress, cancel, grow, nullptr);
+}
+
+RefinedMesh run_refine_to_mesh(std::span<const std::uint8_t> bytes, const RefineRequest& request,
+                               const ProgressFn& progress, const std::atomic<bool>* cancel,
+                               const MemoryGrowFn& grow) {
+  RefinedMesh out;
+  out.outcome = refine_outcome(bytes, request, progress, cancel, grow, &out.mesh);
   return out;
 }
 

@@ -66,6 +66,24 @@ RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineReques
                          const ProgressFn& progress = {}, const std::atomic<bool>* cancel = nullptr,
                          const MemoryGrowFn& grow = {});
 
+//! run_refine without making a binary STL in memory: the refined mesh instead, for callers
+//! that stream its bytes (write_binary_stl, BinaryStl in core/io/stl.h) to a file or a
+//! socket. Binary output: `outcome.stl` is empty and `mesh` is the refined mesh; the report
+//! is run_refine's, with output.bytes the STL's size (84 + 50 n) and seconds.write 0 (the
+//! bytes are made later: the CLI and the job runner, which write the report after the STL,
+//! put their streamed write's time there and in seconds.total). ASCII output is written as
+//! run_refine does (its size is known only once written): `outcome.stl` holds it and `mesh` is
+//! empty.
+struct RefinedMesh {
+  RefineOutcome outcome;
+  Mesh mesh;
+  bool stream() const { return outcome.stl.empty(); }
+};
+RefinedMesh run_refine_to_mesh(std::span<const std::uint8_t> bytes, const RefineRequest& request,
+                               const ProgressFn& progress = {},
+                               const std::atomic<bool>* cancel = nullptr,
+                               const MemoryGrowFn& grow = {});
+
 struct SliceOutcome {
   std::string contours;           //!< in request.slice.format
   nlohmann::ordered_json report;  //!< see slice_report

@@ -29,24 +29,29 @@
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <iterator>
 #include <mutex>
 #include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "api/params.h"
 #include "api/pipeline.h"
 #include "cli/spectrum_report.h"
 #include "core/error.h"
+#include "core/io/atomic_file.h"
+#include "core/io/stl.h"
 #include "core/schemes/butterfly.h"
 #include "core/schemes/loop.h"
 #include "core/schemes/scheme.h"
@@ -124,29 +129,19 @@ std::vector<std::uint8_t> read_file(const std::string& path) {
   return bytes;
 }
 
-// Written next to the target and renamed over it: a failed run never leaves half a file.
-void write_file(const std::string& path, const std::string& bytes) {
-  const std::filesystem::path target(path);
-  std::filesystem::path tmp = target;
-  tmp += ".tmp-" + std::to_string(::getpid());
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out)
-      throw Failure{kExitInternal, "cannot create " + tmp.string() + ": " + std::strerror(errno)};
-    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    out.close();
-    if (!out) {
-      std::error_code ignored;
-      std::filesystem::remove(tmp, ignored);
-      throw Failure{kExitInternal, "cannot write " + tmp.string()};
-    }
+// Written next to the target, synced and renamed over it (core/io/atomic_file.h): a failed
+// run never leaves half a file, nor a changed one.
+void write_file(const std::string& path,
+                const std::function<void(const stlrefine::ByteSink&)>& produce) {
+  try {
+    stlrefine::write_file_atomically(path, produce);
+  } catch (const stlrefine::FileError& e) {
+    throw Failure{kExitInternal, e.what()};
   }
-  std::error_code ec;
-  std::filesystem::rename(tmp, target, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    throw Failure{kExitInternal, "cannot write " + path + ": " + ec.message()};
-  }
+}
+
+void write_file(const std::string& path, std::string_view bytes) {
+  write_file(path, [bytes](const stlrefine::ByteSink& sink) { sink(bytes); });
 }
 
 //! The progress line: only when stderr is a terminal, redrawn in place, at most once per
@@ -270,9 +265,22 @@ int run_refine(const CLI::App& cmd, const RefineOptions& o) {
     if (request.slice) request.slice->writer.label = label_of(o.input);
     const std::vector<std::uint8_t> bytes = read_file(o.input);
     ProgressLine progress;
-    api::RefineOutcome out = api::run_refine(bytes, request, progress.sink());
+    api::RefinedMesh refined = api::run_refine_to_mesh(bytes, request, progress.sink());
     progress.finish();
-    write_file(o.output, out.stl);
+    api::RefineOutcome& out = refined.outcome;
+    if (refined.stream()) {  // binary: made as it is written, never whole in memory
+      const auto start = std::chrono::steady_clock::now();
+      write_file(o.output, [&](const stlrefine::ByteSink& sink) {
+        stlrefine::write_binary_stl(refined.mesh, sink);
+      });
+      // The report's write time is the streamed write's (run_refine's included its own).
+      const double seconds =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      out.report["seconds"]["write"] = seconds;
+      out.report["seconds"]["total"] = out.report["seconds"]["total"].get<double>() + seconds;
+    } else {
+      write_file(o.output, out.stl);
+    }
     if (out.contours) write_file(o.slice_out, *out.contours);
     if (!o.report.empty()) write_file(o.report, out.report.dump(2) + "\n");
     std::cerr << "stlrefine: " << out.report["input"]["faces"] << " -> "

@@ -44,6 +44,7 @@
 #include "api/problem.h"
 #include "api/zip.h"
 #include "core/error.h"
+#include "core/io/stl.h"
 #include "server/front_end.h"
 #include "server/metrics.h"
 #include "server/request_watch.h"
@@ -886,8 +887,9 @@ void Daemon::Impl::route(const Request& req, ReadRequest& read, Response& res, A
 Answer Daemon::Impl::finish(const Request& req, Response& res, Answer big, bool ranges,
                             std::chrono::steady_clock::time_point accepted) {
   if (!res.has_header("X-Request-Id")) res.set_header("X-Request-Id", request_id(req));
-  const bool small = big.body.empty() && big.file < 0;
-  const std::uint64_t length = small ? res.body.size() : big.body.size() + big.file_length;
+  const bool small = big.body.empty() && big.file < 0 && !big.made;
+  const std::uint64_t length =
+      small ? res.body.size() : big.body.size() + big.file_length + big.made_length;
   std::uint64_t first = 0, count = length;
   if (ranges) {
     res.set_header("Accept-Ranges", "bytes");
@@ -943,6 +945,9 @@ Answer Daemon::Impl::finish(const Request& req, Response& res, Answer big, bool 
     if (out.file >= 0) {
       out.file_offset += first;
       out.file_length = count;
+    } else if (out.made) {
+      out.made_offset += first;
+      out.made_length = count;
     } else {
       out.body = out.body.substr(static_cast<std::size_t>(first), static_cast<std::size_t>(count));
     }
@@ -1045,7 +1050,13 @@ void Daemon::Impl::compute(const Request& req, ReadRequest& read, Response& res,
       // The reservation grows with the refinement (an adaptive hierarchy's size is known
       // only as it is made); it stops the moment it would pass the budget.
       auto grow = [&reservation](std::uint64_t bytes) { return reservation->grow_to(bytes); };
-      api::RefineOutcome out = api::run_refine(body, *refine_request, {}, cancel, grow);
+      // Refine + slice answers one zip, made in memory; an STL answer is made from the
+      // refined mesh as it is sent.
+      api::RefinedMesh refined =
+          refine_request->slice
+              ? api::RefinedMesh{api::run_refine(body, *refine_request, {}, cancel, grow), {}}
+              : api::run_refine_to_mesh(body, *refine_request, {}, cancel, grow);
+      api::RefineOutcome& out = refined.outcome;
       metrics.refinement(
           refine_request->refine.scheme, "done",
           std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(),
@@ -1064,6 +1075,19 @@ void Daemon::Impl::compute(const Request& req, ReadRequest& read, Response& res,
         res.set_header(kReportHeader, report);
         res.set_header("Content-Disposition", "attachment; filename=\"refined.zip\"");
         provide(std::move(zip), kZipContentType);
+      } else if (refined.stream()) {
+        // 84 + 50 n bytes, known now, made on the event loop piece by piece from the float
+        // positions and corners (12 bytes a vertex and a face, not 50 a face): the mesh goes.
+        auto stl = std::make_shared<const BinaryStl>(std::move(refined.mesh));
+        lease.reset();
+        keep_answer(stl->memory_bytes());
+        res.set_header(kReportHeader, report);
+        res.set_header("Content-Type", kStlContentType);
+        big.made = [stl = stl.get()](std::uint64_t offset, std::span<char> bytes) {
+          stl->read(offset, bytes);
+        };
+        big.made_length = stl->size();
+        big.keep = std::move(stl);
       } else {
         lease.reset();
         keep_answer(out.stl.size());

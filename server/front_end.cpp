@@ -144,6 +144,9 @@ void peer_of(int fd, std::string& ip, int& port) {
 // Answers are written in pieces of at most this much per connection and wake-up, so one
 // fast client cannot hold the event loop.
 constexpr std::uint64_t kWriteSlice = 8 << 20;
+// And made bodies (Answer::made) in at most this many pieces of FrontEnd::kMadePiece (1 MiB,
+// about 21,000 STL facets).
+constexpr std::size_t kMadePiecesPerRound = 4;
 
 }  // namespace
 
@@ -167,11 +170,16 @@ Answer::Answer(Answer&& other) noexcept
       file(other.file),
       file_offset(other.file_offset),
       file_length(other.file_length),
+      made(std::move(other.made)),
+      made_offset(other.made_offset),
+      made_length(other.made_length),
       keep(std::move(other.keep)),
       done(std::move(other.done)) {
   other.body = {};
   other.file = -1;
   other.file_length = 0;
+  other.made = nullptr;
+  other.made_length = 0;
 }
 
 Answer& Answer::operator=(Answer&& other) noexcept {
@@ -182,11 +190,16 @@ Answer& Answer::operator=(Answer&& other) noexcept {
     file = other.file;
     file_offset = other.file_offset;
     file_length = other.file_length;
+    made = std::move(other.made);
+    made_offset = other.made_offset;
+    made_length = other.made_length;
     keep = std::move(other.keep);
     done = std::move(other.done);
     other.body = {};
     other.file = -1;
     other.file_length = 0;
+    other.made = nullptr;
+    other.made_length = 0;
   }
   return *this;
 }
@@ -222,6 +235,9 @@ struct FrontEnd::Connection {
   std::function<std::string(std::uint64_t)> reserve_body;
   Answer out;  // Answer: what is written
   std::uint64_t sent = 0;
+  // A made body's current piece: its bytes [piece_at, piece_at + piece.size()).
+  std::string piece;
+  std::uint64_t piece_at = 0;
   std::shared_ptr<void> hold;  // released once the answer is written
   bool in_probe_lane = false;
   bool read_closed = false;  // the client half-closed while its answer is written
@@ -448,7 +464,9 @@ void FrontEnd::finish_answer(Connection& c, AnswerEnd::Outcome outcome) {
     done(end);
   }
   c.out = Answer();  // the body, its file and what kept them
-  c.hold.reset();    // the reservation
+  c.piece = std::string();
+  c.piece_at = 0;
+  c.hold.reset();  // the reservation
   if (outcome != AnswerEnd::Outcome::Complete) return close(c);
   // Sent: no more from us; read and drop what the client still sends, then close. Closing
   // with unread input would make the kernel reset the connection, and a client still
@@ -463,7 +481,10 @@ void FrontEnd::flush(Connection& c) {
   const Answer& a = c.out;
   const std::uint64_t head_end = a.head.size();
   const std::uint64_t body_end = head_end + a.body.size();
+  const std::uint64_t file_end = body_end + a.file_length;
   std::uint64_t budget = kWriteSlice;
+  // Making a piece costs the event loop time that sending one does not: fewer per round.
+  std::size_t pieces = kMadePiecesPerRound;
   while (c.sent < a.size()) {
     if (budget == 0) return update_events(c);  // the rest on a later round
     ssize_t n;
@@ -472,12 +493,29 @@ void FrontEnd::flush(Connection& c) {
     } else if (c.sent < body_end) {
       const std::uint64_t at = c.sent - head_end;
       n = ::send(c.fd, a.body.data() + at, std::min(a.body.size() - at, budget), MSG_NOSIGNAL);
-    } else {
+    } else if (c.sent < file_end) {
       const std::uint64_t at = c.sent - body_end;
       auto offset = static_cast<off_t>(a.file_offset + at);
       n = ::sendfile(c.fd, a.file, &offset, std::min(a.file_length - at, budget));
       // A file shorter than announced: the answer cannot be completed.
       if (n == 0) return finish_answer(c, AnswerEnd::Outcome::ClientGone);
+    } else {
+      const std::uint64_t at = c.sent - file_end;
+      if (at < c.piece_at || at >= c.piece_at + c.piece.size()) {
+        if (pieces-- == 0) return update_events(c);  // the rest on a later round
+        // The next piece, made where it is sent; what the kernel took of the last is gone.
+        c.piece.resize(
+            static_cast<std::size_t>(std::min<std::uint64_t>(kMadePiece, a.made_length - at)));
+        c.piece_at = at;
+        try {
+          a.made(a.made_offset + at, std::span(c.piece.data(), c.piece.size()));
+        } catch (...) {  // a broken promise: the answer cannot be completed
+          return finish_answer(c, AnswerEnd::Outcome::ClientGone);
+        }
+      }
+      const std::size_t within = static_cast<std::size_t>(at - c.piece_at);
+      n = ::send(c.fd, c.piece.data() + within,
+                 std::min<std::uint64_t>(c.piece.size() - within, budget), MSG_NOSIGNAL);
     }
     if (n > 0) {
       const auto moved = static_cast<std::uint64_t>(n);

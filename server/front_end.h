@@ -12,6 +12,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <span>
 #include <string>
 #include <string_view>
 #include <thread>
@@ -45,14 +46,22 @@ struct AnswerEnd {
 };
 const char* to_string(AnswerEnd::Outcome outcome);
 
+//! Makes bytes [offset, offset + out.size()) of a body into `out`, on the event loop: quick
+//! (a piece is at most FrontEnd::kMadePiece bytes) and not throwing.
+using BodyMaker = std::function<void(std::uint64_t offset, std::span<char> out)>;
+
 //! A complete answer, written by the event loop (never by a worker, so a client that reads
 //! slowly or not at all holds no thread). `head` is sent first (the status line, fields,
-//! blank line, and possibly a small body), then `body` or `file`.
+//! blank line, and possibly a small body), then `body`, `file` or `made`.
 struct Answer {
   std::string head;
   std::string_view body;  //!< a body in memory, kept alive by `keep`
   int file = -1;          //!< or a file (owned: the front end closes it)
   std::uint64_t file_offset = 0, file_length = 0;
+  //! or a body made piece by piece as it is sent (a refined mesh's STL, from what `keep`
+  //! holds): bytes [made_offset, made_offset + made_length) of what `made` makes.
+  BodyMaker made;
+  std::uint64_t made_offset = 0, made_length = 0;
   std::shared_ptr<const void> keep;  //!< what `body` points into, reservations
   //! Called once on the event loop when the answer is written or abandoned.
   std::function<void(const AnswerEnd&)> done;
@@ -64,7 +73,7 @@ struct Answer {
   Answer(const Answer&) = delete;
   Answer& operator=(const Answer&) = delete;
   ~Answer();
-  std::uint64_t size() const { return head.size() + body.size() + file_length; }
+  std::uint64_t size() const { return head.size() + body.size() + file_length + made_length; }
 };
 
 //! What the daemon decides on a request head. decide() runs on the event loop: it must be
@@ -143,6 +152,9 @@ class FrontEnd {
   //! A body buffer grows by at least this much (and doubles), so its reservation follows
   //! what arrived.
   static constexpr std::size_t kBodyChunk = 1 << 20;
+  //! A made body (Answer::made) is made and sent in pieces of at most this much, one buffer
+  //! per connection writing one.
+  static constexpr std::size_t kMadePiece = 256 << 10;
 
   struct Options {
     std::size_t workers = 4;

@@ -18,6 +18,7 @@
 #include <cstdio>
 #include <ctime>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <limits>
 #include <set>
@@ -28,6 +29,8 @@
 #include "api/memory_model.h"
 #include "api/pipeline.h"
 #include "core/error.h"
+#include "core/io/atomic_file.h"
+#include "core/io/stl.h"
 #include "server/thread_priority.h"
 #include "slicer/writers.h"
 
@@ -190,41 +193,26 @@ std::string iso8601(Clock::time_point t) {
   return text;
 }
 
-// Creates (or truncates) `path` with `mode`, writes all of `bytes` and flushes them to
-// disk. On failure the file is removed and std::system_error carries the errno (ENOSPC...).
-void write_file(const fs::path& path, std::string_view bytes, mode_t mode) {
-  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, mode);
-  if (fd < 0) throw_errno(errno, "cannot create " + path.string());
-  int err = 0;
-  std::size_t done = 0;
-  while (done < bytes.size()) {
-    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      err = n < 0 ? errno : EIO;
-      break;
-    }
-    done += static_cast<std::size_t>(n);
-  }
-  if (err == 0 && ::fsync(fd) != 0) err = errno;
-  if (::close(fd) != 0 && err == 0 && errno != EINTR) err = errno;
-  if (err != 0) {
-    ::unlink(path.c_str());
-    throw_errno(err, "cannot write " + path.string());
+// The core's atomic writer (core/io/atomic_file.h) with the temporary name ".<name>.tmp",
+// which the janitor knows as a crash's leftover: a reader sees the old file or the whole
+// new one, never a half-written one, and a failure (ENOSPC, ...) leaves neither the
+// temporary file nor a changed `path`. Its failures come out as std::system_error carrying
+// the system's code, which the runner turns into 507 when it is a full disk.
+void write_atomically(const fs::path& path, const std::function<void(const ByteSink&)>& produce,
+                      mode_t mode = 0644) {
+  AtomicFileOptions options;
+  options.temporary_name = "." + path.filename().string() + ".tmp";
+  options.mode = mode;
+  try {
+    write_file_atomically(path, produce, options);
+  } catch (const FileError& e) {
+    throw std::system_error(e.os_error(), e.what());
   }
 }
 
-// Write to a temporary name in the same directory, flush to disk, rename: a reader sees
-// the old file or the whole new one, never a half-written one. A failure (ENOSPC, ...)
-// leaves neither the temporary file nor a changed `path`.
-void write_atomically(const fs::path& path, std::string_view bytes) {
-  const fs::path tmp = path.parent_path() / ("." + path.filename().string() + ".tmp");
-  write_file(tmp, bytes, 0644);
-  if (::rename(tmp.c_str(), path.c_str()) != 0) {
-    const int err = errno;
-    ::unlink(tmp.c_str());
-    throw_errno(err, "cannot rename " + tmp.string());
-  }
+void write_atomically(const fs::path& path, std::string_view bytes, mode_t mode = 0644) {
+  write_atomically(
+      path, [bytes](const ByteSink& sink) { sink(bytes); }, mode);
 }
 
 bool is_tmp(const fs::path& path) {
@@ -302,7 +290,8 @@ std::array<unsigned char, kTenantKeyBytes> load_tenant_key(const fs::path& data_
     random_bytes(name, sizeof name);
     const fs::path tmp =
         data_dir / (std::string(kTenantKeyFile) + "." + hex(name, sizeof name) + ".tmp");
-    write_file(tmp, std::string_view(reinterpret_cast<const char*>(key.data()), key.size()), 0600);
+    write_atomically(tmp, std::string_view(reinterpret_cast<const char*>(key.data()), key.size()),
+                     0600);
     int rc = ::link(tmp.c_str(), path.c_str());
     int err = rc == 0 ? 0 : errno;
     if (rc != 0 && (err == EPERM || err == EOPNOTSUPP || err == ENOSYS)) {
@@ -916,13 +905,26 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
       }
       return true;
     };
-    api::RefineOutcome out =
-        api::run_refine(input_bytes, job->request, progress, &ticket->cancel, grow);
+    api::RefinedMesh refined =
+        api::run_refine_to_mesh(input_bytes, job->request, progress, &ticket->cancel, grow);
+    const api::RefineOutcome& out = refined.outcome;
     report = out.report;
     // Each file is listed once it is whole, so a failure below removes exactly those.
-    write_atomically(job->dir / "result.stl", out.stl);
+    if (refined.stream()) {  // binary: made as it is written, never whole in memory
+      const auto start = std::chrono::steady_clock::now();
+      write_atomically(job->dir / "result.stl",
+                       [&](const ByteSink& sink) { write_binary_stl(refined.mesh, sink); });
+      bytes += binary_stl_size(refined.mesh.num_faces());
+      // The report's write time is the streamed write's (run_refine's included its own).
+      const double seconds =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      report["seconds"]["write"] = seconds;
+      report["seconds"]["total"] = report["seconds"]["total"].get<double>() + seconds;
+    } else {
+      write_atomically(job->dir / "result.stl", out.stl);
+      bytes += out.stl.size();
+    }
     results.push_back("result.stl");
-    bytes += out.stl.size();
     if (out.contours) {
       const std::string name =
           std::string("contours") + slicer::file_extension(job->request.slice->format);

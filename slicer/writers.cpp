@@ -2,15 +2,11 @@
 // Copyright (c) 2026 stlrefine authors
 #include "slicer/writers.h"
 
-#include <fcntl.h>
-#include <unistd.h>
-
 #include <algorithm>
-#include <cerrno>
 #include <string>
-#include <system_error>
 
 #include "core/error.h"
+#include "core/io/atomic_file.h"
 #include "slicer/writer_util.h"
 
 namespace stlrefine::slicer {
@@ -34,13 +30,6 @@ const FormatName& entry(SliceFormat format) {
   for (const FormatName& f : kFormats)
     if (f.format == format) return f;
   return kFormats[0];
-}
-
-Error os_error(ErrorCode code, const char* reason, const std::string& what,
-               const std::filesystem::path& path) {
-  const std::string why = std::error_code(errno, std::generic_category()).message();
-  return std::move(
-      Error(code, reason, what + " '" + path.string() + "': " + why).with_field("path"));
 }
 
 }  // namespace
@@ -138,55 +127,10 @@ std::string write_slices_to_string(const Mesh& mesh, const SliceParams& params,
 SliceStats write_slices_file(const std::filesystem::path& path, const Mesh& mesh,
                              const SliceParams& params, const LayerWriter& writer,
                              const ProgressFn& progress, const std::atomic<bool>* cancel) {
-  // A unique temporary name next to the target, so that rename() is atomic.
-  static std::atomic<std::uint64_t> counter{0};
-  std::filesystem::path tmp = path;
-  tmp += ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(counter++);
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
-  if (fd < 0) throw os_error(ErrorCode::InvalidParameter, "cannot_create", "cannot create", tmp);
-
   SliceStats stats;
-  try {
-    // Layers arrive as separate strings; gather small ones to keep write(2) calls few.
-    std::string buffer;
-    const auto flush = [&] {
-      const char* p = buffer.data();
-      std::size_t left = buffer.size();
-      while (left > 0) {
-        const ssize_t n = ::write(fd, p, left);
-        if (n < 0) {
-          if (errno == EINTR) continue;
-          throw os_error(ErrorCode::Internal, "write_failed", "cannot write", tmp);
-        }
-        p += n;
-        left -= std::size_t(n);
-      }
-      buffer.clear();
-    };
-    stats = write_slices(
-        mesh, params, writer,
-        [&](std::string_view bytes) {
-          buffer.append(bytes);
-          if (buffer.size() >= (std::size_t{1} << 20)) flush();
-        },
-        progress, cancel);
-    flush();
-    if (::fsync(fd) != 0) throw os_error(ErrorCode::Internal, "write_failed", "cannot sync", tmp);
-  } catch (...) {
-    ::close(fd);
-    ::unlink(tmp.c_str());
-    throw;
-  }
-  if (::close(fd) != 0) {
-    Error e = os_error(ErrorCode::Internal, "write_failed", "cannot close", tmp);
-    ::unlink(tmp.c_str());
-    throw e;
-  }
-  if (::rename(tmp.c_str(), path.c_str()) != 0) {
-    Error e = os_error(ErrorCode::InvalidParameter, "cannot_create", "cannot replace", path);
-    ::unlink(tmp.c_str());
-    throw e;
-  }
+  write_file_atomically(path, [&](const ByteSink& sink) {
+    stats = write_slices(mesh, params, writer, sink, progress, cancel);
+  });
   return stats;
 }
 

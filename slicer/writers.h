@@ -15,6 +15,7 @@
 #include <string>
 #include <string_view>
 
+#include "core/io/atomic_file.h"
 #include "slicer/slice.h"
 
 namespace stlrefine::slicer {
@@ -75,7 +76,7 @@ std::unique_ptr<LayerWriter> make_writer(SliceFormat format, const WriterOptions
 std::uint64_t empty_layer_points(SliceFormat format);
 
 //! Receives the output bytes in order; may throw to abort (the error propagates).
-using ByteSink = std::function<void(std::string_view bytes)>;
+using stlrefine::ByteSink;  // core/io/atomic_file.h
 
 //! Slices `mesh` and streams the encoded result to `sink`: header, every layer in order,
 //! footer. Memory stays bounded by the layers in flight, whatever the part's height.

@@ -2,6 +2,7 @@
 // Copyright (c) 2026 stlrefine authors
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
@@ -10,6 +11,7 @@
 #include <string_view>
 #include <vector>
 
+#include "core/io/atomic_file.h"
 #include "core/mesh/indexed_soup.h"
 #include "core/mesh/mesh.h"
 
@@ -103,10 +105,56 @@ IndexedSoup weld(const TriangleSoup& soup, double tolerance = 0.0);
 //! \throw Error(Internal) when a position is not finite as a float.
 std::string write_stl(const Mesh& mesh, StlFormat format = StlFormat::Binary,
                       std::string_view solid_name = "stlrefine");
-//! write_stl, then an atomic replace of `path` (a temporary file in the same directory,
-//! fsync, rename): readers never see a half-written file.
-//! \throw Error(InvalidParameter, field "path") when the file cannot be created;
-//! Error(Internal) when writing fails midway (disk full, I/O error).
+//! Bytes of a binary STL with `faces` facets: 84 + 50 faces.
+constexpr std::uint64_t binary_stl_size(std::uint64_t faces) {
+  return 84 + 50 * faces;
+}
+
+//! The binary STL of write_stl(mesh), byte for byte, given to `sink` in pieces of about
+//! 1.6 MB as it is made (each piece on the TBB pool): the whole file is never in memory. A position
+//! that is not finite as a float throws (Error(Internal)) when its facet is reached: pieces before
+//! it were given. 	hrow Error(BudgetExceeded) over 2^32-1 faces, before any byte.
+void write_binary_stl(const Mesh& mesh, const ByteSink& sink,
+                      std::string_view solid_name = "stlrefine");
+
+//! A mesh's binary STL, held as compactly as it can be made from: the positions rounded to
+//! float and the corners (12 bytes a vertex, 12 a face, against the file's 50 a face), and
+//! any range of the file's bytes made on demand. For answers written while they are sent:
+//! the size is known up front and every check runs before the first byte.
+class BinaryStl {
+ public:
+  //! 	hrow Error(Internal, "non_finite") as write_stl; Error(BudgetExceeded) over 2^32-1
+  //! faces.
+  explicit BinaryStl(const Mesh& mesh, std::string_view solid_name = "stlrefine");
+  //! The same, taking the mesh apart as it goes (its double positions are freed before the
+  //! corners are copied): the peak is the mesh and the float positions, not the mesh and
+  //! all of this object. The mesh is gone afterwards.
+  explicit BinaryStl(Mesh&& mesh, std::string_view solid_name = "stlrefine");
+  //! 84 + 50 n.
+  std::uint64_t size() const { return binary_stl_size(corners_.size() / 3); }
+  //! Writes bytes [offset, offset + out.size()) of the file into `out`.
+  //! \pre offset + out.size() <= size()
+  void read(std::uint64_t offset, std::span<char> out) const;
+  //! What this object holds.
+  std::uint64_t memory_bytes() const {
+    return sizeof(float) * positions_.size() + sizeof(std::uint32_t) * corners_.size();
+  }
+
+ private:
+  //! The positions rounded to float; the mesh's own are freed when `release` is set.
+  void take_positions(const Mesh& mesh, BigVector<Vec3>* release);
+  //! The corners, checking that every corner's position is finite as a float.
+  void take_corners(const Mesh& mesh);
+
+  std::array<char, 84> header_;
+  std::vector<float> positions_;        // 3 per vertex
+  std::vector<std::uint32_t> corners_;  // 3 per face
+};
+
+//! An atomic replace of `path` (write_file_atomically) by the STL of `mesh`: binary
+//! streamed (write_binary_stl), ASCII made as a whole (write_stl) first.
+//! 	hrow FileError: InvalidParameter "cannot_create" (field "path") when the file cannot
+//! be created; Internal "write_failed" when writing fails midway (disk full, I/O error).
 void write_stl_file(const std::filesystem::path& path, const Mesh& mesh,
                     StlFormat format = StlFormat::Binary,
                     std::string_view solid_name = "stlrefine");

@@ -1,21 +1,18 @@
 // SPDX-License-Identifier: MIT
 // Copyright (c) 2026 stlrefine authors
-#include <fcntl.h>
-#include <unistd.h>
-
-#include <atomic>
+#include <algorithm>
+#include <array>
 #include <bit>
-#include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <string>
 #include <string_view>
-#include <system_error>
 
 #include "core/error.h"
 #include "core/io/stl.h"
+#include "core/parallel.h"
 
 namespace stlrefine {
 namespace {
@@ -48,26 +45,35 @@ struct Facet {
   float corner[3][3];
 };
 
+//! The unit normal of the triangle of float corners (zero if degenerate).
+void set_normal(Facet& facet) {
+  Vec3 p[3];
+  for (std::size_t k = 0; k < 3; ++k)
+    p[k] = Vec3(facet.corner[k][0], facet.corner[k][1], facet.corner[k][2]);
+  const Vec3 n = normalized(triangle_normal(p[0], p[1], p[2]));
+  facet.normal[0] = static_cast<float>(n.x);
+  facet.normal[1] = static_cast<float>(n.y);
+  facet.normal[2] = static_cast<float>(n.z);
+}
+
+Error non_finite(std::uint32_t vertex, std::size_t face) {
+  return Error(ErrorCode::Internal, "non_finite",
+               "cannot write STL: vertex " + std::to_string(vertex) + " of face " +
+                   std::to_string(face) + " is not finite as a float");
+}
+
 //! Corners rounded to float, the unit normal of the rounded triangle (zero if degenerate).
 Facet facet_of(std::span<const Vec3> positions, std::span<const VertexId> corners, std::size_t f) {
   Facet out;
-  Vec3 p[3];
   for (std::size_t k = 0; k < 3; ++k) {
     const Vec3& v = positions[corners[3 * f + k].idx];
     const float xyz[3] = {static_cast<float>(v.x), static_cast<float>(v.y),
                           static_cast<float>(v.z)};
-    if (!std::isfinite(xyz[0]) || !std::isfinite(xyz[1]) || !std::isfinite(xyz[2])) {
-      throw Error(ErrorCode::Internal, "non_finite",
-                  "cannot write STL: vertex " + std::to_string(corners[3 * f + k].idx) +
-                      " of face " + std::to_string(f) + " is not finite as a float");
-    }
+    if (!std::isfinite(xyz[0]) || !std::isfinite(xyz[1]) || !std::isfinite(xyz[2]))
+      throw non_finite(corners[3 * f + k].idx, f);
     std::memcpy(out.corner[k], xyz, sizeof xyz);
-    p[k] = Vec3(xyz[0], xyz[1], xyz[2]);
   }
-  const Vec3 n = normalized(triangle_normal(p[0], p[1], p[2]));
-  out.normal[0] = static_cast<float>(n.x);
-  out.normal[1] = static_cast<float>(n.y);
-  out.normal[2] = static_cast<float>(n.z);
+  set_normal(out);
   return out;
 }
 
@@ -76,14 +82,22 @@ void store_u32le(char* p, std::uint32_t v) {
   std::memcpy(p, &v, 4);
 }
 
-std::string write_binary(const Mesh& mesh, std::string_view solid_name) {
-  const std::size_t faces = mesh.num_faces();
+//! The 50-byte record of a facet (the 2 attribute bytes 0).
+void store_facet(char* p, const Facet& facet) {
+  std::uint32_t bits[12];
+  std::memcpy(bits, &facet, sizeof bits);
+  for (std::size_t i = 0; i < 12; ++i) store_u32le(p + 4 * i, bits[i]);
+  p[48] = p[49] = 0;
+}
+
+//! The 84 bytes before the facets: the name (never starting with "solid": naive readers
+//! would take the file for ASCII), zero padding, the facet count.
+std::array<char, kHeaderBytes + 4> binary_header(std::size_t faces, std::string_view solid_name) {
   if (faces > std::numeric_limits<std::uint32_t>::max()) {
     throw Error(ErrorCode::BudgetExceeded, "too_many_triangles",
                 "binary STL holds at most 2^32-1 triangles, the mesh has " + std::to_string(faces));
   }
-  std::string out(kHeaderBytes + 4 + kFacetBytes * faces, '\0');
-  // Never start the header with "solid": naive readers would take the file for ASCII.
+  std::array<char, kHeaderBytes + 4> out{};
   std::string header = clean_name(solid_name, kHeaderBytes);
   if (header.size() >= 5 && (header[0] | 0x20) == 's' && (header[1] | 0x20) == 'o' &&
       (header[2] | 0x20) == 'l' && (header[3] | 0x20) == 'i' && (header[4] | 0x20) == 'd') {
@@ -91,17 +105,23 @@ std::string write_binary(const Mesh& mesh, std::string_view solid_name) {
   }
   std::memcpy(out.data(), header.data(), header.size());
   store_u32le(out.data() + kHeaderBytes, static_cast<std::uint32_t>(faces));
+  return out;
+}
 
+//! Records of faces [first, first + count) of the mesh into `out`.
+void store_facets(const Mesh& mesh, std::size_t first, std::size_t count, char* out) {
   const std::span<const Vec3> positions = mesh.positions();
   const std::span<const VertexId> corners = mesh.corner_vertices();
-  char* p = out.data() + kHeaderBytes + 4;
-  for (std::size_t f = 0; f < faces; ++f, p += kFacetBytes) {
-    const Facet facet = facet_of(positions, corners, f);
-    std::uint32_t bits[12];
-    std::memcpy(bits, &facet, sizeof bits);
-    for (std::size_t i = 0; i < 12; ++i) store_u32le(p + 4 * i, bits[i]);
-    // The 2 attribute bytes stay 0.
-  }
+  for (std::size_t f = first; f < first + count; ++f, out += kFacetBytes)
+    store_facet(out, facet_of(positions, corners, f));
+}
+
+std::string write_binary(const Mesh& mesh, std::string_view solid_name) {
+  const std::size_t faces = mesh.num_faces();
+  const auto header = binary_header(faces, solid_name);
+  std::string out(binary_stl_size(faces), '\0');
+  std::memcpy(out.data(), header.data(), header.size());
+  store_facets(mesh, 0, faces, out.data() + header.size());
   return out;
 }
 
@@ -147,12 +167,6 @@ std::string write_ascii(const Mesh& mesh, std::string_view solid_name) {
   return out;
 }
 
-Error os_error(ErrorCode code, const char* reason, const std::string& what,
-               const std::filesystem::path& path) {
-  const std::string why = std::error_code(errno, std::generic_category()).message();
-  return Error(code, reason, what + " '" + path.string() + "': " + why).with_field("path");
-}
-
 }  // namespace
 
 std::string write_stl(const Mesh& mesh, StlFormat format, std::string_view solid_name) {
@@ -160,46 +174,110 @@ std::string write_stl(const Mesh& mesh, StlFormat format, std::string_view solid
                                     : write_binary(mesh, solid_name);
 }
 
-void write_stl_file(const std::filesystem::path& path, const Mesh& mesh, StlFormat format,
-                    std::string_view solid_name) {
-  const std::string bytes = write_stl(mesh, format, solid_name);
+void write_binary_stl(const Mesh& mesh, const ByteSink& sink, std::string_view solid_name) {
+  const std::size_t faces = mesh.num_faces();
+  const auto header = binary_header(faces, solid_name);
+  sink(std::string_view(header.data(), header.size()));
+  constexpr std::size_t kChunkFaces = 32768;  // 1.6 MB: written as it is, not gathered
+  std::string chunk(kFacetBytes * std::min(faces, kChunkFaces), '\0');
+  for (std::size_t first = 0; first < faces; first += kChunkFaces) {
+    const std::size_t count = std::min(kChunkFaces, faces - first);
+    try {  // the records of a piece are made in parallel (the bytes do not depend on it)
+      parallel_for_each_range(count, [&](std::size_t begin, std::size_t end) {
+        store_facets(mesh, first + begin, end - begin, chunk.data() + kFacetBytes * begin);
+      });
+    } catch (const Error& e) {
+      if (e.code() == ErrorCode::Cancelled) throw;
+      // Which failing face a parallel pass reports is not fixed: report the first, as
+      // write_stl does.
+      store_facets(mesh, first, count, chunk.data());
+      throw;
+    }
+    sink(std::string_view(chunk.data(), kFacetBytes * count));
+  }
+}
 
-  // A unique temporary name next to the target, so that rename() is atomic (same file
-  // system) and concurrent writers in one process do not collide.
-  static std::atomic<std::uint64_t> counter{0};
-  std::filesystem::path tmp = path;
-  tmp += ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(counter++);
+BinaryStl::BinaryStl(const Mesh& mesh, std::string_view solid_name)
+    : header_(binary_header(mesh.num_faces(), solid_name)) {
+  take_positions(mesh, nullptr);
+  take_corners(mesh);
+}
 
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
-  if (fd < 0) throw os_error(ErrorCode::InvalidParameter, "cannot_create", "cannot create", tmp);
-  const auto abandon = [&](const char* what) {
-    Error e = os_error(ErrorCode::Internal, "write_failed", what, tmp);
-    ::close(fd);
-    ::unlink(tmp.c_str());
-    return e;
+BinaryStl::BinaryStl(Mesh&& mesh, std::string_view solid_name)
+    : header_(binary_header(mesh.num_faces(), solid_name)) {
+  Mesh taken = std::move(mesh);
+  take_positions(taken, &taken.mutable_positions());
+  take_corners(taken);
+}
+
+void BinaryStl::take_positions(const Mesh& mesh, BigVector<Vec3>* release) {
+  const std::span<const Vec3> positions = mesh.positions();
+  positions_.resize(3 * positions.size());
+  for (std::size_t v = 0; v < positions.size(); ++v) {
+    positions_[3 * v] = static_cast<float>(positions[v].x);
+    positions_[3 * v + 1] = static_cast<float>(positions[v].y);
+    positions_[3 * v + 2] = static_cast<float>(positions[v].z);
+  }
+  if (release) BigVector<Vec3>().swap(*release);
+}
+
+void BinaryStl::take_corners(const Mesh& mesh) {
+  // The check write_stl makes as it goes (the first face with a corner not finite as a
+  // float), made here before any byte is asked for.
+  const std::span<const VertexId> corners = mesh.corner_vertices();
+  corners_.resize(corners.size());
+  for (std::size_t c = 0; c < corners.size(); ++c) {
+    const std::uint32_t v = corners[c].idx;
+    const float* p = &positions_[3 * std::size_t{v}];
+    if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
+      throw non_finite(v, c / 3);
+    corners_[c] = v;
+  }
+}
+
+void BinaryStl::read(std::uint64_t offset, std::span<char> out) const {
+  char* p = out.data();
+  std::size_t left = out.size();
+  if (offset < header_.size()) {
+    const std::size_t n = std::min<std::uint64_t>(left, header_.size() - offset);
+    std::memcpy(p, header_.data() + offset, n);
+    p += n;
+    left -= n;
+    offset += n;
+  }
+  const auto facet = [this](std::size_t f) {
+    Facet facet;
+    for (std::size_t k = 0; k < 3; ++k)
+      std::memcpy(facet.corner[k], &positions_[3 * std::size_t{corners_[3 * f + k]}],
+                  3 * sizeof(float));
+    set_normal(facet);
+    return facet;
   };
-  const char* p = bytes.data();
-  std::size_t left = bytes.size();
   while (left > 0) {
-    const ssize_t n = ::write(fd, p, left);
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      throw abandon("cannot write");
+    const std::uint64_t at = offset - header_.size();
+    const std::size_t f = at / kFacetBytes;
+    const std::size_t within = at % kFacetBytes;
+    std::size_t n;
+    if (within == 0 && left >= kFacetBytes) {
+      store_facet(p, facet(f));
+      n = kFacetBytes;
+    } else {
+      char record[kFacetBytes];
+      store_facet(record, facet(f));
+      n = std::min(left, kFacetBytes - within);
+      std::memcpy(p, record + within, n);
     }
     p += n;
-    left -= static_cast<std::size_t>(n);
+    left -= n;
+    offset += n;
   }
-  if (::fsync(fd) != 0) throw abandon("cannot sync");
-  if (::close(fd) != 0) {
-    Error e = os_error(ErrorCode::Internal, "write_failed", "cannot close", tmp);
-    ::unlink(tmp.c_str());
-    throw e;
-  }
-  if (::rename(tmp.c_str(), path.c_str()) != 0) {
-    Error e = os_error(ErrorCode::InvalidParameter, "cannot_create", "cannot replace", path);
-    ::unlink(tmp.c_str());
-    throw e;
-  }
+}
+
+void write_stl_file(const std::filesystem::path& path, const Mesh& mesh, StlFormat format,
+                    std::string_view solid_name) {
+  if (format == StlFormat::Ascii) return write_file_atomically(path, write_ascii(mesh, solid_name));
+  write_file_atomically(path,
+                        [&](const ByteSink& sink) { write_binary_stl(mesh, sink, solid_name); });
 }
 
 }  // namespace stlrefine

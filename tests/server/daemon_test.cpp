@@ -19,13 +19,17 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <span>
 #include <sstream>
 #include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include "api/params.h"
+#include "api/pipeline.h"
 #include "http_test_client.h"
+#include "server/front_end.h"
 #include "test_stl.h"
 
 namespace stlrefine::server {
@@ -120,6 +124,19 @@ class DaemonTest : public ::testing::Test {
 };
 
 // --- success paths
+
+TEST_F(DaemonTest, AStreamedStlAnswerIsTheBytesRunRefineWrites) {
+  // 8 * 4^6 faces: 1.6 MB of STL, made from the mesh and sent in several pieces.
+  const std::string query = "scheme=butterfly&levels=6";
+  const RawResponse r = request(test::post_text(refine_target(query), "model/stl", input_));
+  ASSERT_EQ(r.status, 200) << r.body;
+  const auto bytes = std::span(reinterpret_cast<const std::uint8_t*>(input_.data()), input_.size());
+  const api::RefineOutcome expected =
+      api::run_refine(bytes, api::parse_refine_params(api::parse_query(query), {}));
+  ASSERT_GT(expected.stl.size(), 4 * FrontEnd::kMadePiece);
+  EXPECT_EQ(r.header("content-length"), std::to_string(expected.stl.size()));
+  EXPECT_TRUE(r.body == expected.stl) << "the streamed answer differs from write_stl's bytes";
+}
 
 TEST_F(DaemonTest, RefineAnswersBinaryStlWithTheReportHeader) {
   httplib::Client client("127.0.0.1", port_);
