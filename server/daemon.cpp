@@ -41,9 +41,11 @@
 #include "api/memory_model.h"
 #include "api/params.h"
 #include "api/pipeline.h"
+#include "api/plan.h"
 #include "api/problem.h"
 #include "api/zip.h"
 #include "core/error.h"
+#include "server/admission.h"
 #include "server/front_end.h"
 #include "server/metrics.h"
 #include "server/request_watch.h"
@@ -982,19 +984,20 @@ void Daemon::Impl::compute(const Request& req, ReadRequest& read, Response& res,
     ~TrimAfter() { ::malloc_trim(0); }
   } trim_after;
   try {
-    // Parsed again (cheap): the pre-routing check only validated.
+    // Planned (parsed again, cheap: the pre-routing check only validated): the parameters,
+    // the scheme, the body's shape and the predicted memory, once.
     const auto body =
         std::span(reinterpret_cast<const std::uint8_t*>(raw_body.data()), raw_body.size());
     const std::string_view path = route.path;
-    std::optional<api::RefineRequest> refine_request;
-    std::optional<api::SliceRequest> slice_request;
-    std::optional<api::InfoRequest> info_request;
+    std::optional<api::RefinePlan> refine_plan;
+    std::optional<api::SlicePlan> slice_plan;
+    std::optional<api::InfoPlan> info_plan;
     if (path == "/v1/refine")
-      refine_request = api::parse_refine_params(raw_params(req), limits);
+      refine_plan = api::plan_refine(raw_params(req), limits, body);
     else if (path == "/v1/slice")
-      slice_request = api::parse_slice_params(raw_params(req), limits);
+      slice_plan = api::plan_slice(raw_params(req), limits, body);
     else
-      info_request = api::parse_info_params(raw_params(req));
+      info_plan = api::plan_info(raw_params(req), body);
 
     std::optional<ComputeSlots::Lease> lease = slots.try_acquire();
     if (!lease || stopping) return respond(res, busy_problem(stopping));
@@ -1007,21 +1010,15 @@ void Daemon::Impl::compute(const Request& req, ReadRequest& read, Response& res,
       std::optional<MemoryBudget::Reservation> r = memory.try_reserve(0);
       reservation = std::make_shared<MemoryBudget::Reservation>(std::move(*r));
     }
-    const api::StlShape shape = api::stl_shape(body);
-    api::MemoryEstimate predicted;
-    if (refine_request) {
-      // The face budget first: it is the request's own limit, with its own 422.
-      api::refuse_over_face_budget(shape.faces, refine_request->refine);
-      predicted = api::estimate_refine_memory(body, shape, *refine_request);
-    } else if (slice_request) {
-      predicted = api::estimate_slice_memory(body, shape, *slice_request);
-    } else {
-      predicted = api::estimate_info_memory(shape);
-    }
-    if (predicted.peak_bytes > memory.capacity())
-      return respond(res, api::memory_budget_problem(predicted, memory.capacity()));
-    if (!reservation->grow_to(predicted.peak_bytes))
-      return respond(res, memory_busy_problem(predicted.peak_bytes));
+    const ReserveFn reserve = [&reservation](std::uint64_t bytes) {
+      return reservation->grow_to(bytes);
+    };
+    const BusyFn busy = [this](std::uint64_t bytes) { return memory_busy_problem(bytes); };
+    const std::optional<api::Problem> refused =
+        refine_plan ? admit(*refine_plan, memory.capacity(), reserve, busy)
+                    : admit(slice_plan ? slice_plan->memory : info_plan->memory, memory.capacity(),
+                            reserve, busy);
+    if (refused) return respond(res, *refused);
     // Once computed, the reservation shrinks to the body and the answer, which stay in
     // memory until the answer is sent and the connection closed.
     auto keep_answer = [&](std::uint64_t answer_bytes) {
@@ -1040,21 +1037,20 @@ void Daemon::Impl::compute(const Request& req, ReadRequest& read, Response& res,
       big.keep = std::move(data);
       res.set_header("Content-Type", type);
     };
-    if (refine_request) {
+    if (refine_plan) {
       const auto started = std::chrono::steady_clock::now();
       // The reservation grows with the refinement (an adaptive hierarchy's size is known
       // only as it is made); it stops the moment it would pass the budget.
-      auto grow = [&reservation](std::uint64_t bytes) { return reservation->grow_to(bytes); };
-      api::RefineOutcome out = api::run_refine(body, *refine_request, {}, cancel, grow);
+      api::RefineOutcome out = api::run_refine(body, *refine_plan, {}, cancel, reserve);
       metrics.refinement(
-          refine_request->refine.scheme, "done",
+          refine_plan->request.refine.scheme, "done",
           std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(),
           out.report["input"].value("faces", 0ull), out.report["output"].value("faces", 0ull));
       // The report header is compact ASCII JSON (no CR/LF can reach a header).
       const std::string report = out.report.dump(-1, ' ', true);
       if (out.contours) {
         // Refine + slice: one zip with the refined STL, the contours and the report.
-        const slicer::SliceFormat format = refine_request->slice->format;
+        const slicer::SliceFormat format = refine_plan->request.slice->format;
         std::string zip = api::make_zip({{"refined.stl", out.stl, false},
                                          {std::string("slices") + slicer::file_extension(format),
                                           *out.contours, format != slicer::SliceFormat::CliBinary},
@@ -1070,14 +1066,14 @@ void Daemon::Impl::compute(const Request& req, ReadRequest& read, Response& res,
         res.set_header(kReportHeader, report);
         provide(std::move(out.stl), kStlContentType);
       }
-    } else if (slice_request) {
-      api::SliceOutcome out = api::run_slice(body, *slice_request, {}, cancel);
+    } else if (slice_plan) {
+      api::SliceOutcome out = api::run_slice(body, slice_plan->request, {}, cancel);
       lease.reset();
       keep_answer(out.contours.size());
       res.set_header(kReportHeader, out.report.dump(-1, ' ', true));
-      provide(std::move(out.contours), slicer::media_type(slice_request->slice.format));
+      provide(std::move(out.contours), slicer::media_type(slice_plan->request.slice.format));
     } else {
-      const nlohmann::ordered_json report = api::run_info(body, *info_request);
+      const nlohmann::ordered_json report = api::run_info(body, info_plan->request);
       lease.reset();
       keep_answer(0);
       res.set_content(report.dump(2, ' ', true) + "\n", kJsonContentType);
@@ -1088,11 +1084,9 @@ void Daemon::Impl::compute(const Request& req, ReadRequest& read, Response& res,
     res.headers.erase("Content-Disposition");
     res.headers.erase("Content-Type");
     big = Answer();
-    // Above what one request may ever hold: 422 naming the level parameter; else it did not
-    // fit next to the running requests: 503, retry.
-    if (e.needed_bytes() > memory.capacity())
-      return respond(res, api::memory_budget_problem(e, memory.capacity()));
-    respond(res, memory_busy_problem(e.needed_bytes()));
+    respond(res, memory_problem(e, memory.capacity(), [this](std::uint64_t bytes) {
+              return memory_busy_problem(bytes);
+            }));
   } catch (const Error& e) {
     res.headers.erase(kReportHeader);
     res.headers.erase("Content-Disposition");
@@ -1131,20 +1125,20 @@ bool Daemon::Impl::authorized(const Request& req) const {
 void Daemon::Impl::submit_job(const Request& req, std::string_view body, Response& res) {
   if (config.test_hook) config.test_hook("/v1/jobs");
   try {
-    api::RefineRequest request = api::parse_refine_params(raw_params(req), limits);
     // A job that could never get its memory is refused now, not when its turn comes.
     const auto bytes = std::span(reinterpret_cast<const std::uint8_t*>(body.data()), body.size());
-    const api::MemoryEstimate predicted = api::estimate_refine_memory(
-        bytes, api::stl_shape(bytes), request, api::ResultSink::JobFiles);
+    api::RefinePlan plan =
+        api::plan_refine(raw_params(req), limits, bytes, api::ResultSink::JobFiles);
+    const api::MemoryEstimate& predicted = plan.memory;
     if (predicted.peak_bytes > memory.capacity())
       return respond(res, api::memory_budget_problem(predicted, memory.capacity()));
     const std::size_t q = req.target.find('?');
     std::string query = q == std::string::npos ? "" : req.target.substr(q + 1);
-    const std::uint64_t result_bytes = predicted_result_bytes(request, predicted);
-    const SubmitResult submitted =
-        stopping
-            ? SubmitResult::refused(SubmitResult::Status::ShuttingDown)
-            : jobs->submit(std::move(request), std::move(query), body, tenant(req), result_bytes);
+    const std::uint64_t result_bytes = predicted_result_bytes(plan.request, predicted);
+    const SubmitResult submitted = stopping
+                                       ? SubmitResult::refused(SubmitResult::Status::ShuttingDown)
+                                       : jobs->submit(std::move(plan.request), std::move(query),
+                                                      body, tenant(req), result_bytes);
     if (submitted.status == SubmitResult::Status::NoSpace)
       return respond(res, no_space_problem(submitted));
     const std::optional<JobView>& job = submitted.job;

@@ -27,7 +27,9 @@
 
 #include "api/memory_model.h"
 #include "api/pipeline.h"
+#include "api/plan.h"
 #include "core/error.h"
+#include "server/admission.h"
 #include "server/thread_priority.h"
 #include "slicer/writers.h"
 
@@ -67,6 +69,17 @@ struct JobStore::Leftovers {
 };
 
 namespace {
+
+// A job stopped by the memory budget while other work held it (admission never answers it:
+// a job waits for its reservation).
+api::Problem job_busy_problem(std::uint64_t needed) {
+  api::Problem p =
+      api::make_problem(503, "busy",
+                        "the job needed " + std::to_string((needed + (1 << 20) - 1) >> 20) +
+                            " MiB while other work held the memory budget; submit it again");
+  p.extensions["reason"] = "memory";
+  return p;
+}
 
 constexpr const char* kJobFile = "job.json";
 constexpr const char* kInputFile = "input.stl";
@@ -870,24 +883,26 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
     const std::string input = read_file(job->dir / kInputFile);
     const auto input_bytes =
         std::span(reinterpret_cast<const std::uint8_t*>(input.data()), input.size());
+    // The request was parsed and validated when it was submitted; planned on its body now.
+    const api::RefinePlan plan =
+        api::plan_refine(job->request, input_bytes, api::ResultSink::JobFiles);
     if (config_.memory) {
-      // Its predicted peak, before any work (the face budget first, as in run_refine); it
-      // waits for that like for a slot.
-      const api::StlShape shape = api::stl_shape(input_bytes);
-      api::refuse_over_face_budget(shape.faces, job->request.refine);
-      const api::MemoryEstimate predicted =
-          api::estimate_refine_memory(input_bytes, shape, job->request, api::ResultSink::JobFiles);
-      if (predicted.peak_bytes > config_.memory->capacity())
-        throw Refused{api::memory_budget_problem(predicted, config_.memory->capacity())};
-      if (!(memory = config_.memory->try_reserve(predicted.peak_bytes))) {
+      // Its predicted peak, before any work (the face budget first); it waits for that like
+      // for a slot.
+      const ReserveFn reserve = [&](std::uint64_t peak) {
+        if ((memory = config_.memory->try_reserve(peak))) return true;
         {
           std::lock_guard lock(mutex_);
           job->stage = "waiting for memory";
         }
-        while (!(memory = config_.memory->try_reserve(predicted.peak_bytes)) && !cancelled())
+        while (!(memory = config_.memory->try_reserve(peak)) && !cancelled())
           std::this_thread::sleep_for(std::chrono::milliseconds(20));
         if (!memory) throw Error(ErrorCode::Cancelled, "cancelled", "cancelled before it started");
-      }
+        return true;
+      };
+      if (std::optional<api::Problem> refused =
+              admit(plan, config_.memory->capacity(), reserve, job_busy_problem))
+        throw Refused{*refused};
     }
     {
       // The deadline counts from here; DELETE and shutdown raise the same flag.
@@ -916,8 +931,7 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
       }
       return true;
     };
-    api::RefineOutcome out =
-        api::run_refine(input_bytes, job->request, progress, &ticket->cancel, grow);
+    api::RefineOutcome out = api::run_refine(input_bytes, plan, progress, &ticket->cancel, grow);
     report = out.report;
     // Each file is listed once it is whole, so a failure below removes exactly those.
     write_atomically(job->dir / "result.stl", out.stl);
@@ -940,14 +954,8 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
   } catch (const MemoryBudgetError& e) {
     if (job->cancel || cancel_all_) {
       state = JobState::Cancelled;
-    } else if (config_.memory && e.needed_bytes() <= config_.memory->capacity()) {
-      problem = api::make_problem(
-          503, "busy",
-          "the job needed " + std::to_string((e.needed_bytes() + (1 << 20) - 1) >> 20) +
-              " MiB while other work held the memory budget; submit it again");
-      problem->extensions["reason"] = "memory";
     } else {
-      problem = config_.memory ? api::memory_budget_problem(e, config_.memory->capacity())
+      problem = config_.memory ? memory_problem(e, config_.memory->capacity(), job_busy_problem)
                                : api::problem_from_error(e);
     }
   } catch (const Error& e) {
