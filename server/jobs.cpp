@@ -73,10 +73,9 @@ namespace {
 // A job stopped by the memory budget while other work held it (admission never answers it:
 // a job waits for its reservation).
 api::Problem job_busy_problem(std::uint64_t needed) {
-  api::Problem p =
-      api::make_problem(503, "busy",
-                        "the job needed " + std::to_string((needed + (1 << 20) - 1) >> 20) +
-                            " MiB while other work held the memory budget; submit it again");
+  api::Problem p = api::service_unavailable(
+      "busy", "the job needed " + std::to_string((needed + (1 << 20) - 1) >> 20) +
+                  " MiB while other work held the memory budget; submit it again");
   p.extensions["reason"] = "memory";
   return p;
 }
@@ -166,8 +165,8 @@ bool no_space(const std::error_code& ec) {
 }
 
 api::Problem no_space_result_problem() {
-  api::Problem p = api::make_problem(
-      507, "insufficient-storage",
+  api::Problem p = api::insufficient_storage(
+      "insufficient-storage",
       "no space left on the device: the results could not be written; submit the job again "
       "later");
   p.extensions["reason"] = "no_space";
@@ -350,8 +349,8 @@ api::Problem deadline_problem(std::chrono::milliseconds deadline) {
   const double seconds = std::chrono::duration<double>(deadline).count();
   char text[32];
   std::snprintf(text, sizeof text, "%g", seconds);
-  api::Problem p = api::make_problem(
-      504, "deadline-exceeded",
+  api::Problem p = api::gateway_timeout(
+      "deadline-exceeded",
       std::string("deadline exceeded: the computation ran longer than this server's request "
                   "deadline of ") +
           text + " s and was cancelled");
@@ -413,8 +412,8 @@ nlohmann::ordered_json job_json(const JobView& job) {
 }
 
 api::Problem no_space_problem(const SubmitResult& refused) {
-  api::Problem p = api::make_problem(
-      507, "insufficient-storage",
+  api::Problem p = api::insufficient_storage(
+      "insufficient-storage",
       "not enough free space for this job's input and results on the server's data "
       "directory; retry later");
   p.extensions["reason"] = "no_space";
@@ -545,8 +544,8 @@ void JobStore::load_existing() {
         } else {
           job->state = JobState::Failed;
           job->stage = "interrupted";
-          job->problem = api::to_json(api::make_problem(
-              500, "interrupted", "the daemon stopped before this job finished; submit it again"));
+          job->problem = api::to_json(api::server_error(
+              "interrupted", "the daemon stopped before this job finished; submit it again"));
         }
         // Its input, and results it wrote before job.json could list them.
         if (!link)
@@ -731,8 +730,8 @@ api::Problem JobStore::cancel_problem(CancelReason why, bool discarded) const {
   if (why == CancelReason::ShutdownGrace || why == CancelReason::ShutdownNow) {
     char grace[32];
     std::snprintf(grace, sizeof grace, "%g", std::chrono::duration<double>(grace_).count());
-    api::Problem p = api::make_problem(
-        503, "shutting-down",
+    api::Problem p = api::service_unavailable(
+        "shutting-down",
         why == CancelReason::ShutdownGrace
             ? std::string("cancelled at shutdown: the server stopped and this job did not finish "
                           "within the shutdown grace period of ") +
@@ -743,11 +742,11 @@ api::Problem JobStore::cancel_problem(CancelReason why, bool discarded) const {
     p.extensions["reason"] = "shutdown";
     return p;
   }
-  if (why == CancelReason::None) return api::make_problem(409, "cancelled", "cancelled");
-  return api::make_problem(409, "cancelled",
-                           discarded ? "cancelled by the client (its results, ready an instant "
-                                       "later, were discarded)"
-                                     : "cancelled by the client");
+  if (why == CancelReason::None) return api::conflict("cancelled", "cancelled");
+  return api::conflict("cancelled", discarded
+                                        ? "cancelled by the client (its results, ready an instant "
+                                          "later, were discarded)"
+                                        : "cancelled by the client");
 }
 
 JobStore::Lookup JobStore::cancel(const std::string& id, const std::string& owner, JobView* out) {
@@ -969,11 +968,11 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
       problem = no_space_result_problem();
     } else {
       log_line("job " + job->id + " failed: " + e.what());
-      problem = api::make_problem(500, "internal", "an internal error occurred");
+      problem = api::internal_error();
     }
   } catch (const std::exception& e) {
     log_line("job " + job->id + " failed: " + e.what());
-    problem = api::make_problem(500, "internal", "an internal error occurred");
+    problem = api::internal_error();
   }
   lease.reset();
   ::malloc_trim(0);  // what the refinement freed goes back before its reservation does
@@ -1032,9 +1031,8 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
       discard();
       job->state = JobState::Failed;
       job->stage = to_string(JobState::Failed);
-      job->problem = api::to_json(
-          no_space(*unrecorded) ? no_space_result_problem()
-                                : api::make_problem(500, "internal", "an internal error occurred"));
+      job->problem =
+          api::to_json(no_space(*unrecorded) ? no_space_result_problem() : api::internal_error());
       job->results.clear();
       job->result_bytes = 0;
       persist_or_log(*job);
@@ -1186,9 +1184,8 @@ void JobStore::shutdown(std::chrono::milliseconds grace) {
         } else {
           job->state = JobState::Failed;
           job->stage = "shutting down";
-          job->problem = api::to_json(
-              api::make_problem(503, "shutting-down",
-                                "the server shut down before this job started; submit it again"));
+          job->problem = api::to_json(api::service_unavailable(
+              "shutting-down", "the server shut down before this job started; submit it again"));
         }
         release_disk(*job);
         fs::remove(job->dir / kInputFile, ignored);
