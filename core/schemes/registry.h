@@ -4,7 +4,8 @@
 
 // The one table of schemes: name -> factory, the options each one reads, and the base a
 // spectral scheme modifies. No static self-registration. Adding a scheme: its stencil file,
-// one row in registry.cpp, and the rows of its parameters in api/param_table.cpp.
+// one row in registry.cpp, and the rows of its parameters in the parameter table
+// (api/param_table.h).
 
 #include <memory>
 #include <span>
