@@ -10,8 +10,9 @@
 #include <string_view>
 #include <vector>
 
+#include "core/io/stl.h"
 #include "core/refine.h"
-#include "core/schemes/scheme.h"
+#include "core/schemes/registry.h"
 
 namespace stlrefine::api {
 
@@ -66,96 +67,6 @@ double point_bytes(slicer::SliceFormat format) {
 constexpr std::uint64_t kPreamble = 84;
 constexpr std::uint64_t kFacet = 50;
 
-std::uint32_t load_u32le(const std::uint8_t* p) {
-  return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8 | std::uint32_t(p[2]) << 16 |
-         std::uint32_t(p[3]) << 24;
-}
-
-float load_f32le(const std::uint8_t* p) {
-  const std::uint32_t u = load_u32le(p);
-  float f;
-  std::memcpy(&f, &u, sizeof f);
-  return f;
-}
-
-bool is_space(std::uint8_t c) {
-  return c == ' ' || c == '\t' || c == '\n' || c == '\r' || c == '\f' || c == '\v';
-}
-
-bool iequals(std::string_view a, std::string_view b) {
-  if (a.size() != b.size()) return false;
-  for (std::size_t i = 0; i < a.size(); ++i) {
-    const char x = a[i] >= 'A' && a[i] <= 'Z' ? char(a[i] - 'A' + 'a') : a[i];
-    if (x != b[i]) return false;
-  }
-  return true;
-}
-
-bool starts_with_solid(std::span<const std::uint8_t> bytes) {
-  std::size_t i = 0;
-  if (bytes.size() >= 3 && bytes[0] == 0xEF && bytes[1] == 0xBB && bytes[2] == 0xBF) i = 3;
-  while (i < bytes.size() && is_space(bytes[i])) ++i;
-  if (bytes.size() - i < 5) return false;
-  return iequals(std::string_view(reinterpret_cast<const char*>(bytes.data() + i), 5), "solid");
-}
-
-//! Whitespace-separated tokens of an ASCII STL, in order.
-class Tokens {
- public:
-  explicit Tokens(std::span<const std::uint8_t> bytes)
-      : text_(reinterpret_cast<const char*>(bytes.data()), bytes.size()) {}
-  bool next(std::string_view& token) {
-    while (pos_ < text_.size() && is_space(static_cast<std::uint8_t>(text_[pos_]))) ++pos_;
-    if (pos_ == text_.size()) return false;
-    const std::size_t start = pos_;
-    while (pos_ < text_.size() && !is_space(static_cast<std::uint8_t>(text_[pos_]))) ++pos_;
-    token = text_.substr(start, pos_ - start);
-    return true;
-  }
-
- private:
-  std::string_view text_;
-  std::size_t pos_ = 0;
-};
-
-//! Calls fn(z0, z1, z2) for every facet whose three corner z values are readable.
-template <class Fn>
-void for_each_facet_z(std::span<const std::uint8_t> bytes, const StlShape& shape, Fn&& fn) {
-  if (shape.binary) {
-    for (std::uint64_t f = 0; f < shape.faces; ++f) {
-      const std::uint8_t* facet = bytes.data() + kPreamble + f * kFacet;
-      // normal (12 bytes), then three corners of 3 floats: z at +8 of each
-      fn(double(load_f32le(facet + 12 + 8)), double(load_f32le(facet + 24 + 8)),
-         double(load_f32le(facet + 36 + 8)));
-    }
-    return;
-  }
-  if (shape.faces == 0) return;
-  Tokens tokens(bytes);
-  std::string_view token;
-  double z[3];
-  int corner = 0;
-  while (tokens.next(token)) {
-    if (iequals(token, "endfacet")) {
-      if (corner == 3) fn(z[0], z[1], z[2]);
-      corner = 0;
-      continue;
-    }
-    if (!iequals(token, "vertex")) continue;
-    std::string_view coordinate;
-    bool ok = true;
-    double value = 0;
-    for (int k = 0; k < 3 && ok; ++k) {
-      ok = tokens.next(coordinate);
-      if (!ok) break;
-      const auto [end, ec] =
-          std::from_chars(coordinate.data(), coordinate.data() + coordinate.size(), value);
-      ok = ec == std::errc() && end == coordinate.data() + coordinate.size();
-    }
-    if (ok && corner < 3) z[corner++] = value;
-  }
-}
-
 //! Planes at or below z, for the plan of `params` over [lo, hi].
 struct Planes {
   std::vector<double> heights;  // explicit, ascending
@@ -170,18 +81,10 @@ struct Planes {
   }
 };
 
-std::uint64_t predict_faces(const RefineParams& p, std::uint64_t faces) {
-  const std::unique_ptr<Scheme> scheme = make_scheme(p.scheme);
-  if (!p.adaptive()) return scheme->predict_faces(faces, p.levels);
-  // The adaptive mode stops at max_faces; its output is bounded by the uniform count at
-  // the level cap.
-  return std::min<std::uint64_t>(scheme->predict_faces(faces, p.max_level), p.max_faces);
-}
-
 // The faces an adaptive request is admitted for: its first level, as if every face were
 // refined (the hosts' per-face coefficients cover the hierarchy they keep besides).
-std::uint64_t admission_faces(const RefineParams& p, std::uint64_t faces) {
-  return std::min<std::uint64_t>(make_scheme(p.scheme)->predict_faces(faces, 1), p.max_faces);
+std::uint64_t admission_faces(const RefineParams& p, const Scheme& scheme, std::uint64_t faces) {
+  return std::min<std::uint64_t>(scheme.predict_faces(faces, 1), p.max_faces);
 }
 
 // Contour points of a slice after the faces grew by `growth` (crossings grow like one over
@@ -192,49 +95,12 @@ std::uint64_t grown_points(std::span<const std::uint8_t> bytes, const StlShape& 
   return std::min<std::uint64_t>(std::uint64_t(std::min(crossings, 1e18)), params.max_points);
 }
 
-bool is_sqrt3(const RefineParams& p) {
-  const std::unique_ptr<Scheme> scheme = make_scheme(p.scheme);
-  return adaptive_sqrt3_scheme(*scheme) != nullptr;
-}
-
 // The slice's point estimate, capped by the point budget (over it the slicer refuses).
 std::uint64_t contour_points(std::uint64_t crossings, const slicer::SliceParams& params) {
   return std::min<std::uint64_t>(crossings, params.max_points);
 }
 
 }  // namespace
-
-StlShape stl_shape(std::span<const std::uint8_t> bytes) {
-  StlShape s;
-  s.bytes = bytes.size();
-  if (bytes.size() >= kPreamble) {
-    const std::uint64_t n = load_u32le(bytes.data() + 80);
-    if (bytes.size() == kPreamble + kFacet * n) {
-      s.binary = true;
-      s.faces = n;
-    }
-  }
-  if (!s.binary && starts_with_solid(bytes)) {
-    Tokens tokens(bytes);
-    std::string_view token;
-    while (tokens.next(token))
-      if (iequals(token, "endfacet")) ++s.faces;
-  }
-  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-  for_each_facet_z(bytes, s, [&](double a, double b, double c) {
-    for (const double z : {a, b, c}) {
-      if (!std::isfinite(z)) continue;
-      lo = std::min(lo, z);
-      hi = std::max(hi, z);
-    }
-  });
-  if (lo <= hi) {
-    s.has_z = true;
-    s.z_min = lo;
-    s.z_max = hi;
-  }
-  return s;
-}
 
 std::uint64_t count_crossings(std::span<const std::uint8_t> bytes, const StlShape& shape,
                               const slicer::SliceParams& params) {
@@ -263,21 +129,28 @@ std::uint64_t count_crossings(std::span<const std::uint8_t> bytes, const StlShap
 
 MemoryEstimate estimate_refine_memory(std::span<const std::uint8_t> bytes, const StlShape& shape,
                                       const RefineRequest& request, ResultSink sink) {
+  return estimate_refine_memory(bytes, shape, request, *make_scheme(request.refine.scheme), sink);
+}
+
+MemoryEstimate estimate_refine_memory(std::span<const std::uint8_t> bytes, const StlShape& shape,
+                                      const RefineRequest& request, const Scheme& scheme,
+                                      ResultSink sink) {
   const RefineParams& p = request.refine;
   MemoryEstimate e;
   const std::uint64_t faces = shape.faces;
-  e.output_faces = predict_faces(p, faces);
+  e.output_faces = predict_faces(faces, scheme, p);
   // Over the face budget, run_refine refuses right after ingest: that is all it needs.
   if (!p.adaptive() && e.output_faces > p.max_faces) {
     e.peak_bytes = std::uint64_t(kC.fixed + double(shape.bytes) + kC.input_face * double(faces));
     e.field = "max_faces";
     return e;
   }
-  const bool sqrt3 = is_sqrt3(p);
+  const bool sqrt3 = adaptive_sqrt3_scheme(scheme) != nullptr;
   const double per_face =
       p.adaptive() ? (sqrt3 ? kC.adaptive3_face : kC.adaptive4_face) : kC.output_face;
   // The faces the memory is predicted for: the output, or the first adaptive level.
-  const std::uint64_t held_faces = p.adaptive() ? admission_faces(p, faces) : e.output_faces;
+  const std::uint64_t held_faces =
+      p.adaptive() ? admission_faces(p, scheme, faces) : e.output_faces;
   const double stl = double(stl_bytes(held_faces, request.output_format));
   const double base = kC.fixed + double(shape.bytes);
   // The per-face coefficients include a binary STL record (50 bytes) next to the mesh.

@@ -24,25 +24,14 @@
 
 #include "api/params.h"
 #include "api/problem.h"
+#include "core/io/stl.h"
 #include "core/refine.h"
 
 namespace stlrefine::api {
 
-//! What the model reads from an STL body without parsing it into a mesh: one pass over the
-//! bytes, no allocation.
-struct StlShape {
-  std::uint64_t bytes = 0;  //!< the body
-  //! Facets the reader will see at most: the binary count when the size rule says binary
-  //! (84 + 50 n bytes), else the "endfacet" keywords of an ASCII file; 0 for anything else
-  //! (the reader refuses it).
-  std::uint64_t faces = 0;
-  bool binary = false;
-  bool has_z = false;  //!< z_min / z_max were read (some finite corner)
-  double z_min = 0, z_max = 0;
-};
-
-//! The shape of an STL body. O(bytes), no allocation.
-StlShape stl_shape(std::span<const std::uint8_t> bytes);
+//! The shape of an STL body, from core/io's sniffer.
+using stlrefine::stl_shape;
+using stlrefine::StlShape;
 
 //! Facet-plane crossings of the plan `params` would make on the facets in `bytes`: one pass
 //! over the corners' z values, planes as slicer::plan_layers places them (uniform from the
@@ -73,7 +62,12 @@ struct MemoryEstimate {
 //! built in memory) or a job's files on disk.
 enum class ResultSink { Answer, JobFiles };
 
-//! A refinement (optionally sliced). `bytes` is the body (for the slice estimate).
+//! A refinement (optionally sliced) with `scheme`, the one made from request.refine.
+//! `bytes` is the body (for the slice estimate).
+MemoryEstimate estimate_refine_memory(std::span<const std::uint8_t> bytes, const StlShape& shape,
+                                      const RefineRequest& request, const Scheme& scheme,
+                                      ResultSink sink = ResultSink::Answer);
+//! The same with the scheme request.refine names (made here).
 MemoryEstimate estimate_refine_memory(std::span<const std::uint8_t> bytes, const StlShape& shape,
                                       const RefineRequest& request,
                                       ResultSink sink = ResultSink::Answer);

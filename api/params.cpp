@@ -9,7 +9,9 @@
 #include <set>
 #include <system_error>
 
+#include "api/param_table.h"
 #include "core/error.h"
+#include "core/schemes/registry.h"
 
 namespace stlrefine::api {
 
@@ -181,53 +183,359 @@ void parse_crease_angle(std::string_view text, FeatureParams& features) {
 
 }  // namespace
 
+namespace {
+
+// --- the rows' readers
+
+void refine_max_faces(RefineRequest& r, const std::string& value, const RequestLimits& limits) {
+  r.refine.max_faces =
+      parse_unsigned("max_faces", value, 1, std::numeric_limits<std::uint64_t>::max());
+  if (r.refine.max_faces > limits.max_faces)
+    throw invalid("max_faces", "above_server_cap",
+                  "max_faces = " + value + " is above this server's cap of " +
+                      std::to_string(limits.max_faces) + " (a request may only lower it)");
+}
+
+void refine_primitives(RefineRequest& r, const std::string& value, const RequestLimits&) {
+  if (value != "auto" && value != "off")
+    throw invalid("primitives", "unknown_value",
+                  "primitives = " + shown(value) + " is not one of auto, off");
+  r.primitives.enabled = value == "auto";
+}
+
+void refine_primitive_tol(RefineRequest& r, const std::string& value, const RequestLimits&) {
+  const double t = parse_number("primitive_tol", value);
+  if (!(t > 0 && t <= 1e-2))
+    throw invalid("primitive_tol", "out_of_range",
+                  "primitive_tol = " + shown(value) +
+                      " is outside (0, 0.01] (a fraction of the bounding box diagonal)");
+  r.primitives.tolerance = t;
+}
+
+void refine_max_deviation(RefineRequest& r, const std::string& value, const RequestLimits&) {
+  r.primitives.max_deviation_given = true;
+  r.primitives.measure = value != "off";
+  if (value == "off") {
+    r.primitives.max_deviation = 0;
+  } else if (value != "auto") {
+    const double d = parse_number("max_deviation", value);
+    if (!(d >= 0 && d <= 1e6))
+      throw invalid("max_deviation", "out_of_range",
+                    "max_deviation = " + shown(value) +
+                        " is outside [0, 1e6] mm (0 = no bound; auto = the local default; "
+                        "off = not even measured)");
+    r.primitives.max_deviation = d;
+  }
+}
+
+void refine_slice(RefineRequest& r, const std::string& value, const RequestLimits&) {
+  if (!r.slice) r.slice.emplace();
+  r.slice->params.layer_height = parse_number("slice", value);
+}
+
+void refine_slice_format(RefineRequest& r, const std::string& value, const RequestLimits&) {
+  if (!r.slice) r.slice.emplace();
+  try {
+    r.slice->format = slicer::parse_slice_format(value);
+  } catch (const Error& e) {
+    throw renamed(e, "format", "slice_format");
+  }
+}
+
+// The one table (param_table.h). Rows that only slicing takes come first, so that every
+// request kind's names keep the order they have always been listed in.
+const ParamRow kParams[] = {
+    {.name = "layer_height",
+     .type = ParamType::Number,
+     .description = "Layer height in mm.",
+     .help = "Layer thickness in mm [1e-4, 1e4] (0.1); planes at z_min + (k + 1/2) h",
+     .example = "0.5",
+     .slice =
+         [](SliceRequest& r, const std::string& v) {
+           r.slice.params.layer_height = parse_number("layer_height", v);
+         }},
+    {.name = "format",
+     .type = ParamType::String,
+     .description = "Contour format: json, svg, cli, cli-binary.",
+     .help = "json, svg, cli, cli-binary (json)",
+     .example = "svg",
+     .slice = [](SliceRequest& r,
+                 const std::string& v) { r.slice.format = slicer::parse_slice_format(v); }},
+    {.name = "z_min",
+     .type = ParamType::Number,
+     .description = "Lowest height to slice (mm); default the part's bottom.",
+     .help = "Bottom of the uniform layers (mesh bottom)",
+     .example = "0",
+     .slice = [](SliceRequest& r,
+                 const std::string& v) { r.slice.params.z_min = parse_number("z_min", v); }},
+    {.name = "z_max",
+     .type = ParamType::Number,
+     .description = "Highest height to slice (mm); default the part's top.",
+     .help = "Top of the uniform layers (mesh top)",
+     .example = "1",
+     .slice = [](SliceRequest& r,
+                 const std::string& v) { r.slice.params.z_max = parse_number("z_max", v); }},
+    {.name = "heights",
+     .type = ParamType::String,
+     .description = "Explicit comma-separated slice heights in mm.",
+     .help = "Explicit plane heights a,b,c (replace the uniform layers)",
+     .example = "0.5,1",
+     .slice = [](SliceRequest& r,
+                 const std::string& v) { r.slice.params.heights = parse_heights("heights", v); }},
+    {.name = "max_layers",
+     .type = ParamType::Integer,
+     .description = "Refuse with 422 when the plan has more layers.",
+     .help = "Refuse before any work above this many layers [1, 1000000]",
+     .example = "100",
+     .slice =
+         [](SliceRequest& r, const std::string& v) {
+           // A request may only lower the default cap.
+           r.slice.params.max_layers = static_cast<std::size_t>(
+               parse_unsigned("max_layers", v, 1, slicer::SliceParams{}.max_layers));
+         }},
+    {.name = "scheme",
+     .type = ParamType::String,
+     .description = "Subdivision scheme.",
+     .help = "Subdivision scheme (butterfly)",
+     .example = "loop",
+     .refine = [](RefineRequest& r, const std::string& v,
+                  const RequestLimits&) { r.refine.scheme = v; }},
+    {.name = "levels",
+     .type = ParamType::Integer,
+     .description = "Uniform subdivision steps, 0..8.",
+     .help = "Subdivision steps [0, 8] (1)",
+     .example = "2",
+     .refine = [](RefineRequest& r, const std::string& v,
+                  const RequestLimits&) { r.refine.levels = parse_int("levels", v); }},
+    {.name = "crease_angle",
+     .type = ParamType::String,
+     .description =
+         "auto (default): creases found from the geometry; or a dihedral angle in degrees, "
+         "0..180, above which an edge is a crease.",
+     .help = "Sharp edges: auto (default: found from the geometry) or a dihedral angle in "
+             "degrees above which an edge is sharp [0, 180]",
+     .example = "30",
+     .refine = [](RefineRequest& r, const std::string& v,
+                  const RequestLimits&) { parse_crease_angle(v, r.refine.features); },
+     .info = [](InfoRequest& r, const std::string& v) { parse_crease_angle(v, r.features); }},
+    {.name = "max_faces",
+     .type = ParamType::Integer,
+     .description = "Face budget of the output; refused with 422 before any work above it.",
+     .help = "Refuse before any work if the output would have more faces (20000000)",
+     .example = "1000",
+     .refine = refine_max_faces},
+    {.name = "weld_tolerance",
+     .type = ParamType::Number,
+     .description = "Distance in mm below which STL corners are welded.",
+     .help = "Merge corners closer than this (model units; 0 = exact, default)",
+     .example = "0.01",
+     .refine = [](RefineRequest& r, const std::string& v,
+                  const RequestLimits&) { r.weld_tolerance = parse_weld_tolerance(v); },
+     .slice = [](SliceRequest& r,
+                 const std::string& v) { r.weld_tolerance = parse_weld_tolerance(v); },
+     .info = [](InfoRequest& r,
+                const std::string& v) { r.weld_tolerance = parse_weld_tolerance(v); }},
+    {.name = "adaptive_tol",
+     .type = ParamType::Number,
+     .description =
+         "Chordal tolerance in mm, 0..1e6: curvature-adaptive refinement until every new point "
+         "is within it of its flat edge or triangle (lsf, butterfly, sqrt3 schemes).",
+     .help = "Curvature-adaptive: refine where the new point leaves its flat edge or triangle "
+             "by more than this (mm; lsf, butterfly, sqrt3 schemes; 0 = off, default)",
+     .example = "0.1",
+     .refine =
+         [](RefineRequest& r, const std::string& v, const RequestLimits&) {
+           r.refine.adaptive_tol = parse_number("adaptive_tol", v);
+         }},
+    {.name = "max_level",
+     .type = ParamType::Integer,
+     .description = "Level cap of the adaptive mode, 1..8.",
+     .help = "Level cap of the adaptive mode [1, 8] (4)",
+     .example = "3",
+     .refine = [](RefineRequest& r, const std::string& v,
+                  const RequestLimits&) { r.refine.max_level = parse_int("max_level", v); }},
+    {.name = "slice",
+     .type = ParamType::Number,
+     .description = "Also slice the refined mesh at this layer height (mm).",
+     .help = "Also slice the refined mesh with this layer height (mm)",
+     .example = "0.5",
+     .refine = refine_slice},
+    {.name = "slice_format",
+     .type = ParamType::String,
+     .description = "Contour format of the slice: json, svg, cli, cli-binary.",
+     .help = "Contour format: json, svg, cli, cli-binary (json)",
+     .example = "svg",
+     .refine = refine_slice_format},
+    {.name = "alpha",
+     .type = ParamType::Number,
+     .description = "sqrt3-unified: 1 interpolates, 0 approximates (Kobbelt), in between blends.",
+     .help = "sqrt3-unified: 1 interpolates the input vertices, 0 approximates (Kobbelt's "
+             "sqrt3) [0, 1] (1)",
+     .example = "0.5",
+     .refine = [](RefineRequest& r, const std::string& v,
+                  const RequestLimits&) { r.refine.alpha = parse_number("alpha", v); }},
+    {.name = "alpha_features",
+     .type = ParamType::Number,
+     .description = "sqrt3-unified: alpha of crease and corner vertices.",
+     .help = "sqrt3-unified: alpha of crease and corner vertices, so feature lines can stay "
+             "exact while the rest is smoothed [0, 1] (1)",
+     .example = "0.5",
+     .refine =
+         [](RefineRequest& r, const std::string& v, const RequestLimits&) {
+           r.refine.alpha_features = parse_number("alpha_features", v);
+         }},
+    {.name = "kappa",
+     .type = ParamType::Number,
+     .description =
+         "loop-g2: the eigenvalues Prautzsch and Umlauf move go to kappa lambda^2, in (0, 1] "
+         "(default 0.5).",
+     .help = "loop-g2: the moved eigenvalues go to kappa lambda^2 (0, 1] (0.5)",
+     .example = "0.25",
+     .refine = [](RefineRequest& r, const std::string& v,
+                  const RequestLimits&) { r.refine.kappa = parse_number("kappa", v); }},
+    {.name = "ramp_steps",
+     .type = ParamType::Integer,
+     .description =
+         "loop-g2: gradual modification (PU Remark 5.3) over this many steps, 0..8; 0 = off.",
+     .help = "loop-g2: modify gradually over this many steps (PU Remark 5.3) [0, 8] (0 = off)",
+     .example = "4",
+     .refine = [](RefineRequest& r, const std::string& v,
+                  const RequestLimits&) { r.refine.ramp_steps = parse_int("ramp_steps", v); }},
+    {.name = "adaptive_angle",
+     .type = ParamType::Number,
+     .description =
+         "Degrees, 0..180: curvature-adaptive refinement where the normals of neighbouring "
+         "faces across a non-sharp edge differ by more (lsf, butterfly, sqrt3 schemes).",
+     .help = "Curvature-adaptive: refine where neighbouring faces' normals differ by more than "
+             "this across a non-sharp edge (degrees [0, 180]; 0 = off, default; with "
+             "--adaptive-tol either refines)",
+     .example = "0",
+     .refine =
+         [](RefineRequest& r, const std::string& v, const RequestLimits&) {
+           r.refine.adaptive_angle = parse_number("adaptive_angle", v);
+         }},
+    {.name = "primitives",
+     .type = ParamType::String,
+     .description =
+         "auto: recognise planes, spheres, cylinders, cones and tori on the input and put "
+         "the new vertices of their regions exactly on them; off (default): do not (auto can "
+         "still turn thin faces along some rims over).",
+     .help = "auto: recognise planes, spheres, cylinders, cones and tori on the input and put "
+             "the new vertices of their regions exactly on them; off: do not (off; auto can "
+             "still turn thin faces along some rims over)",
+     .example = "auto",
+     .refine = refine_primitives},
+    {.name = "primitive_tol",
+     .type = ParamType::Number,
+     .description =
+         "A region is recognised when every input vertex lies within this fraction of the "
+         "bounding box diagonal of the primitive, (0, 0.01], default 1e-6.",
+     .help = "A region is recognised when every input vertex of it lies within this fraction "
+             "of the bounding box diagonal of the primitive (0, 0.01] (1e-6)",
+     .example = "0.00001",
+     .refine = refine_primitive_tol},
+    {.name = "max_deviation",
+     .type = ParamType::String,
+     .description =
+         "No output vertex farther than this (mm, 0..1e6) from the input surface: vertices "
+         "are pulled back towards it and counted in the report. auto (default; interpolating "
+         "schemes only, the others are measured): the input's local chordal error; 0 = no "
+         "bound, only measured; off = neither bound nor measured (with primitives=off: no "
+         "post-pass, its time and memory saved).",
+     .help = "No output vertex farther than this from the input surface (mm, [0, 1e6]; 0 = "
+             "no bound, only measured; auto = the input's local chordal error, the default "
+             "for interpolating schemes; off = neither bound nor measured, the fastest)",
+     .example = "0.01",
+     .refine = refine_max_deviation},
+    {.name = "threads",
+     .type = ParamType::Integer,
+     .description = "Worker threads, 0..256 (0 = every core).",
+     .help = "Worker threads [0, 256] (0 = every core)",
+     .example = "1",
+     .cli_only = true,
+     .refine = [](RefineRequest& r, const std::string& v,
+                  const RequestLimits&) { r.refine.threads = parse_int("threads", v); },
+     .slice = [](SliceRequest& r,
+                 const std::string& v) { r.slice.params.threads = parse_int("threads", v); }},
+};
+
+std::vector<std::string_view> names_of(RequestKind kind, bool with_cli_only) {
+  std::vector<std::string_view> names;
+  for (const ParamRow& row : kParams)
+    if (row.takes(kind) && (with_cli_only || !row.cli_only)) names.push_back(row.name);
+  return names;
+}
+
+}  // namespace
+
+const char* to_string(ParamType type) {
+  switch (type) {
+    case ParamType::String:
+      return "string";
+    case ParamType::Number:
+      return "number";
+    case ParamType::Integer:
+      return "integer";
+  }
+  return "string";
+}
+
+bool ParamRow::takes(RequestKind kind) const {
+  switch (kind) {
+    case RequestKind::Refine:
+      return refine != nullptr;
+    case RequestKind::Slice:
+      return slice != nullptr;
+    case RequestKind::Info:
+      return info != nullptr;
+  }
+  return false;
+}
+
+std::span<const ParamRow> param_table() {
+  return kParams;
+}
+
+const ParamRow* find_param(std::string_view name) {
+  for (const ParamRow& row : kParams)
+    if (row.name == name) return &row;
+  return nullptr;
+}
+
+std::vector<std::string_view> schemes_using(std::string_view name) {
+  std::vector<std::string_view> schemes;
+  for (const SchemeEntry& entry : scheme_registry())
+    for (std::string_view option : entry.options)
+      if (option == name) schemes.push_back(entry.name);
+  return schemes;
+}
+
+std::string cli_option(std::string_view name) {
+  std::string option = "--" + std::string(name);
+  for (char& c : option)
+    if (c == '_') c = '-';
+  return option;
+}
+
 const std::vector<std::string_view>& info_param_names() {
-  static const std::vector<std::string_view> kNames{"crease_angle", "weld_tolerance"};
+  static const std::vector<std::string_view> kNames = names_of(RequestKind::Info, false);
   return kNames;
 }
 
 std::vector<std::string_view> refine_param_names(const RequestLimits& limits) {
-  std::vector<std::string_view> names{
-      "scheme",         "levels",       "crease_angle", "max_faces",      "weld_tolerance",
-      "adaptive_tol",   "max_level",    "slice",        "slice_format",   "alpha",
-      "alpha_features", "kappa",        "ramp_steps",   "adaptive_angle", "primitives",
-      "primitive_tol",  "max_deviation"};
-  if (limits.accept_threads) names.push_back("threads");
-  return names;
+  return names_of(RequestKind::Refine, limits.accept_threads);
 }
 
 std::vector<std::string_view> slice_param_names(const RequestLimits& limits) {
-  std::vector<std::string_view> names{"layer_height", "format",     "z_min",         "z_max",
-                                      "heights",      "max_layers", "weld_tolerance"};
-  if (limits.accept_threads) names.push_back("threads");
-  return names;
+  return names_of(RequestKind::Slice, limits.accept_threads);
 }
 
 SliceRequest parse_slice_params(const RawParams& params, const RequestLimits& limits) {
   check_names(params, slice_param_names(limits));
   SliceRequest request;
   slicer::SliceParams& p = request.slice.params;
-  const std::size_t cap = p.max_layers;
   p.max_points = limits.max_slice_points;
-  for (const auto& [name, value] : params) {
-    if (name == "layer_height") {
-      p.layer_height = parse_number(name, value);
-    } else if (name == "format") {
-      request.slice.format = slicer::parse_slice_format(value);
-    } else if (name == "z_min") {
-      p.z_min = parse_number(name, value);
-    } else if (name == "z_max") {
-      p.z_max = parse_number(name, value);
-    } else if (name == "heights") {
-      p.heights = parse_heights(name, value);
-    } else if (name == "max_layers") {
-      p.max_layers = static_cast<std::size_t>(parse_unsigned(name, value, 1, cap));
-    } else if (name == "threads") {
-      p.threads = parse_int(name, value);
-    } else if (name == "weld_tolerance") {
-      request.weld_tolerance = parse_weld_tolerance(value);
-    }
-  }
+  for (const auto& [name, value] : params) find_param(name)->slice(request, value);
   // Every layer is written, empty or not: its record counts against the point budget.
   p.points_per_layer = slicer::empty_layer_points(request.slice.format);
   // The ranges live in the slicer (SliceParams::validate), which names the same fields.
@@ -238,92 +546,25 @@ SliceRequest parse_slice_params(const RawParams& params, const RequestLimits& li
 InfoRequest parse_info_params(const RawParams& params) {
   check_names(params, info_param_names());
   InfoRequest request;
-  for (const auto& [name, value] : params) {
-    if (name == "crease_angle") {
-      parse_crease_angle(value, request.features);
-    } else if (name == "weld_tolerance") {
-      request.weld_tolerance = parse_weld_tolerance(value);
-    }
-  }
+  for (const auto& [name, value] : params) find_param(name)->info(request, value);
   request.features.validate();
   return request;
 }
 
 RefineRequest parse_refine_params(const RawParams& params, const RequestLimits& limits) {
+  RefineRequest request = parse_refine_fields(params, limits);
+  // The ranges live in core (RefineParams::validate); this names the same fields.
+  request.refine.validate();
+  return request;
+}
+
+RefineRequest parse_refine_fields(const RawParams& params, const RequestLimits& limits) {
   check_names(params, refine_param_names(limits));
   RefineRequest request;
   RefineParams& p = request.refine;
   p.max_faces = limits.default_max_faces != 0 ? std::min(limits.default_max_faces, limits.max_faces)
                                               : limits.max_faces;
-  for (const auto& [name, value] : params) {
-    if (name == "scheme") {
-      p.scheme = value;
-    } else if (name == "levels") {
-      p.levels = parse_int(name, value);
-    } else if (name == "crease_angle") {
-      parse_crease_angle(value, p.features);
-    } else if (name == "max_faces") {
-      p.max_faces = parse_unsigned(name, value, 1, std::numeric_limits<std::uint64_t>::max());
-      if (p.max_faces > limits.max_faces)
-        throw invalid(name, "above_server_cap",
-                      "max_faces = " + value + " is above this server's cap of " +
-                          std::to_string(limits.max_faces) + " (a request may only lower it)");
-    } else if (name == "threads") {
-      p.threads = parse_int(name, value);
-    } else if (name == "weld_tolerance") {
-      request.weld_tolerance = parse_weld_tolerance(value);
-    } else if (name == "adaptive_tol") {
-      p.adaptive_tol = parse_number(name, value);
-    } else if (name == "adaptive_angle") {
-      p.adaptive_angle = parse_number(name, value);
-    } else if (name == "max_level") {
-      p.max_level = parse_int(name, value);
-    } else if (name == "alpha") {
-      p.alpha = parse_number(name, value);
-    } else if (name == "alpha_features") {
-      p.alpha_features = parse_number(name, value);
-    } else if (name == "kappa") {
-      p.kappa = parse_number(name, value);
-    } else if (name == "ramp_steps") {
-      p.ramp_steps = parse_int(name, value);
-    } else if (name == "primitives") {
-      if (value != "auto" && value != "off")
-        throw invalid(name, "unknown_value",
-                      "primitives = " + shown(value) + " is not one of auto, off");
-      request.primitives.enabled = value == "auto";
-    } else if (name == "primitive_tol") {
-      const double t = parse_number(name, value);
-      if (!(t > 0 && t <= 1e-2))
-        throw invalid(name, "out_of_range",
-                      "primitive_tol = " + shown(value) +
-                          " is outside (0, 0.01] (a fraction of the bounding box diagonal)");
-      request.primitives.tolerance = t;
-    } else if (name == "max_deviation") {
-      request.primitives.max_deviation_given = true;
-      request.primitives.measure = value != "off";
-      if (value == "off") {
-        request.primitives.max_deviation = 0;
-      } else if (value != "auto") {
-        const double d = parse_number(name, value);
-        if (!(d >= 0 && d <= 1e6))
-          throw invalid(name, "out_of_range",
-                        "max_deviation = " + shown(value) +
-                            " is outside [0, 1e6] mm (0 = no bound; auto = the local default; "
-                            "off = not even measured)");
-        request.primitives.max_deviation = d;
-      }
-    } else if (name == "slice") {
-      if (!request.slice) request.slice.emplace();
-      request.slice->params.layer_height = parse_number(name, value);
-    } else if (name == "slice_format") {
-      if (!request.slice) request.slice.emplace();
-      try {
-        request.slice->format = slicer::parse_slice_format(value);
-      } catch (const Error& e) {
-        throw renamed(e, "format", "slice_format");
-      }
-    }
-  }
+  for (const auto& [name, value] : params) find_param(name)->refine(request, value, limits);
   if (request.slice) {
     const bool has_height = std::any_of(params.begin(), params.end(),
                                         [](const auto& kv) { return kv.first == "slice"; });
@@ -339,8 +580,6 @@ RefineRequest parse_refine_params(const RawParams& params, const RequestLimits& 
       throw renamed(e, "layer_height", "slice");
     }
   }
-  // The ranges live in core (RefineParams::validate); this names the same fields.
-  p.validate();
   return request;
 }
 

@@ -119,6 +119,9 @@ InfoRequest parse_info_params(const RawParams& params);
 //! defaults, except `max_faces` (RequestLimits::default_max_faces). \throw Error(InvalidParameter)
 //! as above.
 RefineRequest parse_refine_params(const RawParams& params, const RequestLimits& limits);
+//! parse_refine_params without RefineParams::validate (the slice options are validated):
+//! for plan_refine, which validates them as it makes the scheme (make_scheme(RefineParams)).
+RefineRequest parse_refine_fields(const RawParams& params, const RequestLimits& limits);
 
 //! Names `parse_slice_params` accepts (`threads` only with RequestLimits::accept_threads).
 std::vector<std::string_view> slice_param_names(const RequestLimits& limits);

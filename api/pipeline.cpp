@@ -17,6 +17,7 @@
 #include "core/mesh/mesh_stats.h"
 #include "core/parallel.h"
 #include "core/schemes/lsf_curvature.h"
+#include "core/schemes/registry.h"
 #include "core/schemes/scheme.h"
 #include "primitives/post_pass.h"
 #include "primitives/regions.h"
@@ -35,13 +36,13 @@ double seconds_since(Clock::time_point start) {
 }  // namespace
 
 // The core's budget check, rethrown with its numbers for the 422 body.
-void refuse_over_face_budget(std::uint64_t faces, const RefineParams& params) {
+void refuse_over_face_budget(std::uint64_t faces, const Scheme& scheme,
+                             const RefineParams& params) {
   try {
-    check_face_budget(faces, params);
+    check_face_budget(faces, scheme, params);
   } catch (const Error& e) {
     if (e.code() != ErrorCode::BudgetExceeded) throw;
-    const std::uint64_t predicted = make_scheme(params.scheme)->predict_faces(faces, params.levels);
-    throw FaceBudgetError(e, predicted, params.max_faces);
+    throw FaceBudgetError(e, scheme.predict_faces(faces, params.levels), params.max_faces);
   }
 }
 
@@ -68,16 +69,16 @@ namespace {
 // run_refine; with `keep` and binary output, the STL is not written: the refined mesh is
 // moved to *keep and the report gives the STL's size (84 + 50 n) and no write time.
 RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRequest& request,
-                             const ProgressFn& progress, const std::atomic<bool>* cancel,
-                             const MemoryGrowFn& grow, Mesh* keep) {
+                             const Scheme& scheme, const ProgressFn& progress,
+                             const std::atomic<bool>* cancel, const MemoryGrowFn& grow,
+                             Mesh* keep) {
   const auto start = Clock::now();
-  request.refine.validate();  // a bad parameter is reported before the file is read
   RefineTimes times;
 
   if (request.slice) request.slice->params.validate();
   Ingested in = ingest_stl(bytes, request.weld_tolerance);
   times.ingest = in.seconds;
-  refuse_over_face_budget(in.result.mesh.num_faces(), request.refine);
+  refuse_over_face_budget(in.result.mesh.num_faces(), scheme, request.refine);
   // The layer budget on the input's bounds, before any refinement work. (Refinement moves
   // the bounds a little; the refined mesh is planned again by the slicer itself.)
   if (request.slice) slicer::plan_layers(in.result.mesh, request.slice->params);
@@ -91,15 +92,16 @@ RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRe
   std::optional<primitives::RegionMap> regions;
   std::unique_ptr<primitives::InputSurface> surface;
   std::uint64_t surface_bytes = 0;
+  std::optional<Features> features;  // detected once: for the surface, then refine's
   if (prim.post_pass()) {
     surface_bytes = primitives::InputSurface::predict_bytes(
         in.result.mesh.num_vertices(), in.result.mesh.num_faces(), prim.enabled);
     const std::uint64_t need = bytes.size() + mesh_bytes(in.result.mesh) + surface_bytes;
     if (grow && !grow(need)) throw MemoryBudgetError("primitives", 0, need);
-    const Features features = detect_features(in.result.mesh, request.refine.features);
+    features = detect_features(in.result.mesh, request.refine.features);
     if (prim.enabled)
-      regions = primitives::detect_regions(in.result.mesh, features, {prim.tolerance});
-    surface = std::make_unique<primitives::InputSurface>(in.result.mesh, features,
+      regions = primitives::detect_regions(in.result.mesh, *features, {prim.tolerance});
+    surface = std::make_unique<primitives::InputSurface>(in.result.mesh, *features,
                                                          regions ? &*regions : nullptr);
   }
   const double detect_seconds = seconds_since(phase);
@@ -116,7 +118,8 @@ RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRe
   // The input mesh is not needed afterwards (the report only uses counters): move it in.
   RefineResult refined = [&] {
     try {
-      return refine(std::move(in.result.mesh), request.refine, progress, cancel, refine_grow);
+      return refine(std::move(in.result.mesh), scheme, request.refine, progress, cancel,
+                    refine_grow, std::move(features));
     } catch (const MemoryBudgetError& e) {
       throw MemoryBudgetError(e.field(), e.level(),
                               bytes.size() + surface_bytes + e.needed_bytes());
@@ -222,14 +225,38 @@ RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRe
 RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineRequest& request,
                          const ProgressFn& progress, const std::atomic<bool>* cancel,
                          const MemoryGrowFn& grow) {
-  return refine_outcome(bytes, request, progress, cancel, grow, nullptr);
+  // A bad parameter is reported before the file is read.
+  const std::unique_ptr<Scheme> scheme = make_scheme(request.refine);
+  return refine_outcome(bytes, request, *scheme, progress, cancel, grow, nullptr);
+}
+
+RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefinePlan& plan,
+                         const ProgressFn& progress, const std::atomic<bool>* cancel,
+                         const MemoryGrowFn& grow) {
+  return refine_outcome(bytes, plan.request, *plan.scheme, progress, cancel, grow, nullptr);
+}
+
+RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineRequest& request,
+                         const Scheme& scheme, const ProgressFn& progress,
+                         const std::atomic<bool>* cancel, const MemoryGrowFn& grow) {
+  return refine_outcome(bytes, request, scheme, progress, cancel, grow, nullptr);
+}
+
+RefinedMesh run_refine_to_mesh(std::span<const std::uint8_t> bytes, const RefinePlan& plan,
+                               const ProgressFn& progress, const std::atomic<bool>* cancel,
+                               const MemoryGrowFn& grow) {
+  RefinedMesh out;
+  out.outcome =
+      refine_outcome(bytes, plan.request, *plan.scheme, progress, cancel, grow, &out.mesh);
+  return out;
 }
 
 RefinedMesh run_refine_to_mesh(std::span<const std::uint8_t> bytes, const RefineRequest& request,
                                const ProgressFn& progress, const std::atomic<bool>* cancel,
                                const MemoryGrowFn& grow) {
+  const std::unique_ptr<Scheme> scheme = make_scheme(request.refine);
   RefinedMesh out;
-  out.outcome = refine_outcome(bytes, request, progress, cancel, grow, &out.mesh);
+  out.outcome = refine_outcome(bytes, request, *scheme, progress, cancel, grow, &out.mesh);
   return out;
 }
 

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "api/params.h"
+#include "api/plan.h"
 #include "core/refine.h"
 
 namespace stlrefine::api {
@@ -33,7 +34,7 @@ InfoOutcome run_info(std::span<const std::uint8_t> bytes, const InfoRequest& req
 //! The face budget of run_refine (RefineParams::max_faces against the predicted output),
 //! for callers that know the face count before ingest (the daemon, from the STL's size).
 //! \throw FaceBudgetError (BudgetExceeded, field max_faces) with the predicted face count.
-void refuse_over_face_budget(std::uint64_t faces, const RefineParams& params);
+void refuse_over_face_budget(std::uint64_t faces, const Scheme& scheme, const RefineParams& params);
 
 struct RefineOutcome {
   std::string stl;                //!< the refined mesh as STL bytes (request.output_format)
@@ -62,6 +63,16 @@ struct RefineOutcome {
 //! estimate covers it. When grow says no: MemoryBudgetError (BudgetExceeded, reason
 //! "memory_budget", field "max_level" or "levels") whose needed_bytes() is the refused
 //! whole-request figure; compare it with what one request may hold to tell 422 from 503.
+RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefinePlan& plan,
+                         const ProgressFn& progress = {}, const std::atomic<bool>* cancel = nullptr,
+                         const MemoryGrowFn& grow = {});
+//! run_refine for a request with `scheme` made from request.refine (make_scheme), for
+//! callers without a plan.
+RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineRequest& request,
+                         const Scheme& scheme, const ProgressFn& progress = {},
+                         const std::atomic<bool>* cancel = nullptr, const MemoryGrowFn& grow = {});
+//! run_refine making the scheme request.refine names (validated first: a bad parameter is
+//! reported before the body is read).
 RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineRequest& request,
                          const ProgressFn& progress = {}, const std::atomic<bool>* cancel = nullptr,
                          const MemoryGrowFn& grow = {});
@@ -79,6 +90,11 @@ struct RefinedMesh {
   Mesh mesh;
   bool stream() const { return outcome.stl.empty(); }
 };
+RefinedMesh run_refine_to_mesh(std::span<const std::uint8_t> bytes, const RefinePlan& plan,
+                               const ProgressFn& progress = {},
+                               const std::atomic<bool>* cancel = nullptr,
+                               const MemoryGrowFn& grow = {});
+//! ... making the scheme request.refine names, for callers without a plan.
 RefinedMesh run_refine_to_mesh(std::span<const std::uint8_t> bytes, const RefineRequest& request,
                                const ProgressFn& progress = {},
                                const std::atomic<bool>* cancel = nullptr,

@@ -8,39 +8,52 @@ namespace stlrefine::api {
 
 namespace {
 
+// The one status table: the RFC 9110 reason phrase of the status line and the problem
+// title. A null title: the generic "Client error" / "Server error" (statuses whose problems
+// carry their own title, or never had one of their own).
+struct StatusText {
+  int status;
+  const char* reason;
+  const char* title;
+};
+
+constexpr StatusText kStatusTexts[] = {
+    {http::kOk, "OK", nullptr},
+    {http::kAccepted, "Accepted", nullptr},
+    {http::kPartialContent, "Partial Content", nullptr},
+    {http::kNotModified, "Not Modified", nullptr},
+    {http::kBadRequest, "Bad Request", "Bad request"},
+    {http::kUnauthorized, "Unauthorized", nullptr},
+    {http::kNotFound, "Not Found", "Not found"},
+    {http::kMethodNotAllowed, "Method Not Allowed", "Method not allowed"},
+    {http::kRequestTimeout, "Request Timeout", "Request timeout"},
+    {http::kConflict, "Conflict", nullptr},
+    {http::kGone, "Gone", nullptr},
+    {http::kLengthRequired, "Length Required", "Length required"},
+    {http::kContentTooLarge, "Content Too Large", "Content too large"},
+    {http::kUriTooLong, "URI Too Long", "URI too long"},
+    {http::kUnsupportedMediaType, "Unsupported Media Type", "Unsupported media type"},
+    {http::kRangeNotSatisfiable, "Range Not Satisfiable", "Range not satisfiable"},
+    {http::kExpectationFailed, nullptr, "Expectation failed"},
+    {http::kUnprocessableContent, "Unprocessable Content", "Unprocessable content"},
+    {http::kHeaderFieldsTooLarge, "Request Header Fields Too Large",
+     "Request header fields too large"},
+    {http::kInternalServerError, "Internal Server Error", "Internal server error"},
+    {http::kServiceUnavailable, "Service Unavailable", "Service unavailable"},
+    {http::kGatewayTimeout, "Gateway Timeout", nullptr},
+    {http::kInsufficientStorage, "Insufficient Storage", nullptr},
+};
+
+const StatusText* status_text(int status) {
+  for (const StatusText& t : kStatusTexts)
+    if (t.status == status) return &t;
+  return nullptr;
+}
+
 const char* title_for_status(int status) {
-  switch (status) {
-    case 400:
-      return "Bad request";
-    case 404:
-      return "Not found";
-    case 405:
-      return "Method not allowed";
-    case 408:
-      return "Request timeout";
-    case 411:
-      return "Length required";
-    case 413:
-      return "Content too large";
-    case 414:
-      return "URI too long";
-    case 415:
-      return "Unsupported media type";
-    case 416:
-      return "Range not satisfiable";
-    case 417:
-      return "Expectation failed";
-    case 422:
-      return "Unprocessable content";
-    case 431:
-      return "Request header fields too large";
-    case 500:
-      return "Internal server error";
-    case 503:
-      return "Service unavailable";
-    default:
-      return status >= 500 ? "Server error" : "Client error";
-  }
+  const StatusText* t = status_text(status);
+  if (t && t->title) return t->title;
+  return status >= 500 ? "Server error" : "Client error";
 }
 
 struct CodeInfo {
@@ -71,19 +84,19 @@ CodeInfo info_for(ErrorCode code) {
 int http_status(ErrorCode code) {
   switch (code) {
     case ErrorCode::InvalidParameter:
-      return 400;
+      return http::kBadRequest;
     case ErrorCode::MalformedStl:
-      return 422;
+      return http::kUnprocessableContent;
     case ErrorCode::NotTriangleMesh:
-      return 422;
+      return http::kUnprocessableContent;
     case ErrorCode::BudgetExceeded:
-      return 422;
+      return http::kUnprocessableContent;
     case ErrorCode::Cancelled:
-      return 503;  // only when the daemon shuts down
+      return http::kServiceUnavailable;  // only when the daemon shuts down
     case ErrorCode::Internal:
-      return 500;
+      return http::kInternalServerError;
   }
-  return 500;
+  return http::kInternalServerError;
 }
 
 Problem problem_from_error(const Error& error) {
@@ -109,6 +122,39 @@ Problem problem_from_error(const Error& error) {
     p.extensions["max_faces"] = budget->max_faces();
   }
   return p;
+}
+
+const char* reason_phrase(int status) {
+  const StatusText* t = status_text(status);
+  if (t && t->reason) return t->reason;
+  return status >= 500 ? "Server Error" : "Client Error";
+}
+
+#define STLREFINE_NAMED_PROBLEM(fn, status)                          \
+  Problem fn(std::string slug, std::string detail) {                 \
+    return make_problem(status, std::move(slug), std::move(detail)); \
+  }
+STLREFINE_NAMED_PROBLEM(bad_request, http::kBadRequest)
+STLREFINE_NAMED_PROBLEM(unauthorized, http::kUnauthorized)
+STLREFINE_NAMED_PROBLEM(not_found, http::kNotFound)
+STLREFINE_NAMED_PROBLEM(method_not_allowed, http::kMethodNotAllowed)
+STLREFINE_NAMED_PROBLEM(request_timeout, http::kRequestTimeout)
+STLREFINE_NAMED_PROBLEM(conflict, http::kConflict)
+STLREFINE_NAMED_PROBLEM(gone, http::kGone)
+STLREFINE_NAMED_PROBLEM(length_required, http::kLengthRequired)
+STLREFINE_NAMED_PROBLEM(content_too_large, http::kContentTooLarge)
+STLREFINE_NAMED_PROBLEM(uri_too_long, http::kUriTooLong)
+STLREFINE_NAMED_PROBLEM(unsupported_media_type, http::kUnsupportedMediaType)
+STLREFINE_NAMED_PROBLEM(range_not_satisfiable, http::kRangeNotSatisfiable)
+STLREFINE_NAMED_PROBLEM(header_fields_too_large, http::kHeaderFieldsTooLarge)
+STLREFINE_NAMED_PROBLEM(server_error, http::kInternalServerError)
+STLREFINE_NAMED_PROBLEM(service_unavailable, http::kServiceUnavailable)
+STLREFINE_NAMED_PROBLEM(gateway_timeout, http::kGatewayTimeout)
+STLREFINE_NAMED_PROBLEM(insufficient_storage, http::kInsufficientStorage)
+#undef STLREFINE_NAMED_PROBLEM
+
+Problem internal_error() {
+  return make_problem(http::kInternalServerError, "internal", "an internal error occurred");
 }
 
 Problem make_problem(int status, std::string slug, std::string detail) {

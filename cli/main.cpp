@@ -39,6 +39,7 @@
 #include <functional>
 #include <iostream>
 #include <iterator>
+#include <map>
 #include <mutex>
 #include <optional>
 #include <span>
@@ -46,15 +47,17 @@
 #include <string_view>
 #include <vector>
 
+#include "api/param_table.h"
 #include "api/params.h"
 #include "api/pipeline.h"
+#include "api/plan.h"
 #include "cli/spectrum_report.h"
 #include "core/error.h"
 #include "core/io/atomic_file.h"
 #include "core/io/stl.h"
-#include "core/schemes/butterfly.h"
-#include "core/schemes/loop.h"
-#include "core/schemes/scheme.h"
+#include "core/refine.h"
+#include "core/schemes/registry.h"
+#include "core/schemes/split4_host.h"
 
 namespace {
 
@@ -180,24 +183,25 @@ class ProgressLine {
   bool drawn_ = false;
 };
 
+//! The values of a subcommand's request parameters, by API name (the options come from
+//! api/param_table.h).
+using ParamValues = std::map<std::string_view, std::string>;
+
 struct InfoOptions {
   std::string input;
-  std::string crease_angle, weld_tolerance;
+  ParamValues params;
   std::string curvature;  // per-vertex CSV path
 };
 
 struct RefineOptions {
-  std::string input, output, report;
-  std::string scheme, levels, crease_angle, max_faces, threads, weld_tolerance;
-  std::string adaptive_tol, adaptive_angle, max_level, slice, slice_format, slice_out;
-  std::string alpha, alpha_features, kappa, ramp_steps;
-  std::string primitives, primitive_tol, max_deviation;
+  std::string input, output, report, slice_out;
+  ParamValues params;
   bool ascii = false;
 };
 
 struct SliceCliOptions {
   std::string input, output, report;
-  std::string layer_height, format, z_min, z_max, heights, max_layers, threads, weld_tolerance;
+  ParamValues params;
 };
 
 // The part's name in the contour files: the input's file name without its extension.
@@ -208,17 +212,35 @@ std::string label_of(const std::string& input) {
   return stem;
 }
 
+std::string scheme_list() {
+  std::string list;
+  for (std::string_view name : stlrefine::scheme_names())
+    list += (list.empty() ? "" : ", ") + std::string(name);
+  return list;
+}
+
+// One option per parameter of the table `kind` takes, its help the table's.
+void add_param_options(CLI::App& cmd, api::RequestKind kind, ParamValues& values) {
+  for (const api::ParamRow& row : api::param_table()) {
+    if (!row.takes(kind)) continue;
+    std::string help(row.help);
+    if (row.name == "scheme") help = "Subdivision scheme: " + scheme_list() + " (butterfly)";
+    cmd.add_option(api::cli_option(row.name), values[row.name], help);
+  }
+}
+
 // Options given on the command line, as (API name, text) pairs: api/params validates them
 // exactly as the daemon validates a query string.
-void add_if_given(api::RawParams& raw, const CLI::App& cmd, const char* option, const char* name,
-                  const std::string& value) {
-  if (cmd.get_option(option)->count() > 0) raw.emplace_back(name, value);
+api::RawParams given_params(const CLI::App& cmd, api::RequestKind kind, const ParamValues& values) {
+  api::RawParams raw;
+  for (const api::ParamRow& row : api::param_table())
+    if (row.takes(kind) && cmd.get_option(api::cli_option(row.name))->count() > 0)
+      raw.emplace_back(std::string(row.name), values.at(row.name));
+  return raw;
 }
 
 int run_info(const CLI::App& cmd, const InfoOptions& o) {
-  api::RawParams raw;
-  add_if_given(raw, cmd, "--crease-angle", "crease_angle", o.crease_angle);
-  add_if_given(raw, cmd, "--weld-tolerance", "weld_tolerance", o.weld_tolerance);
+  const api::RawParams raw = given_params(cmd, api::RequestKind::Info, o.params);
   try {
     const api::InfoRequest request = api::parse_info_params(raw);
     const std::vector<std::uint8_t> bytes = read_file(o.input);
@@ -232,25 +254,7 @@ int run_info(const CLI::App& cmd, const InfoOptions& o) {
 }
 
 int run_refine(const CLI::App& cmd, const RefineOptions& o) {
-  api::RawParams raw;
-  add_if_given(raw, cmd, "--scheme", "scheme", o.scheme);
-  add_if_given(raw, cmd, "--levels", "levels", o.levels);
-  add_if_given(raw, cmd, "--crease-angle", "crease_angle", o.crease_angle);
-  add_if_given(raw, cmd, "--max-faces", "max_faces", o.max_faces);
-  add_if_given(raw, cmd, "--threads", "threads", o.threads);
-  add_if_given(raw, cmd, "--weld-tolerance", "weld_tolerance", o.weld_tolerance);
-  add_if_given(raw, cmd, "--adaptive-tol", "adaptive_tol", o.adaptive_tol);
-  add_if_given(raw, cmd, "--adaptive-angle", "adaptive_angle", o.adaptive_angle);
-  add_if_given(raw, cmd, "--max-level", "max_level", o.max_level);
-  add_if_given(raw, cmd, "--alpha", "alpha", o.alpha);
-  add_if_given(raw, cmd, "--alpha-features", "alpha_features", o.alpha_features);
-  add_if_given(raw, cmd, "--kappa", "kappa", o.kappa);
-  add_if_given(raw, cmd, "--ramp-steps", "ramp_steps", o.ramp_steps);
-  add_if_given(raw, cmd, "--primitives", "primitives", o.primitives);
-  add_if_given(raw, cmd, "--primitive-tol", "primitive_tol", o.primitive_tol);
-  add_if_given(raw, cmd, "--max-deviation", "max_deviation", o.max_deviation);
-  add_if_given(raw, cmd, "--slice", "slice", o.slice);
-  add_if_given(raw, cmd, "--slice-format", "slice_format", o.slice_format);
+  const api::RawParams raw = given_params(cmd, api::RequestKind::Refine, o.params);
   const bool slicing = cmd.get_option("--slice")->count() > 0;
   if (slicing != (cmd.get_option("--slice-out")->count() > 0))
     throw Failure{kExitUsage, slicing ? "--slice needs --slice-out (the contour file)"
@@ -260,12 +264,15 @@ int run_refine(const CLI::App& cmd, const RefineOptions& o) {
   limits.default_max_faces = stlrefine::RefineParams{}.max_faces;
   limits.accept_threads = true;
   try {
-    api::RefineRequest request = api::parse_refine_params(raw, limits);
+    api::RefineRequest request = api::parse_refine_fields(raw, limits);
     request.output_format = o.ascii ? stlrefine::StlFormat::Ascii : stlrefine::StlFormat::Binary;
     if (request.slice) request.slice->writer.label = label_of(o.input);
+    // Planned (validated, the scheme made) before the file is read. The CLI has no memory
+    // budget: the body's shape and the memory estimate are not needed.
+    const api::RefinePlan plan = api::plan_refine(std::move(request));
     const std::vector<std::uint8_t> bytes = read_file(o.input);
     ProgressLine progress;
-    api::RefinedMesh refined = api::run_refine_to_mesh(bytes, request, progress.sink());
+    api::RefinedMesh refined = api::run_refine_to_mesh(bytes, plan, progress.sink());
     progress.finish();
     api::RefineOutcome& out = refined.outcome;
     if (refined.stream()) {  // binary: made as it is written, never whole in memory
@@ -284,8 +291,8 @@ int run_refine(const CLI::App& cmd, const RefineOptions& o) {
     if (out.contours) write_file(o.slice_out, *out.contours);
     if (!o.report.empty()) write_file(o.report, out.report.dump(2) + "\n");
     std::cerr << "stlrefine: " << out.report["input"]["faces"] << " -> "
-              << out.report["output"]["faces"] << " faces (" << request.refine.scheme << ", "
-              << out.report["levels"] << (request.refine.adaptive() ? " adaptive" : "")
+              << out.report["output"]["faces"] << " faces (" << plan.request.refine.scheme << ", "
+              << out.report["levels"] << (plan.request.refine.adaptive() ? " adaptive" : "")
               << " levels) in " << out.report["seconds"]["total"] << " s -> " << o.output
               << std::endl;
     return kExitOk;
@@ -295,15 +302,7 @@ int run_refine(const CLI::App& cmd, const RefineOptions& o) {
 }
 
 int run_slice(const CLI::App& cmd, const SliceCliOptions& o) {
-  api::RawParams raw;
-  add_if_given(raw, cmd, "--layer-height", "layer_height", o.layer_height);
-  add_if_given(raw, cmd, "--format", "format", o.format);
-  add_if_given(raw, cmd, "--z-min", "z_min", o.z_min);
-  add_if_given(raw, cmd, "--z-max", "z_max", o.z_max);
-  add_if_given(raw, cmd, "--heights", "heights", o.heights);
-  add_if_given(raw, cmd, "--max-layers", "max_layers", o.max_layers);
-  add_if_given(raw, cmd, "--threads", "threads", o.threads);
-  add_if_given(raw, cmd, "--weld-tolerance", "weld_tolerance", o.weld_tolerance);
+  const api::RawParams raw = given_params(cmd, api::RequestKind::Slice, o.params);
   api::RequestLimits limits;
   limits.accept_threads = true;
   try {
@@ -347,6 +346,18 @@ std::pair<int, int> parse_valences(const std::string& text) {
   }
 }
 
+// "only loop-g2 and butterfly-g1 have a base": the schemes whose registry row has one.
+std::string bases_message() {
+  std::vector<std::string_view> names;
+  for (const stlrefine::SchemeEntry& entry : stlrefine::scheme_registry())
+    if (entry.base) names.push_back(entry.name);
+  std::string text = "only ";
+  for (std::size_t i = 0; i < names.size(); ++i)
+    text +=
+        std::string(i == 0 ? "" : (i + 1 == names.size() ? " and " : ", ")) + std::string(names[i]);
+  return text + (names.size() == 1 ? " has a base" : " have a base");
+}
+
 int run_spectrum(const CLI::App& cmd, const SpectrumOptions& o) {
   namespace an = stlrefine::analysis;
   std::string text;
@@ -356,26 +367,23 @@ int run_spectrum(const CLI::App& cmd, const SpectrumOptions& o) {
     // The scheme and its options are validated as a refinement would validate them.
     stlrefine::RefineParams p;
     p.scheme = o.scheme;
+    std::unique_ptr<stlrefine::Scheme> scheme;
     try {
       if (cmd.get_option("--kappa")->count()) p.kappa = api::parse_number("kappa", o.kappa);
       if (cmd.get_option("--alpha")->count()) p.alpha = api::parse_number("alpha", o.alpha);
       if (cmd.get_option("--alpha-features")->count())
         p.alpha_features = api::parse_number("alpha_features", o.alpha_features);
-      p.validate();
+      scheme = stlrefine::make_scheme(p);
     } catch (const Error& e) {
       throw failure_from_error(e, "");
     }
-    const auto scheme = stlrefine::make_scheme(p.scheme, stlrefine::scheme_options(p));
-    // --unmodified: the base the spectral schemes change, analysed on its own.
+    // --unmodified: the base the spectral schemes change (their registry rows say which),
+    // analysed on its own.
     std::unique_ptr<stlrefine::Split4Stencil> base;
     if (o.unmodified) {
-      if (p.scheme == "loop-g2")
-        base = std::make_unique<stlrefine::LoopStencil>();
-      else if (p.scheme == "butterfly-g1")
-        base = std::make_unique<stlrefine::ButterflyStencil>(
-            stlrefine::ButterflyStencil::Extraordinary::EightPoint);
-      else
-        throw Failure{kExitUsage, "--unmodified: only loop-g2 and butterfly-g1 have a base"};
+      const stlrefine::SchemeEntry* entry = stlrefine::find_scheme(p.scheme);
+      if (!entry->base) throw Failure{kExitUsage, "--unmodified: " + bases_message()};
+      base = entry->base();
     }
     const an::Refiner refiner = base ? an::Refiner::of(*base) : an::Refiner::of(*scheme);
     const std::string title = p.scheme + (o.unmodified ? " (unmodified base)" : "");
@@ -404,13 +412,6 @@ int run_spectrum(const CLI::App& cmd, const SpectrumOptions& o) {
   return kExitOk;
 }
 
-std::string scheme_list() {
-  std::string list;
-  for (std::string_view name : stlrefine::scheme_names())
-    list += (list.empty() ? "" : ", ") + std::string(name);
-  return list;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -424,13 +425,7 @@ int main(int argc, char** argv) {
   InfoOptions info;
   CLI::App* info_cmd = app.add_subcommand("info", "Print a JSON report on an STL file");
   info_cmd->add_option("input", info.input, "STL file (binary or ASCII)")->required();
-  info_cmd->add_option(
-      "--crease-angle", info.crease_angle,
-      "Sharp edges: auto (default: found from the geometry) or a dihedral angle in degrees above "
-      "which an edge is sharp [0, 180]");
-  info_cmd->add_option("--weld-tolerance", info.weld_tolerance,
-                       "Merge corners closer than this (model units; 0 = exact, default)");
-
+  add_param_options(*info_cmd, api::RequestKind::Info, info.params);
   info_cmd->add_option("--curvature", info.curvature,
                        "Write per-vertex curvatures (vertex,x,y,z,kind,gaussian,mean,k1,k2,"
                        "valid) of the welded mesh to this CSV file");
@@ -439,59 +434,9 @@ int main(int argc, char** argv) {
   CLI::App* refine_cmd = app.add_subcommand("refine", "Refine an STL file");
   refine_cmd->add_option("input", refine.input, "STL file (binary or ASCII)")->required();
   refine_cmd->add_option("-o,--output", refine.output, "Output STL file")->required();
-  refine_cmd->add_option("--scheme", refine.scheme,
-                         "Subdivision scheme: " + scheme_list() + " (butterfly)");
-  refine_cmd->add_option("--levels", refine.levels, "Subdivision steps [0, 8] (1)");
-  refine_cmd->add_option(
-      "--crease-angle", refine.crease_angle,
-      "Sharp edges: auto (default: found from the geometry) or a dihedral angle in degrees above "
-      "which an edge is sharp [0, 180]");
-  refine_cmd->add_option("--max-faces", refine.max_faces,
-                         "Refuse before any work if the output would have more faces (20000000)");
-  refine_cmd->add_option("--threads", refine.threads, "Worker threads [0, 256] (0 = every core)");
-  refine_cmd->add_option("--weld-tolerance", refine.weld_tolerance,
-                         "Merge corners closer than this (model units; 0 = exact, default)");
+  add_param_options(*refine_cmd, api::RequestKind::Refine, refine.params);
   refine_cmd->add_flag("--ascii", refine.ascii, "Write ASCII STL instead of binary");
   refine_cmd->add_option("--report", refine.report, "Also write the JSON report to this file");
-  refine_cmd->add_option("--adaptive-tol", refine.adaptive_tol,
-                         "Curvature-adaptive: refine where the new point leaves its flat edge or "
-                         "triangle by more than this (mm; lsf, butterfly, sqrt3 schemes; 0 = off, "
-                         "default)");
-  refine_cmd->add_option("--adaptive-angle", refine.adaptive_angle,
-                         "Curvature-adaptive: refine where neighbouring faces' normals differ by "
-                         "more than this across a non-sharp edge (degrees [0, 180]; 0 = off, "
-                         "default; with --adaptive-tol either refines)");
-  refine_cmd->add_option("--max-level", refine.max_level,
-                         "Level cap of the adaptive mode [1, 8] (4)");
-  refine_cmd->add_option("--alpha", refine.alpha,
-                         "sqrt3-unified: 1 interpolates the input vertices, 0 approximates "
-                         "(Kobbelt's sqrt3) [0, 1] (1)");
-  refine_cmd->add_option("--alpha-features", refine.alpha_features,
-                         "sqrt3-unified: alpha of crease and corner vertices, so feature lines "
-                         "can stay exact while the rest is smoothed [0, 1] (1)");
-  refine_cmd->add_option("--kappa", refine.kappa,
-                         "loop-g2: the moved eigenvalues go to kappa lambda^2 (0, 1] (0.5)");
-  refine_cmd->add_option("--ramp-steps", refine.ramp_steps,
-                         "loop-g2: modify gradually over this many steps (PU Remark 5.3) "
-                         "[0, 8] (0 = off)");
-  refine_cmd->add_option("--primitives", refine.primitives,
-                         "auto: recognise planes, spheres, cylinders, cones and tori on the "
-                         "input and put the new vertices of their regions exactly on them; "
-                         "off: do not (off; auto can still turn thin faces along some rims "
-                         "over)");
-  refine_cmd->add_option("--primitive-tol", refine.primitive_tol,
-                         "A region is recognised when every input vertex of it lies within "
-                         "this fraction of the bounding box diagonal of the primitive "
-                         "(0, 0.01] (1e-6)");
-  refine_cmd->add_option("--max-deviation", refine.max_deviation,
-                         "No output vertex farther than this from the input surface (mm, "
-                         "[0, 1e6]; 0 = no bound, only measured; auto = the input's local "
-                         "chordal error, the default for interpolating schemes; off = neither "
-                         "bound nor measured, the fastest)");
-  refine_cmd->add_option("--slice", refine.slice,
-                         "Also slice the refined mesh with this layer height (mm)");
-  refine_cmd->add_option("--slice-format", refine.slice_format,
-                         "Contour format: json, svg, cli, cli-binary (json)");
   refine_cmd->add_option("--slice-out", refine.slice_out, "Contour file (with --slice)");
 
   SpectrumOptions spectrum;
@@ -525,18 +470,7 @@ int main(int argc, char** argv) {
       app.add_subcommand("slice", "Slice an STL file into layers of closed, oriented contours");
   slice_cmd->add_option("input", slice.input, "STL file (binary or ASCII)")->required();
   slice_cmd->add_option("-o,--output", slice.output, "Contour file")->required();
-  slice_cmd->add_option("--layer-height", slice.layer_height,
-                        "Layer thickness in mm [1e-4, 1e4] (0.1); planes at z_min + (k + 1/2) h");
-  slice_cmd->add_option("--format", slice.format, "json, svg, cli, cli-binary (json)");
-  slice_cmd->add_option("--z-min", slice.z_min, "Bottom of the uniform layers (mesh bottom)");
-  slice_cmd->add_option("--z-max", slice.z_max, "Top of the uniform layers (mesh top)");
-  slice_cmd->add_option("--heights", slice.heights,
-                        "Explicit plane heights a,b,c (replace the uniform layers)");
-  slice_cmd->add_option("--max-layers", slice.max_layers,
-                        "Refuse before any work above this many layers [1, 1000000]");
-  slice_cmd->add_option("--threads", slice.threads, "Worker threads [0, 256] (0 = every core)");
-  slice_cmd->add_option("--weld-tolerance", slice.weld_tolerance,
-                        "Merge corners closer than this (model units; 0 = exact, default)");
+  add_param_options(*slice_cmd, api::RequestKind::Slice, slice.params);
   slice_cmd->add_option("--report", slice.report, "Also write the JSON report to this file");
 
   try {

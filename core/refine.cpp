@@ -21,31 +21,53 @@
 
 namespace stlrefine {
 
-void RefineParams::validate() const {
-  make_scheme(scheme);  // throws InvalidParameter naming "scheme"
-  require_in_range("levels", levels, 0, 8);
-  features.validate();
-  require_in_range<std::uint64_t>("max_faces", max_faces, 1, (std::uint64_t{1} << 31) - 1);
-  require_in_range("threads", threads, 0, 256);
-  require_in_range("adaptive_tol", adaptive_tol, 0.0, 1e6);
-  require_in_range("adaptive_angle", adaptive_angle, 0.0, 180.0);
-  require_in_range("max_level", max_level, 1, 8);
-  require_in_range("alpha", alpha, 0.0, 1.0);
-  require_in_range("alpha_features", alpha_features, 0.0, 1.0);
-  if (!(kappa > 0 && kappa <= 1))
+namespace {
+
+// The ranges, and that the name is a scheme's (without making it).
+void validate_fields(const RefineParams& p) {
+  if (!find_scheme(p.scheme)) make_scheme(p.scheme);  // throws InvalidParameter naming "scheme"
+  require_in_range("levels", p.levels, 0, 8);
+  p.features.validate();
+  require_in_range<std::uint64_t>("max_faces", p.max_faces, 1, (std::uint64_t{1} << 31) - 1);
+  require_in_range("threads", p.threads, 0, 256);
+  require_in_range("adaptive_tol", p.adaptive_tol, 0.0, 1e6);
+  require_in_range("adaptive_angle", p.adaptive_angle, 0.0, 180.0);
+  require_in_range("max_level", p.max_level, 1, 8);
+  require_in_range("alpha", p.alpha, 0.0, 1.0);
+  require_in_range("alpha_features", p.alpha_features, 0.0, 1.0);
+  if (!(p.kappa > 0 && p.kappa <= 1))
     throw Error(ErrorCode::InvalidParameter, "out_of_range",
-                "kappa = " + std::to_string(kappa) + " is outside (0, 1]")
+                "kappa = " + std::to_string(p.kappa) + " is outside (0, 1]")
         .with_field("kappa");
-  require_in_range("ramp_steps", ramp_steps, 0, 8);
-  if (adaptive()) {
-    const auto s = make_scheme(scheme);
-    if (!adaptive_scheme(*s) && !adaptive_sqrt3_scheme(*s))
-      throw Error(ErrorCode::InvalidParameter, "adaptive_unsupported",
-                  "adaptive refinement needs a sqrt3 scheme or an interpolating 1-to-4 scheme "
-                  "(lsf, butterfly), not " +
-                      scheme)
-          .with_field(adaptive_tol > 0 ? "adaptive_tol" : "adaptive_angle");
-  }
+  require_in_range("ramp_steps", p.ramp_steps, 0, 8);
+}
+
+void require_adaptive_mode(const RefineParams& p, const Scheme& s) {
+  if (p.adaptive() && !adaptive_scheme(s) && !adaptive_sqrt3_scheme(s))
+    throw Error(ErrorCode::InvalidParameter, "adaptive_unsupported",
+                "adaptive refinement needs a sqrt3 scheme or an interpolating 1-to-4 scheme "
+                "(lsf, butterfly), not " +
+                    std::string(s.name()))
+        .with_field(p.adaptive_tol > 0 ? "adaptive_tol" : "adaptive_angle");
+}
+
+}  // namespace
+
+void RefineParams::validate() const {
+  validate_fields(*this);
+  if (adaptive()) require_adaptive_mode(*this, *make_scheme(scheme));
+}
+
+void RefineParams::validate(const Scheme& s) const {
+  validate_fields(*this);
+  require_adaptive_mode(*this, s);
+}
+
+std::unique_ptr<Scheme> make_scheme(const RefineParams& params) {
+  validate_fields(params);
+  std::unique_ptr<Scheme> s = make_scheme(params.scheme, scheme_options(params));
+  require_adaptive_mode(params, *s);
+  return s;
 }
 
 SchemeOptions scheme_options(const RefineParams& params) {
@@ -62,19 +84,30 @@ const Sqrt3Stencil* adaptive_sqrt3_scheme(const Scheme& scheme) {
   return sqrt3 ? &sqrt3->stencil() : nullptr;
 }
 
-std::uint64_t check_face_budget(std::size_t faces, const RefineParams& params) {
+std::uint64_t check_face_budget(std::size_t faces, const Scheme& scheme,
+                                const RefineParams& params) {
   // Adaptive output size depends on the geometry: the uniform count at the level cap bounds
   // it, and the refinement stops as soon as its exact count would pass max_faces.
-  if (params.adaptive()) return make_scheme(params.scheme)->predict_faces(faces, params.max_level);
-  const std::uint64_t predicted = make_scheme(params.scheme)->predict_faces(faces, params.levels);
+  if (params.adaptive()) return scheme.predict_faces(faces, params.max_level);
+  const std::uint64_t predicted = scheme.predict_faces(faces, params.levels);
   if (predicted > params.max_faces) {
     throw Error(ErrorCode::BudgetExceeded, "face_budget",
-                params.scheme + " with " + std::to_string(params.levels) + " levels would make " +
-                    std::to_string(predicted) + " faces from " + std::to_string(faces) +
+                std::string(scheme.name()) + " with " + std::to_string(params.levels) +
+                    " levels would make " + std::to_string(predicted) + " faces from " +
+                    std::to_string(faces) +
                     "; the limit is max_faces = " + std::to_string(params.max_faces))
         .with_field("max_faces");
   }
   return predicted;
+}
+
+std::uint64_t check_face_budget(std::size_t faces, const RefineParams& params) {
+  return check_face_budget(faces, *make_scheme(params.scheme), params);
+}
+
+std::uint64_t predict_faces(std::uint64_t faces, const Scheme& scheme, const RefineParams& params) {
+  if (!params.adaptive()) return scheme.predict_faces(faces, params.levels);
+  return std::min<std::uint64_t>(scheme.predict_faces(faces, params.max_level), params.max_faces);
 }
 
 void require_simple_mesh(const Mesh& m) {
@@ -198,12 +231,12 @@ std::uint64_t input_bytes(const Mesh& m) {
 
 RefineResult run_levels(Mesh mesh, const RefineParams& params, const Scheme& scheme,
                         const ProgressFn& progress, const std::atomic<bool>* cancel,
-                        const MemoryGrowFn& grow) {
+                        const MemoryGrowFn& grow, std::optional<Features> detected) {
   const CancelScope cancel_scope(cancel);  // parallel loops of this request stop early
   const auto start = std::chrono::steady_clock::now();
   RefineResult result;
   RefineReport& r = result.report;
-  r.scheme = params.scheme;
+  r.scheme = std::string(scheme.name());
   r.levels = params.levels;
   r.input_vertices = mesh.num_vertices();
   r.input_faces = mesh.num_faces();
@@ -219,7 +252,7 @@ RefineResult run_levels(Mesh mesh, const RefineParams& params, const Scheme& sch
 
   // The adaptive sqrt3 host knows edges by their vertex pairs (AdaptiveSplit4 does not).
   if (params.adaptive() && adaptive_sqrt3_scheme(scheme)) require_simple_mesh(mesh);
-  Features features = detect_features(mesh, params.features);
+  Features features = detected ? std::move(*detected) : detect_features(mesh, params.features);
   Level level{std::move(mesh), std::move(features)};
   r.sharp_edges_in = level.features.num_sharp_edges();
   r.corners = level.features.count(VertexKind::Corner);
@@ -327,17 +360,24 @@ RefineResult run_levels(Mesh mesh, const RefineParams& params, const Scheme& sch
 
 }  // namespace
 
-RefineResult refine(Mesh mesh, const RefineParams& params, const ProgressFn& progress,
-                    const std::atomic<bool>* cancel, const MemoryGrowFn& grow) {
-  params.validate();
-  check_face_budget(mesh.num_faces(), params);
-  const auto scheme = make_scheme(params.scheme, scheme_options(params));
+RefineResult refine(Mesh mesh, const Scheme& scheme, const RefineParams& params,
+                    const ProgressFn& progress, const std::atomic<bool>* cancel,
+                    const MemoryGrowFn& grow, std::optional<Features> features) {
+  params.validate(scheme);
+  check_face_budget(mesh.num_faces(), scheme, params);
   if (params.threads == 0)
-    return run_levels(std::move(mesh), params, *scheme, progress, cancel, grow);
+    return run_levels(std::move(mesh), params, scheme, progress, cancel, grow, std::move(features));
   // A dedicated arena caps this request's threads without touching the global pool.
   tbb::task_arena arena(params.threads);
-  return arena.execute(
-      [&] { return run_levels(std::move(mesh), params, *scheme, progress, cancel, grow); });
+  return arena.execute([&] {
+    return run_levels(std::move(mesh), params, scheme, progress, cancel, grow, std::move(features));
+  });
+}
+
+RefineResult refine(Mesh mesh, const RefineParams& params, const ProgressFn& progress,
+                    const std::atomic<bool>* cancel, const MemoryGrowFn& grow) {
+  const std::unique_ptr<Scheme> scheme = make_scheme(params);
+  return refine(std::move(mesh), *scheme, params, progress, cancel, grow);
 }
 
 }  // namespace stlrefine

@@ -6,6 +6,8 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -14,6 +16,7 @@
 #include "core/mesh/array_pool.h"
 #include "core/mesh/mesh.h"
 #include "core/progress.h"
+#include "core/schemes/registry.h"
 #include "core/schemes/scheme.h"
 
 namespace stlrefine {
@@ -52,12 +55,21 @@ struct RefineParams {
   //! True when a curvature-adaptive criterion is on.
   bool adaptive() const { return adaptive_tol > 0 || adaptive_angle > 0; }
 
-  //! \throw Error(InvalidParameter) naming the field.
+  //! \throw Error(InvalidParameter) naming the field. Makes the scheme (default options)
+  //! when an adaptive mode is asked for; make_scheme(params) validates and makes it once.
   void validate() const;
+  //! validate() for `scheme`, the one made from these params: the ranges and whether
+  //! `scheme` has the adaptive mode asked for; makes nothing.
+  void validate(const Scheme& scheme) const;
 };
 
 //! The scheme options params carry (alpha, alpha_features, kappa, ramp_steps).
 SchemeOptions scheme_options(const RefineParams& params);
+
+//! The scheme params name, with their options, after validating them: a request makes its
+//! scheme once, here, and hands it to check_face_budget and refine.
+//! \throw Error(InvalidParameter) naming the field, as RefineParams::validate.
+std::unique_ptr<Scheme> make_scheme(const RefineParams& params);
 
 class Split4Stencil;
 //! The 1-to-4 stencil the adaptive mode uses with `scheme`, or null when it has none (the
@@ -155,7 +167,14 @@ struct RefineResult {
 //! number in the message when it exceeds params.max_faces. In the adaptive mode it is an
 //! upper bound (the uniform count at max_level) and is not enforced here: the refinement
 //! stops with the same error as soon as its exact count would pass max_faces.
+std::uint64_t check_face_budget(std::size_t faces, const Scheme& scheme,
+                                const RefineParams& params);
+//! check_face_budget with the scheme params name (made here).
 std::uint64_t check_face_budget(std::size_t faces, const RefineParams& params);
+
+//! Faces the refinement makes from `faces` faces: exact in the uniform mode; in the adaptive
+//! mode a bound, the uniform count at max_level capped at max_faces (where it stops).
+std::uint64_t predict_faces(std::uint64_t faces, const Scheme& scheme, const RefineParams& params);
 
 //! What the adaptive sqrt3 host needs: no two edges join the same two vertices and no two
 //! faces have the same three. Its output's edges are known by their vertex pairs; ingest
@@ -165,12 +184,19 @@ std::uint64_t check_face_budget(std::size_t faces, const RefineParams& params);
 //! \throw Error(NotTriangleMesh, "adaptive_non_simple") naming the vertices or faces.
 void require_simple_mesh(const Mesh& mesh);
 
-//! Applies params.scheme params.levels times. Checks the face budget before any work,
-//! the cancel flag between levels, and asks `grow` (when set) before the memory it holds
-//! grows (see MemoryGrowFn). Takes the mesh by value: move it in to save a copy.
+//! Applies `scheme` (made from params: make_scheme(params)) params.levels times. Checks the
+//! parameters' ranges for `scheme` (RefineParams::validate(const Scheme&), nothing is made)
+//! and the face budget before any work, the cancel flag between levels, and asks `grow`
+//! (when set) before the memory it holds grows (see MemoryGrowFn). Takes the mesh by value:
+//! move it in to save a copy. `features`: detect_features(mesh, params.features) when the
+//! caller has it already (it is detected here otherwise).
 //! \throw Error(InvalidParameter | BudgetExceeded | Cancelled); MemoryBudgetError when grow
 //! said no; Error(NotTriangleMesh) in the adaptive mode of a sqrt3 scheme on a mesh that is
 //! not simple (see require_simple_mesh).
+RefineResult refine(Mesh mesh, const Scheme& scheme, const RefineParams& params,
+                    const ProgressFn& progress = {}, const std::atomic<bool>* cancel = nullptr,
+                    const MemoryGrowFn& grow = {}, std::optional<Features> features = {});
+//! refine with the scheme params name: make_scheme(params), then the above.
 RefineResult refine(Mesh mesh, const RefineParams& params, const ProgressFn& progress = {},
                     const std::atomic<bool>* cancel = nullptr, const MemoryGrowFn& grow = {});
 

@@ -21,7 +21,7 @@
 
 #include "api/ingest.h"
 #include "api/pipeline.h"
-#include "core/schemes/scheme.h"
+#include "core/schemes/registry.h"
 #include "fuzz/fuzz_check.h"
 
 using namespace stlrefine;

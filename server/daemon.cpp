@@ -41,10 +41,12 @@
 #include "api/memory_model.h"
 #include "api/params.h"
 #include "api/pipeline.h"
+#include "api/plan.h"
 #include "api/problem.h"
 #include "api/zip.h"
 #include "core/error.h"
 #include "core/io/stl.h"
+#include "server/admission.h"
 #include "server/front_end.h"
 #include "server/metrics.h"
 #include "server/request_watch.h"
@@ -283,58 +285,6 @@ void send_problem(Response& res, const api::Problem& problem) {
   res.set_content(api::problem_body(problem), api::kProblemContentType);
 }
 
-// RFC 9110 section 15 reason phrases.
-const char* reason_phrase(int status) {
-  switch (status) {
-    case 200:
-      return "OK";
-    case 202:
-      return "Accepted";
-    case 206:
-      return "Partial Content";
-    case 304:
-      return "Not Modified";
-    case 400:
-      return "Bad Request";
-    case 401:
-      return "Unauthorized";
-    case 404:
-      return "Not Found";
-    case 405:
-      return "Method Not Allowed";
-    case 408:
-      return "Request Timeout";
-    case 409:
-      return "Conflict";
-    case 410:
-      return "Gone";
-    case 411:
-      return "Length Required";
-    case 413:
-      return "Content Too Large";
-    case 414:
-      return "URI Too Long";
-    case 415:
-      return "Unsupported Media Type";
-    case 416:
-      return "Range Not Satisfiable";
-    case 422:
-      return "Unprocessable Content";
-    case 431:
-      return "Request Header Fields Too Large";
-    case 500:
-      return "Internal Server Error";
-    case 503:
-      return "Service Unavailable";
-    case 504:
-      return "Gateway Timeout";
-    case 507:
-      return "Insufficient Storage";
-    default:
-      return status >= 500 ? "Server Error" : "Client Error";
-  }
-}
-
 //! A byte range of an answer (RFC 9110 14.1.2).
 struct ByteRange {
   enum class Kind { Whole, Partial, Unsatisfiable };
@@ -396,7 +346,8 @@ ByteRange parse_byte_range(std::string_view header, std::uint64_t length) {
 //! A complete HTTP/1.1 answer the front end writes itself (one request per connection).
 std::string raw_answer(int status, const std::string& content_type, const std::string& body,
                        const httplib::Headers& headers, bool head_only) {
-  std::string out = "HTTP/1.1 " + std::to_string(status) + " " + reason_phrase(status) + "\r\n";
+  std::string out =
+      "HTTP/1.1 " + std::to_string(status) + " " + api::reason_phrase(status) + "\r\n";
   out += "Content-Type: " + content_type + "\r\n";
   out += "Content-Length: " + std::to_string(body.size()) + "\r\n";
   out += "Connection: close\r\n";
@@ -554,25 +505,24 @@ Daemon::Impl::Impl(DaemonConfig c)
 }
 
 std::optional<api::Problem> Daemon::Impl::precheck(const Request& req) const {
-  using api::make_problem;
   const Route* route = find_route(req.path);
-  if (!route) return make_problem(404, "not-found", "no route " + shortened(req.path));
+  if (!route) return api::not_found("not-found", "no route " + shortened(req.path));
   if (!method_allowed(*route, req.method)) {
-    api::Problem p = make_problem(
-        405, "method-not-allowed",
+    api::Problem p = api::method_not_allowed(
+        "method-not-allowed",
         req.method + " is not allowed on " + route->path + " (allowed: " + route->allow + ")");
     p.extensions["allow"] = route->allow;
     return p;
   }
   if (!authorized(req)) {
-    api::Problem p = make_problem(401, "unauthorized",
-                                  "this server needs an API key: Authorization: Bearer <key>");
+    api::Problem p = api::unauthorized("unauthorized",
+                                       "this server needs an API key: Authorization: Bearer <key>");
     p.extensions["www_authenticate"] = "Bearer";
     return p;
   }
   if ((route->kind == RouteKind::Submit || route->kind == RouteKind::JobItem) && !jobs)
-    return make_problem(404, "jobs-disabled",
-                        "jobs are not enabled on this server (start it with --data-dir DIR)");
+    return api::not_found("jobs-disabled",
+                          "jobs are not enabled on this server (start it with --data-dir DIR)");
   if (!has_body(*route)) {
     // The library reads a DELETE body (a chunked one without any limit) and leaves a GET
     // body unread; neither route takes one.
@@ -581,8 +531,8 @@ std::optional<api::Problem> Daemon::Impl::precheck(const Request& req) const {
     std::string_view length = length_header;
     while (length.size() > 1 && length.front() == '0') length.remove_prefix(1);
     if (req.has_header("Transfer-Encoding") || (!length.empty() && length != "0")) {
-      api::Problem p = make_problem(400, "bad-request",
-                                    req.method + " " + route->path + " takes no request body");
+      api::Problem p = api::bad_request("bad-request",
+                                        req.method + " " + route->path + " takes no request body");
       p.field = req.has_header("Transfer-Encoding") ? "Transfer-Encoding" : "Content-Length";
       return p;
     }
@@ -592,26 +542,25 @@ std::optional<api::Problem> Daemon::Impl::precheck(const Request& req) const {
   // Body framing. Only Content-Length bodies are accepted: 0.11.4 applies its payload limit
   // to nothing else.
   if (req.has_header("Transfer-Encoding"))
-    return make_problem(411, "length-required",
-                        "Transfer-Encoding (" +
-                            shortened(req.get_header_value("Transfer-Encoding")) +
-                            ") is not accepted; send the body with a Content-Length");
+    return api::length_required("length-required",
+                                "Transfer-Encoding (" +
+                                    shortened(req.get_header_value("Transfer-Encoding")) +
+                                    ") is not accepted; send the body with a Content-Length");
   if (!req.has_header("Content-Length"))
-    return make_problem(411, "length-required", "a POST body needs a Content-Length header");
+    return api::length_required("length-required", "a POST body needs a Content-Length header");
   const std::string length_text = req.get_header_value("Content-Length");
   std::uint64_t length = 0;
   const auto [end, ec] =
       std::from_chars(length_text.data(), length_text.data() + length_text.size(), length);
   if (req.get_header_value_count("Content-Length") != 1 || length_text.empty() ||
       ec != std::errc() || end != length_text.data() + length_text.size())
-    return make_problem(
-        400, "bad-request",
-        "Content-Length must be one decimal number, not '" + shortened(length_text) + "'");
+    return api::bad_request("bad-request", "Content-Length must be one decimal number, not '" +
+                                               shortened(length_text) + "'");
   if (req.has_header("Content-Encoding")) {
-    api::Problem p =
-        make_problem(415, "unsupported-media-type",
-                     "Content-Encoding '" + shortened(req.get_header_value("Content-Encoding")) +
-                         "' is not accepted; send the STL bytes as they are");
+    api::Problem p = api::unsupported_media_type(
+        "unsupported-media-type", "Content-Encoding '" +
+                                      shortened(req.get_header_value("Content-Encoding")) +
+                                      "' is not accepted; send the STL bytes as they are");
     p.field = "Content-Encoding";
     return p;
   }
@@ -621,18 +570,18 @@ std::optional<api::Problem> Daemon::Impl::precheck(const Request& req) const {
   // `curl --data-binary @part.stl URL` a user types is accepted as raw STL.
   if (type != "model/stl" && type != "application/octet-stream" &&
       type != "application/x-www-form-urlencoded") {
-    api::Problem p =
-        make_problem(415, "unsupported-media-type",
-                     "Content-Type must be model/stl or application/octet-stream, not '" +
-                         shortened(req.get_header_value("Content-Type")) + "'");
+    api::Problem p = api::unsupported_media_type(
+        "unsupported-media-type",
+        "Content-Type must be model/stl or application/octet-stream, not '" +
+            shortened(req.get_header_value("Content-Type")) + "'");
     p.field = "Content-Type";
     return p;
   }
   if (length > config.max_body_bytes) {
-    api::Problem p = make_problem(413, "payload-too-large",
-                                  "the body is " + std::to_string(length) +
-                                      " bytes; this server accepts at most " +
-                                      std::to_string(config.max_body_bytes));
+    api::Problem p =
+        api::content_too_large("payload-too-large", "the body is " + std::to_string(length) +
+                                                        " bytes; this server accepts at most " +
+                                                        std::to_string(config.max_body_bytes));
     p.extensions["max_body_bytes"] = config.max_body_bytes;
     return p;
   }
@@ -653,9 +602,9 @@ std::optional<api::Problem> Daemon::Impl::precheck(const Request& req) const {
   if (route->kind == RouteKind::Submit) {
     if (stopping || jobs->queued() >= jobs->config().max_queued) {
       if (stopping) return busy_problem(true);
-      api::Problem p = make_problem(503, "queue-full",
-                                    "all " + std::to_string(jobs->config().max_queued) +
-                                        " job queue places are taken; retry later");
+      api::Problem p = api::service_unavailable("queue-full",
+                                                "all " + std::to_string(jobs->config().max_queued) +
+                                                    " job queue places are taken; retry later");
       p.extensions["max_queued"] = jobs->config().max_queued;
       return p;
     }
@@ -666,19 +615,17 @@ std::optional<api::Problem> Daemon::Impl::precheck(const Request& req) const {
 }
 
 api::Problem Daemon::Impl::busy_problem(bool is_stopping) const {
-  if (is_stopping) return api::make_problem(503, "shutting-down", "the server is shutting down");
-  api::Problem p = api::make_problem(
-      503, "busy",
-      "all " + std::to_string(slots.capacity()) + " compute slots are taken; retry later");
+  if (is_stopping) return api::service_unavailable("shutting-down", "the server is shutting down");
+  api::Problem p = api::service_unavailable(
+      "busy", "all " + std::to_string(slots.capacity()) + " compute slots are taken; retry later");
   p.extensions["compute_slots"] = slots.capacity();
   return p;
 }
 
 api::Problem Daemon::Impl::memory_busy_problem(std::uint64_t predicted) const {
-  api::Problem p = api::make_problem(
-      503, "busy",
-      "the memory budget is taken by the requests running now (this one needs about " +
-          std::to_string((predicted + (1 << 20) - 1) >> 20) + " MiB); retry later");
+  api::Problem p = api::service_unavailable(
+      "busy", "the memory budget is taken by the requests running now (this one needs about " +
+                  std::to_string((predicted + (1 << 20) - 1) >> 20) + " MiB); retry later");
   p.extensions["reason"] = "memory";
   p.extensions["memory_budget_bytes"] = memory.capacity();
   return p;
@@ -687,10 +634,11 @@ api::Problem Daemon::Impl::memory_busy_problem(std::uint64_t predicted) const {
 httplib::Headers Daemon::Impl::problem_headers(const api::Problem& problem) const {
   httplib::Headers h;
   // 507: space comes back as finished jobs expire.
-  if (problem.status == 503 || problem.status == 507)
+  if (problem.status == api::http::kServiceUnavailable ||
+      problem.status == api::http::kInsufficientStorage)
     h.emplace("Retry-After", std::to_string(config.retry_after_seconds));
-  if (problem.status == 401) h.emplace("WWW-Authenticate", "Bearer");
-  if (problem.status == 405 && problem.extensions.contains("allow"))
+  if (problem.status == api::http::kUnauthorized) h.emplace("WWW-Authenticate", "Bearer");
+  if (problem.status == api::http::kMethodNotAllowed && problem.extensions.contains("allow"))
     h.emplace("Allow", problem.extensions["allow"].get<std::string>());
   return h;
 }
@@ -706,7 +654,7 @@ void Daemon::Impl::record(const std::string& method, const std::string& path, in
   const std::string route = route_label(path);
   // 499 (as nginx logs a client that went away): the head's status was sent, the answer
   // was not.
-  const int logged = aborted ? 499 : status;
+  const int logged = aborted ? api::http::kClientClosed : status;
   metrics.request(route, method, logged, seconds);
   if (!config.access_log) return;
   nlohmann::ordered_json line;
@@ -765,9 +713,11 @@ Verdict Daemon::Impl::decide(const RequestHead& head) {
     }
     const std::string id = request_id(req);
     const bool head_only = req.method == "HEAD";
-    record(req.method, req.path, 200, head_only ? 0 : body.size(), 0.0, id, req.remote_addr);
+    record(req.method, req.path, api::http::kOk, head_only ? 0 : body.size(), 0.0, id,
+           req.remote_addr);
     verdict.kind = Verdict::Kind::Answer;
-    verdict.response = raw_answer(200, kJsonContentType, body, {{"X-Request-Id", id}}, head_only);
+    verdict.response =
+        raw_answer(api::http::kOk, kJsonContentType, body, {{"X-Request-Id", id}}, head_only);
     return verdict;
   }
   if (problem) {
@@ -784,11 +734,11 @@ Verdict Daemon::Impl::decide(const RequestHead& head) {
     if (route->kind == RouteKind::Compute || route->kind == RouteKind::Submit) {
       // The body is memory from now on (a job's until it is on disk).
       if (verdict.body_bytes > memory.capacity()) {
-        api::Problem p =
-            api::make_problem(413, "payload-too-large",
-                              "the body is " + std::to_string(verdict.body_bytes) +
-                                  " bytes; this server's memory budget gives one request at most " +
-                                  std::to_string(memory.capacity()));
+        api::Problem p = api::content_too_large(
+            "payload-too-large",
+            "the body is " + std::to_string(verdict.body_bytes) +
+                " bytes; this server's memory budget gives one request at most " +
+                std::to_string(memory.capacity()));
         p.extensions["memory_budget_bytes"] = memory.capacity();
         verdict.kind = Verdict::Kind::Answer;
         verdict.response = front_answer(&req, p);
@@ -815,7 +765,7 @@ Answer Daemon::Impl::serve(ReadRequest& read) {
   bool ranges = false;
   try {
     route(req, read, res, big, ranges);
-    if (res.status == -1) res.status = 200;  // httplib::Response starts without one
+    if (res.status == -1) res.status = api::http::kOk;  // httplib::Response starts without one
   } catch (...) {
     std::string what = "unknown exception";
     try {
@@ -831,7 +781,7 @@ Answer Daemon::Impl::serve(ReadRequest& read) {
     res = Response();
     big = Answer();
     ranges = false;
-    send_problem(res, api::make_problem(500, "internal", "an internal error occurred"));
+    send_problem(res, api::internal_error());
   }
   return finish(req, res, std::move(big), ranges, read.accepted);
 }
@@ -855,7 +805,7 @@ void Daemon::Impl::route(const Request& req, ReadRequest& read, Response& res, A
       if (req.path == "/") return page(req, res, big, "index.html");
       const std::string name = req.path.substr(std::string_view("/assets/").size());
       if (name.find('/') != std::string::npos)
-        return respond(res, api::make_problem(404, "not-found", "no route " + shortened(req.path)));
+        return respond(res, api::not_found("not-found", "no route " + shortened(req.path)));
       return page(req, res, big, name);
     }
     case RouteKind::Plain:
@@ -897,10 +847,10 @@ Answer Daemon::Impl::finish(const Request& req, Response& res, Answer big, bool 
     const std::string if_range = req.get_header_value("If-Range");
     const bool same =
         if_range.empty() || (res.has_header("ETag") && if_range == res.get_header_value("ETag"));
-    if (res.status == 200 && req.method == "GET" && req.has_header("Range") && same) {
+    if (res.status == api::http::kOk && req.method == "GET" && req.has_header("Range") && same) {
       const ByteRange range = parse_byte_range(req.get_header_value("Range"), length);
       if (range.kind == ByteRange::Kind::Partial) {
-        res.status = 206;
+        res.status = api::http::kPartialContent;
         res.set_header("Content-Range", "bytes " + std::to_string(range.first) + "-" +
                                             std::to_string(range.last) + "/" +
                                             std::to_string(length));
@@ -911,9 +861,9 @@ Answer Daemon::Impl::finish(const Request& req, Response& res, Answer big, bool 
         Response refused;
         refused.set_header("X-Request-Id", res.get_header_value("X-Request-Id"));
         refused.set_header("Content-Range", "bytes */" + std::to_string(length));
-        api::Problem p =
-            api::make_problem(416, "range-not-satisfiable",
-                              "the range is outside the " + std::to_string(length) + "-byte body");
+        api::Problem p = api::range_not_satisfiable(
+            "range-not-satisfiable",
+            "the range is outside the " + std::to_string(length) + "-byte body");
         p.field = "Range";
         send_problem(refused, p);
         res = std::move(refused);
@@ -924,8 +874,9 @@ Answer Daemon::Impl::finish(const Request& req, Response& res, Answer big, bool 
   }
   // The head: status line, the handler's fields, our framing.
   std::string head =
-      "HTTP/1.1 " + std::to_string(res.status) + " " + reason_phrase(res.status) + "\r\n";
-  const bool not_modified = res.status == 304;  // keeps the length the 200 would have had
+      "HTTP/1.1 " + std::to_string(res.status) + " " + api::reason_phrase(res.status) + "\r\n";
+  const bool not_modified =
+      res.status == api::http::kNotModified;  // keeps the length the 200 would have had
   for (const auto& [name, value] : res.headers) {
     if (!not_modified && lowercase(name) == "content-length") continue;
     head += name + ": " + value + "\r\n";
@@ -987,19 +938,20 @@ void Daemon::Impl::compute(const Request& req, ReadRequest& read, Response& res,
     ~TrimAfter() { ::malloc_trim(0); }
   } trim_after;
   try {
-    // Parsed again (cheap): the pre-routing check only validated.
+    // Planned (parsed again, cheap: the pre-routing check only validated): the parameters,
+    // the scheme, the body's shape and the predicted memory, once.
     const auto body =
         std::span(reinterpret_cast<const std::uint8_t*>(raw_body.data()), raw_body.size());
     const std::string_view path = route.path;
-    std::optional<api::RefineRequest> refine_request;
-    std::optional<api::SliceRequest> slice_request;
-    std::optional<api::InfoRequest> info_request;
+    std::optional<api::RefinePlan> refine_plan;
+    std::optional<api::SlicePlan> slice_plan;
+    std::optional<api::InfoPlan> info_plan;
     if (path == "/v1/refine")
-      refine_request = api::parse_refine_params(raw_params(req), limits);
+      refine_plan = api::plan_refine(raw_params(req), limits, body);
     else if (path == "/v1/slice")
-      slice_request = api::parse_slice_params(raw_params(req), limits);
+      slice_plan = api::plan_slice(raw_params(req), limits, body);
     else
-      info_request = api::parse_info_params(raw_params(req));
+      info_plan = api::plan_info(raw_params(req), body);
 
     std::optional<ComputeSlots::Lease> lease = slots.try_acquire();
     if (!lease || stopping) return respond(res, busy_problem(stopping));
@@ -1012,21 +964,15 @@ void Daemon::Impl::compute(const Request& req, ReadRequest& read, Response& res,
       std::optional<MemoryBudget::Reservation> r = memory.try_reserve(0);
       reservation = std::make_shared<MemoryBudget::Reservation>(std::move(*r));
     }
-    const api::StlShape shape = api::stl_shape(body);
-    api::MemoryEstimate predicted;
-    if (refine_request) {
-      // The face budget first: it is the request's own limit, with its own 422.
-      api::refuse_over_face_budget(shape.faces, refine_request->refine);
-      predicted = api::estimate_refine_memory(body, shape, *refine_request);
-    } else if (slice_request) {
-      predicted = api::estimate_slice_memory(body, shape, *slice_request);
-    } else {
-      predicted = api::estimate_info_memory(shape);
-    }
-    if (predicted.peak_bytes > memory.capacity())
-      return respond(res, api::memory_budget_problem(predicted, memory.capacity()));
-    if (!reservation->grow_to(predicted.peak_bytes))
-      return respond(res, memory_busy_problem(predicted.peak_bytes));
+    const ReserveFn reserve = [&reservation](std::uint64_t bytes) {
+      return reservation->grow_to(bytes);
+    };
+    const BusyFn busy = [this](std::uint64_t bytes) { return memory_busy_problem(bytes); };
+    const std::optional<api::Problem> refused =
+        refine_plan ? admit(*refine_plan, memory.capacity(), reserve, busy)
+                    : admit(slice_plan ? slice_plan->memory : info_plan->memory, memory.capacity(),
+                            reserve, busy);
+    if (refused) return respond(res, *refused);
     // Once computed, the reservation shrinks to the body and the answer, which stay in
     // memory until the answer is sent and the connection closed.
     auto keep_answer = [&](std::uint64_t answer_bytes) {
@@ -1045,27 +991,26 @@ void Daemon::Impl::compute(const Request& req, ReadRequest& read, Response& res,
       big.keep = std::move(data);
       res.set_header("Content-Type", type);
     };
-    if (refine_request) {
+    if (refine_plan) {
       const auto started = std::chrono::steady_clock::now();
       // The reservation grows with the refinement (an adaptive hierarchy's size is known
       // only as it is made); it stops the moment it would pass the budget.
-      auto grow = [&reservation](std::uint64_t bytes) { return reservation->grow_to(bytes); };
       // Refine + slice answers one zip, made in memory; an STL answer is made from the
       // refined mesh as it is sent.
       api::RefinedMesh refined =
-          refine_request->slice
-              ? api::RefinedMesh{api::run_refine(body, *refine_request, {}, cancel, grow), {}}
-              : api::run_refine_to_mesh(body, *refine_request, {}, cancel, grow);
+          refine_plan->request.slice
+              ? api::RefinedMesh{api::run_refine(body, *refine_plan, {}, cancel, reserve), {}}
+              : api::run_refine_to_mesh(body, *refine_plan, {}, cancel, reserve);
       api::RefineOutcome& out = refined.outcome;
       metrics.refinement(
-          refine_request->refine.scheme, "done",
+          refine_plan->request.refine.scheme, "done",
           std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(),
           out.report["input"].value("faces", 0ull), out.report["output"].value("faces", 0ull));
       // The report header is compact ASCII JSON (no CR/LF can reach a header).
       const std::string report = out.report.dump(-1, ' ', true);
       if (out.contours) {
         // Refine + slice: one zip with the refined STL, the contours and the report.
-        const slicer::SliceFormat format = refine_request->slice->format;
+        const slicer::SliceFormat format = refine_plan->request.slice->format;
         std::string zip = api::make_zip({{"refined.stl", out.stl, false},
                                          {std::string("slices") + slicer::file_extension(format),
                                           *out.contours, format != slicer::SliceFormat::CliBinary},
@@ -1094,29 +1039,27 @@ void Daemon::Impl::compute(const Request& req, ReadRequest& read, Response& res,
         res.set_header(kReportHeader, report);
         provide(std::move(out.stl), kStlContentType);
       }
-    } else if (slice_request) {
-      api::SliceOutcome out = api::run_slice(body, *slice_request, {}, cancel);
+    } else if (slice_plan) {
+      api::SliceOutcome out = api::run_slice(body, slice_plan->request, {}, cancel);
       lease.reset();
       keep_answer(out.contours.size());
       res.set_header(kReportHeader, out.report.dump(-1, ' ', true));
-      provide(std::move(out.contours), slicer::media_type(slice_request->slice.format));
+      provide(std::move(out.contours), slicer::media_type(slice_plan->request.slice.format));
     } else {
-      const nlohmann::ordered_json report = api::run_info(body, *info_request);
+      const nlohmann::ordered_json report = api::run_info(body, info_plan->request);
       lease.reset();
       keep_answer(0);
       res.set_content(report.dump(2, ' ', true) + "\n", kJsonContentType);
     }
-    res.status = 200;
+    res.status = api::http::kOk;
   } catch (const MemoryBudgetError& e) {
     res.headers.erase(kReportHeader);
     res.headers.erase("Content-Disposition");
     res.headers.erase("Content-Type");
     big = Answer();
-    // Above what one request may ever hold: 422 naming the level parameter; else it did not
-    // fit next to the running requests: 503, retry.
-    if (e.needed_bytes() > memory.capacity())
-      return respond(res, api::memory_budget_problem(e, memory.capacity()));
-    respond(res, memory_busy_problem(e.needed_bytes()));
+    respond(res, memory_problem(e, memory.capacity(), [this](std::uint64_t bytes) {
+              return memory_busy_problem(bytes);
+            }));
   } catch (const Error& e) {
     res.headers.erase(kReportHeader);
     res.headers.erase("Content-Disposition");
@@ -1155,20 +1098,20 @@ bool Daemon::Impl::authorized(const Request& req) const {
 void Daemon::Impl::submit_job(const Request& req, std::string_view body, Response& res) {
   if (config.test_hook) config.test_hook("/v1/jobs");
   try {
-    api::RefineRequest request = api::parse_refine_params(raw_params(req), limits);
     // A job that could never get its memory is refused now, not when its turn comes.
     const auto bytes = std::span(reinterpret_cast<const std::uint8_t*>(body.data()), body.size());
-    const api::MemoryEstimate predicted = api::estimate_refine_memory(
-        bytes, api::stl_shape(bytes), request, api::ResultSink::JobFiles);
+    api::RefinePlan plan =
+        api::plan_refine(raw_params(req), limits, bytes, api::ResultSink::JobFiles);
+    const api::MemoryEstimate& predicted = plan.memory;
     if (predicted.peak_bytes > memory.capacity())
       return respond(res, api::memory_budget_problem(predicted, memory.capacity()));
     const std::size_t q = req.target.find('?');
     std::string query = q == std::string::npos ? "" : req.target.substr(q + 1);
-    const std::uint64_t result_bytes = predicted_result_bytes(request, predicted);
-    const SubmitResult submitted =
-        stopping
-            ? SubmitResult::refused(SubmitResult::Status::ShuttingDown)
-            : jobs->submit(std::move(request), std::move(query), body, tenant(req), result_bytes);
+    const std::uint64_t result_bytes = predicted_result_bytes(plan.request, predicted);
+    const SubmitResult submitted = stopping
+                                       ? SubmitResult::refused(SubmitResult::Status::ShuttingDown)
+                                       : jobs->submit(std::move(plan.request), std::move(query),
+                                                      body, tenant(req), result_bytes);
     if (submitted.status == SubmitResult::Status::NoSpace)
       return respond(res, no_space_problem(submitted));
     const std::optional<JobView>& job = submitted.job;
@@ -1176,10 +1119,10 @@ void Daemon::Impl::submit_job(const Request& req, std::string_view body, Respons
       api::Problem p =
           submitted.status == SubmitResult::Status::ShuttingDown
               ? busy_problem(true)
-              : api::make_problem(503, "queue-full", "the job queue is full; retry later");
+              : api::service_unavailable("queue-full", "the job queue is full; retry later");
       return respond(res, p);
     }
-    res.status = 202;
+    res.status = api::http::kAccepted;
     res.set_header("Location", "/v1/jobs/" + job->id);
     res.set_content(job_json(*job).dump(2) + "\n", kJsonContentType);
   } catch (const Error& e) {
@@ -1194,10 +1137,10 @@ void Daemon::Impl::job_item(const Request& req, Response& res, Answer& big) {
   const std::string id = rest.substr(0, slash);
   const std::string file = slash == std::string::npos ? "" : rest.substr(slash + 1);
   if (slash != std::string::npos && !job_file_name(file))
-    return respond(res, api::make_problem(404, "not-found", "no route " + shortened(req.path)));
+    return respond(res, api::not_found("not-found", "no route " + shortened(req.path)));
   if (!file.empty() && req.method == "DELETE") {
-    api::Problem p = api::make_problem(
-        405, "method-not-allowed", "DELETE is not allowed on a job's files (allowed: GET, HEAD)");
+    api::Problem p = api::method_not_allowed(
+        "method-not-allowed", "DELETE is not allowed on a job's files (allowed: GET, HEAD)");
     p.extensions["allow"] = "GET, HEAD";
     return respond(res, p);
   }
@@ -1207,7 +1150,7 @@ void Daemon::Impl::job_item(const Request& req, Response& res, Answer& big) {
   const JobStore::Lookup found =
       req.method == "DELETE" ? jobs->cancel(id, owner, &job) : jobs->find(id, owner, &job);
   if (found == JobStore::Lookup::Unknown)
-    return respond(res, api::make_problem(404, "unknown-job", "no job " + shortened(id)));
+    return respond(res, api::not_found("unknown-job", "no job " + shortened(id)));
   if (req.method == "DELETE") {
     // A cancel either wins (the job ends cancelled, whatever the runner was doing) or says
     // it came too late: the job had finished, and DELETE removed its results.
@@ -1227,31 +1170,29 @@ void Daemon::Impl::job_item(const Request& req, Response& res, Answer& big) {
     return;
   }
   if (found == JobStore::Lookup::Expired && (req.method != "DELETE" && !file.empty())) {
-    return respond(res, api::make_problem(410, "expired",
-                                          "the results of job " + id +
-                                              " were removed after the retention period"));
+    return respond(res, api::gone("expired", "the results of job " + id +
+                                                 " were removed after the retention period"));
   }
   if (file.empty()) {
-    if (found == JobStore::Lookup::Expired && req.method != "DELETE") res.status = 410;
+    if (found == JobStore::Lookup::Expired && req.method != "DELETE") res.status = api::http::kGone;
     res.set_content(job_json(job).dump(2) + "\n", kJsonContentType);
     return;
   }
   if (job.state != JobState::Done) {
-    api::Problem p = api::make_problem(409, "not-done",
-                                       "job " + id + " is " + to_string(job.state) + ", not done");
+    api::Problem p =
+        api::conflict("not-done", "job " + id + " is " + to_string(job.state) + ", not done");
     p.extensions["state"] = to_string(job.state);
     return respond(res, p);
   }
   if (std::find(job.results.begin(), job.results.end(), file) == job.results.end())
-    return respond(res, api::make_problem(404, "no-such-result", "job " + id + " has no " + file));
+    return respond(res, api::not_found("no-such-result", "job " + id + " has no " + file));
   // The front end sends the file from its descriptor: results can be large. It was written by
   // rename, so it is complete; the open descriptor keeps it readable if it expires meanwhile.
   const int fd = ::open(jobs->result_path(id, file).c_str(), O_RDONLY | O_CLOEXEC);
   struct stat st {};
   if (fd < 0 || ::fstat(fd, &st) != 0) {
     if (fd >= 0) ::close(fd);
-    return respond(res,
-                   api::make_problem(410, "expired", "the results of job " + id + " are gone"));
+    return respond(res, api::gone("expired", "the results of job " + id + " are gone"));
   }
   big.file = fd;
   big.file_length = static_cast<std::uint64_t>(st.st_size);
@@ -1269,11 +1210,9 @@ void Daemon::Impl::job_item(const Request& req, Response& res, Answer& big) {
 void Daemon::Impl::page(const Request& req, Response& res, Answer& big,
                         std::string_view name) const {
   if (web::assets().empty())
-    return respond(res,
-                   api::make_problem(404, "page-not-built", std::string(web::missing_reason())));
+    return respond(res, api::not_found("page-not-built", std::string(web::missing_reason())));
   const web::Asset* asset = web::find_asset(name);
-  if (!asset)
-    return respond(res, api::make_problem(404, "not-found", "no route " + shortened(req.path)));
+  if (!asset) return respond(res, api::not_found("not-found", "no route " + shortened(req.path)));
   res.set_header("ETag", std::string(asset->etag));
   res.set_header("Cache-Control", "no-cache");
   res.set_header("X-Content-Type-Options", "nosniff");
@@ -1285,7 +1224,7 @@ void Daemon::Impl::page(const Request& req, Response& res, Answer& big,
   }
   const std::string match = req.get_header_value("If-None-Match");
   if (!match.empty() && (match == "*" || match.find(asset->etag) != std::string::npos)) {
-    res.status = 304;
+    res.status = api::http::kNotModified;
     // The library writes "Content-Length: 0" on an empty answer; a 304 may only carry the
     // length the 200 would have had (RFC 9110 8.6).
     res.set_header("Content-Length", std::to_string(asset->bytes.size()));

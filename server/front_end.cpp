@@ -20,6 +20,7 @@
 #include <optional>
 #include <stdexcept>
 
+#include "api/problem.h"
 #include "server/thread_priority.h"
 
 namespace stlrefine::server {
@@ -63,7 +64,7 @@ std::optional<HeadError> parse_head(std::string_view text, RequestHead& head) {
   std::size_t line_start = 0;
   while (text.substr(line_start, 2) == "\r\n" && line_start + 4 < text.size()) line_start += 2;
   if (text.substr(line_start, 2) == "\r\n")
-    return HeadError{400, "bad-request", "the request line is empty"};
+    return HeadError{api::http::kBadRequest, "bad-request", "the request line is empty"};
   std::size_t lines = 0;
   while (line_start < text.size()) {
     const std::size_t end = text.find("\r\n", line_start);
@@ -73,52 +74,58 @@ std::optional<HeadError> parse_head(std::string_view text, RequestHead& head) {
     for (const char ch : line) {
       const auto c = static_cast<unsigned char>(ch);
       if (c == '\r' || c == '\n' || c == 0)
-        return HeadError{400, "bad-request", "a bare CR, LF or NUL in the request head"};
+        return HeadError{api::http::kBadRequest, "bad-request",
+                         "a bare CR, LF or NUL in the request head"};
     }
     if (lines++ == 0) {
       const std::size_t sp1 = line.find(' ');
       const std::size_t sp2 = sp1 == std::string_view::npos ? sp1 : line.find(' ', sp1 + 1);
       if (sp2 == std::string_view::npos || line.find(' ', sp2 + 1) != std::string_view::npos)
-        return HeadError{400, "bad-request", "the request line is not METHOD TARGET VERSION"};
+        return HeadError{api::http::kBadRequest, "bad-request",
+                         "the request line is not METHOD TARGET VERSION"};
       head.method = std::string(line.substr(0, sp1));
       head.target = std::string(line.substr(sp1 + 1, sp2 - sp1 - 1));
       head.version = std::string(line.substr(sp2 + 1));
       if (head.method.empty() || !std::all_of(head.method.begin(), head.method.end(), [](char c) {
             return is_tchar(static_cast<unsigned char>(c));
           }))
-        return HeadError{400, "bad-request", "the method is not a token"};
+        return HeadError{api::http::kBadRequest, "bad-request", "the method is not a token"};
       if (head.target.size() > FrontEnd::kMaxTargetBytes)
-        return HeadError{414, "uri-too-long", "the request target is longer than 8192 bytes"};
+        return HeadError{api::http::kUriTooLong, "uri-too-long",
+                         "the request target is longer than 8192 bytes"};
       if (head.target.empty() || head.target.front() != '/' ||
           std::any_of(head.target.begin(), head.target.end(), [](char ch) {
             const auto c = static_cast<unsigned char>(ch);
             return c <= 0x20 || c == 0x7f;
           }))
-        return HeadError{400, "bad-request", "the request target must be an absolute path"};
+        return HeadError{api::http::kBadRequest, "bad-request",
+                         "the request target must be an absolute path"};
       if (head.version != "HTTP/1.1" && head.version != "HTTP/1.0")
-        return HeadError{400, "bad-request", "only HTTP/1.0 and HTTP/1.1 are spoken here"};
+        return HeadError{api::http::kBadRequest, "bad-request",
+                         "only HTTP/1.0 and HTTP/1.1 are spoken here"};
       continue;
     }
     if (head.fields.size() >= FrontEnd::kMaxFields)
-      return HeadError{431, "header-fields-too-large",
+      return HeadError{api::http::kHeaderFieldsTooLarge, "header-fields-too-large",
                        "more than " + std::to_string(FrontEnd::kMaxFields) + " header fields"};
     if (line.size() > FrontEnd::kMaxLineBytes)
-      return HeadError{431, "header-fields-too-large",
+      return HeadError{api::http::kHeaderFieldsTooLarge, "header-fields-too-large",
                        "a header field line is longer than " +
                            std::to_string(FrontEnd::kMaxLineBytes) + " bytes"};
     const std::size_t colon = line.find(':');
     if (colon == 0 || colon == std::string_view::npos)
-      return HeadError{400, "bad-request", "a header field line has no name"};
+      return HeadError{api::http::kBadRequest, "bad-request", "a header field line has no name"};
     const std::string_view name = line.substr(0, colon);
     if (!std::all_of(name.begin(), name.end(),
                      [](char c) { return is_tchar(static_cast<unsigned char>(c)); }))
-      return HeadError{400, "bad-request", "a header field name is not a token"};
+      return HeadError{api::http::kBadRequest, "bad-request", "a header field name is not a token"};
     const std::string_view value = trim_ows(line.substr(colon + 1));
     if (std::any_of(value.begin(), value.end(), [](char ch) {
           const auto c = static_cast<unsigned char>(ch);
           return (c < 0x20 && c != '\t') || c == 0x7f;
         }))
-      return HeadError{400, "bad-request", "a header field value has a control character"};
+      return HeadError{api::http::kBadRequest, "bad-request",
+                       "a header field value has a control character"};
     head.fields.emplace_back(std::string(name), std::string(value));
   }
   return std::nullopt;
@@ -328,8 +335,8 @@ void FrontEnd::work() {
     } catch (...) {
       // The delegate answers its own errors; nothing may take the worker down.
       try {
-        answer = Answer(
-            delegate_.refusal(&request->head, 500, "internal", "an internal error occurred"));
+        answer = Answer(delegate_.refusal(&request->head, api::http::kInternalServerError,
+                                          "internal", "an internal error occurred"));
       } catch (...) {
       }
     }
@@ -544,7 +551,7 @@ void FrontEnd::dispatch(Connection& c) {
       return;
     }
   }
-  answer(c, Answer(delegate_.refusal(&request->head, 503, "overloaded",
+  answer(c, Answer(delegate_.refusal(&request->head, api::http::kServiceUnavailable, "overloaded",
                                      "every worker is busy and " +
                                          std::to_string(options_.max_queued) +
                                          " requests wait; retry later")));
@@ -588,7 +595,7 @@ void FrontEnd::on_head(Connection& c, std::size_t head_end) {
   if (probe_lane) {
     // Over a connection cap: only what decide() answers at once (the probes, refusals).
     return answer(
-        c, Answer(delegate_.refusal(&head, 503, "overloaded",
+        c, Answer(delegate_.refusal(&head, api::http::kServiceUnavailable, "overloaded",
                                     "too many connections are open (from this address, or in all); "
                                     "retry later")));
   }
@@ -656,7 +663,8 @@ void FrontEnd::on_readable(Connection& c) {
         if (end != std::string::npos) return on_head(c, end + 4);
         c.scanned = c.in.size();
         if (c.in.size() > kMaxHeadBytes) {
-          return answer(c, Answer(delegate_.refusal(nullptr, 431, "header-fields-too-large",
+          return answer(c, Answer(delegate_.refusal(nullptr, api::http::kHeaderFieldsTooLarge,
+                                                    "header-fields-too-large",
                                                     "the request head is longer than " +
                                                         std::to_string(kMaxHeadBytes) + " bytes")));
         }
@@ -698,10 +706,10 @@ void FrontEnd::expire(Clock::time_point now) {
         if (stopping_ || (c->in_probe_lane && now > c->deadline)) {
           close(*c);
         } else if (now > c->deadline) {
-          answer(*c, Answer(delegate_.refusal(nullptr, 408, "request-timeout",
-                                              "the request head did not arrive within " +
-                                                  std::to_string(options_.head_timeout.count()) +
-                                                  " ms")));
+          answer(*c, Answer(delegate_.refusal(
+                         nullptr, api::http::kRequestTimeout, "request-timeout",
+                         "the request head did not arrive within " +
+                             std::to_string(options_.head_timeout.count()) + " ms")));
         }
         break;
       case Connection::State::Body:
@@ -711,7 +719,7 @@ void FrontEnd::expire(Clock::time_point now) {
                             c->body_expected - c->request->body.size())) {
           answer(*c,
                  Answer(delegate_.refusal(
-                     &c->request->head, 408, "request-timeout",
+                     &c->request->head, api::http::kRequestTimeout, "request-timeout",
                      "the body arrived slower than " + std::to_string(options_.min_rate / 1024) +
                          " KiB/s over " + std::to_string(options_.body_window.count()) + " ms")));
         }

@@ -28,9 +28,11 @@
 
 #include "api/memory_model.h"
 #include "api/pipeline.h"
+#include "api/plan.h"
 #include "core/error.h"
 #include "core/io/atomic_file.h"
 #include "core/io/stl.h"
+#include "server/admission.h"
 #include "server/thread_priority.h"
 #include "slicer/writers.h"
 
@@ -70,6 +72,16 @@ struct JobStore::Leftovers {
 };
 
 namespace {
+
+// A job stopped by the memory budget while other work held it (admission never answers it:
+// a job waits for its reservation).
+api::Problem job_busy_problem(std::uint64_t needed) {
+  api::Problem p = api::service_unavailable(
+      "busy", "the job needed " + std::to_string((needed + (1 << 20) - 1) >> 20) +
+                  " MiB while other work held the memory budget; submit it again");
+  p.extensions["reason"] = "memory";
+  return p;
+}
 
 constexpr const char* kJobFile = "job.json";
 constexpr const char* kInputFile = "input.stl";
@@ -156,8 +168,8 @@ bool no_space(const std::error_code& ec) {
 }
 
 api::Problem no_space_result_problem() {
-  api::Problem p = api::make_problem(
-      507, "insufficient-storage",
+  api::Problem p = api::insufficient_storage(
+      "insufficient-storage",
       "no space left on the device: the results could not be written; submit the job again "
       "later");
   p.extensions["reason"] = "no_space";
@@ -326,8 +338,8 @@ api::Problem deadline_problem(std::chrono::milliseconds deadline) {
   const double seconds = std::chrono::duration<double>(deadline).count();
   char text[32];
   std::snprintf(text, sizeof text, "%g", seconds);
-  api::Problem p = api::make_problem(
-      504, "deadline-exceeded",
+  api::Problem p = api::gateway_timeout(
+      "deadline-exceeded",
       std::string("deadline exceeded: the computation ran longer than this server's request "
                   "deadline of ") +
           text + " s and was cancelled");
@@ -389,8 +401,8 @@ nlohmann::ordered_json job_json(const JobView& job) {
 }
 
 api::Problem no_space_problem(const SubmitResult& refused) {
-  api::Problem p = api::make_problem(
-      507, "insufficient-storage",
+  api::Problem p = api::insufficient_storage(
+      "insufficient-storage",
       "not enough free space for this job's input and results on the server's data "
       "directory; retry later");
   p.extensions["reason"] = "no_space";
@@ -521,8 +533,8 @@ void JobStore::load_existing() {
         } else {
           job->state = JobState::Failed;
           job->stage = "interrupted";
-          job->problem = api::to_json(api::make_problem(
-              500, "interrupted", "the daemon stopped before this job finished; submit it again"));
+          job->problem = api::to_json(api::server_error(
+              "interrupted", "the daemon stopped before this job finished; submit it again"));
         }
         // Its input, and results it wrote before job.json could list them.
         if (!link)
@@ -707,8 +719,8 @@ api::Problem JobStore::cancel_problem(CancelReason why, bool discarded) const {
   if (why == CancelReason::ShutdownGrace || why == CancelReason::ShutdownNow) {
     char grace[32];
     std::snprintf(grace, sizeof grace, "%g", std::chrono::duration<double>(grace_).count());
-    api::Problem p = api::make_problem(
-        503, "shutting-down",
+    api::Problem p = api::service_unavailable(
+        "shutting-down",
         why == CancelReason::ShutdownGrace
             ? std::string("cancelled at shutdown: the server stopped and this job did not finish "
                           "within the shutdown grace period of ") +
@@ -719,11 +731,11 @@ api::Problem JobStore::cancel_problem(CancelReason why, bool discarded) const {
     p.extensions["reason"] = "shutdown";
     return p;
   }
-  if (why == CancelReason::None) return api::make_problem(409, "cancelled", "cancelled");
-  return api::make_problem(409, "cancelled",
-                           discarded ? "cancelled by the client (its results, ready an instant "
-                                       "later, were discarded)"
-                                     : "cancelled by the client");
+  if (why == CancelReason::None) return api::conflict("cancelled", "cancelled");
+  return api::conflict("cancelled", discarded
+                                        ? "cancelled by the client (its results, ready an instant "
+                                          "later, were discarded)"
+                                        : "cancelled by the client");
 }
 
 JobStore::Lookup JobStore::cancel(const std::string& id, const std::string& owner, JobView* out) {
@@ -859,24 +871,26 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
     const std::string input = read_file(job->dir / kInputFile);
     const auto input_bytes =
         std::span(reinterpret_cast<const std::uint8_t*>(input.data()), input.size());
+    // The request was parsed and validated when it was submitted; planned on its body now.
+    const api::RefinePlan plan =
+        api::plan_refine(job->request, input_bytes, api::ResultSink::JobFiles);
     if (config_.memory) {
-      // Its predicted peak, before any work (the face budget first, as in run_refine); it
-      // waits for that like for a slot.
-      const api::StlShape shape = api::stl_shape(input_bytes);
-      api::refuse_over_face_budget(shape.faces, job->request.refine);
-      const api::MemoryEstimate predicted =
-          api::estimate_refine_memory(input_bytes, shape, job->request, api::ResultSink::JobFiles);
-      if (predicted.peak_bytes > config_.memory->capacity())
-        throw Refused{api::memory_budget_problem(predicted, config_.memory->capacity())};
-      if (!(memory = config_.memory->try_reserve(predicted.peak_bytes))) {
+      // Its predicted peak, before any work (the face budget first); it waits for that like
+      // for a slot.
+      const ReserveFn reserve = [&](std::uint64_t peak) {
+        if ((memory = config_.memory->try_reserve(peak))) return true;
         {
           std::lock_guard lock(mutex_);
           job->stage = "waiting for memory";
         }
-        while (!(memory = config_.memory->try_reserve(predicted.peak_bytes)) && !cancelled())
+        while (!(memory = config_.memory->try_reserve(peak)) && !cancelled())
           std::this_thread::sleep_for(std::chrono::milliseconds(20));
         if (!memory) throw Error(ErrorCode::Cancelled, "cancelled", "cancelled before it started");
-      }
+        return true;
+      };
+      if (std::optional<api::Problem> refused =
+              admit(plan, config_.memory->capacity(), reserve, job_busy_problem))
+        throw Refused{*refused};
     }
     {
       // The deadline counts from here; DELETE and shutdown raise the same flag.
@@ -906,7 +920,7 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
       return true;
     };
     api::RefinedMesh refined =
-        api::run_refine_to_mesh(input_bytes, job->request, progress, &ticket->cancel, grow);
+        api::run_refine_to_mesh(input_bytes, plan, progress, &ticket->cancel, grow);
     const api::RefineOutcome& out = refined.outcome;
     report = out.report;
     // Each file is listed once it is whole, so a failure below removes exactly those.
@@ -942,14 +956,8 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
   } catch (const MemoryBudgetError& e) {
     if (job->cancel || cancel_all_) {
       state = JobState::Cancelled;
-    } else if (config_.memory && e.needed_bytes() <= config_.memory->capacity()) {
-      problem = api::make_problem(
-          503, "busy",
-          "the job needed " + std::to_string((e.needed_bytes() + (1 << 20) - 1) >> 20) +
-              " MiB while other work held the memory budget; submit it again");
-      problem->extensions["reason"] = "memory";
     } else {
-      problem = config_.memory ? api::memory_budget_problem(e, config_.memory->capacity())
+      problem = config_.memory ? memory_problem(e, config_.memory->capacity(), job_busy_problem)
                                : api::problem_from_error(e);
     }
   } catch (const Error& e) {
@@ -963,11 +971,11 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
       problem = no_space_result_problem();
     } else {
       log_line("job " + job->id + " failed: " + e.what());
-      problem = api::make_problem(500, "internal", "an internal error occurred");
+      problem = api::internal_error();
     }
   } catch (const std::exception& e) {
     log_line("job " + job->id + " failed: " + e.what());
-    problem = api::make_problem(500, "internal", "an internal error occurred");
+    problem = api::internal_error();
   }
   lease.reset();
   ::malloc_trim(0);  // what the refinement freed goes back before its reservation does
@@ -1026,9 +1034,8 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
       discard();
       job->state = JobState::Failed;
       job->stage = to_string(JobState::Failed);
-      job->problem = api::to_json(
-          no_space(*unrecorded) ? no_space_result_problem()
-                                : api::make_problem(500, "internal", "an internal error occurred"));
+      job->problem =
+          api::to_json(no_space(*unrecorded) ? no_space_result_problem() : api::internal_error());
       job->results.clear();
       job->result_bytes = 0;
       persist_or_log(*job);
@@ -1180,9 +1187,8 @@ void JobStore::shutdown(std::chrono::milliseconds grace) {
         } else {
           job->state = JobState::Failed;
           job->stage = "shutting down";
-          job->problem = api::to_json(
-              api::make_problem(503, "shutting-down",
-                                "the server shut down before this job started; submit it again"));
+          job->problem = api::to_json(api::service_unavailable(
+              "shutting-down", "the server shut down before this job started; submit it again"));
         }
         release_disk(*job);
         fs::remove(job->dir / kInputFile, ignored);

@@ -8,7 +8,7 @@
 #include <sstream>
 #include <string_view>
 
-#include "core/schemes/scheme.h"
+#include "core/schemes/registry.h"
 
 namespace stlrefine::server {
 

@@ -2,16 +2,16 @@
 // Copyright (c) 2026 stlrefine authors
 //
 // The OpenAPI 3 document of the daemon. Routes come from the daemon's own route table and
-// parameters from api/'s own name lists, so the document cannot list a route or parameter
-// the server does not serve; a parameter without a description here fails the OpenAPI test
-// (tests/server/openapi_test.cpp), so it cannot be served undocumented either.
+// parameters from api/'s parameter table (api/param_table.h), so the document cannot list a
+// route or parameter the server does not serve; a parameter without a description fails the
+// OpenAPI test (tests/server/jobs_test.cpp), so it cannot be served undocumented either.
 
-#include <map>
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "api/param_table.h"
 #include "api/params.h"
-#include "core/schemes/scheme.h"
+#include "core/schemes/registry.h"
 #include "server/daemon.h"
 #include "slicer/writers.h"
 
@@ -20,70 +20,6 @@ namespace stlrefine::server {
 namespace {
 
 using Json = nlohmann::ordered_json;
-
-struct ParamDoc {
-  const char* type;  // "string", "number", "integer"
-  const char* description;
-};
-
-// One entry per query parameter of any route.
-const std::map<std::string, ParamDoc>& param_docs() {
-  static const std::map<std::string, ParamDoc> docs = {
-      {"scheme", {"string", "Subdivision scheme."}},
-      {"levels", {"integer", "Uniform subdivision steps, 0..8."}},
-      {"crease_angle",
-       {"string",
-        "auto (default): creases found from the geometry; or a dihedral angle in degrees, "
-        "0..180, above which an edge is a crease."}},
-      {"max_faces",
-       {"integer", "Face budget of the output; refused with 422 before any work above it."}},
-      {"weld_tolerance", {"number", "Distance in mm below which STL corners are welded."}},
-      {"adaptive_tol",
-       {"number",
-        "Chordal tolerance in mm, 0..1e6: curvature-adaptive refinement until every new point "
-        "is within it of its flat edge or triangle (lsf, butterfly, sqrt3 schemes)."}},
-      {"max_level", {"integer", "Level cap of the adaptive mode, 1..8."}},
-      {"slice", {"number", "Also slice the refined mesh at this layer height (mm)."}},
-      {"slice_format", {"string", "Contour format of the slice: json, svg, cli, cli-binary."}},
-      {"layer_height", {"number", "Layer height in mm."}},
-      {"format", {"string", "Contour format: json, svg, cli, cli-binary."}},
-      {"z_min", {"number", "Lowest height to slice (mm); default the part's bottom."}},
-      {"z_max", {"number", "Highest height to slice (mm); default the part's top."}},
-      {"heights", {"string", "Explicit comma-separated slice heights in mm."}},
-      {"max_layers", {"integer", "Refuse with 422 when the plan has more layers."}},
-      {"alpha",
-       {"number", "sqrt3-unified: 1 interpolates, 0 approximates (Kobbelt), in between blends."}},
-      {"alpha_features", {"number", "sqrt3-unified: alpha of crease and corner vertices."}},
-      {"kappa",
-       {"number",
-        "loop-g2: the eigenvalues Prautzsch and Umlauf move go to kappa lambda^2, in (0, 1] "
-        "(default 0.5)."}},
-      {"ramp_steps",
-       {"integer",
-        "loop-g2: gradual modification (PU Remark 5.3) over this many steps, 0..8; 0 = off."}},
-      {"primitives",
-       {"string",
-        "auto: recognise planes, spheres, cylinders, cones and tori on the input and put "
-        "the new vertices of their regions exactly on them; off (default): do not (auto can "
-        "still turn thin faces along some rims over)."}},
-      {"primitive_tol",
-       {"number",
-        "A region is recognised when every input vertex lies within this fraction of the "
-        "bounding box diagonal of the primitive, (0, 0.01], default 1e-6."}},
-      {"max_deviation",
-       {"string",
-        "No output vertex farther than this (mm, 0..1e6) from the input surface: vertices "
-        "are pulled back towards it and counted in the report. auto (default; interpolating "
-        "schemes only, the others are measured): the input's local chordal error; 0 = no "
-        "bound, only measured; off = neither bound nor measured (with primitives=off: no "
-        "post-pass, its time and memory saved)."}},
-      {"adaptive_angle",
-       {"number",
-        "Degrees, 0..180: curvature-adaptive refinement where the normals of neighbouring "
-        "faces across a non-sharp edge differ by more (lsf, butterfly, sqrt3 schemes)."}},
-  };
-  return docs;
-}
 
 Json problem_response(const char* description) {
   return {
@@ -95,14 +31,14 @@ Json problem_response(const char* description) {
 Json query_parameters(const std::vector<std::string_view>& names) {
   Json params = Json::array();
   for (std::string_view name : names) {
-    const auto it = param_docs().find(std::string(name));
+    const api::ParamRow* row = api::find_param(name);
     Json p;
     p["name"] = name;
     p["in"] = "query";
     p["required"] = false;
-    if (it != param_docs().end()) {
-      p["description"] = it->second.description;
-      p["schema"] = {{"type", it->second.type}};
+    if (row && !row->description.empty()) {
+      p["description"] = row->description;
+      p["schema"] = {{"type", api::to_string(row->type)}};
     } else {
       p["schema"] = {{"type", "string"}};  // undocumented: the OpenAPI test fails on this
     }
@@ -303,7 +239,8 @@ const std::string& openapi_document() {
 }
 
 bool documented_parameter(const std::string& name) {
-  return param_docs().count(name) != 0;
+  const api::ParamRow* row = api::find_param(name);
+  return row && !row->description.empty();
 }
 
 }  // namespace stlrefine::server

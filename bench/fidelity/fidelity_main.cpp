@@ -26,7 +26,7 @@
 #include "bench/fidelity/svg_plot.h"
 #include "core/features/features.h"
 #include "core/mesh/build_mesh.h"
-#include "core/schemes/scheme.h"
+#include "core/schemes/registry.h"
 
 namespace fid = stlrefine::fidelity;
 using stlrefine::Mesh;

@@ -44,7 +44,7 @@
 #include "core/analysis/spectrum.h"
 #include "core/features/features.h"
 #include "core/schemes/butterfly.h"
-#include "core/schemes/scheme.h"
+#include "core/schemes/registry.h"
 #include "core/schemes/split4_host.h"
 
 using namespace stlrefine;

@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -83,6 +84,28 @@ TriangleSoup read_stl(std::span<const std::uint8_t> bytes, const StlReadOptions&
 //! read_stl on the whole file.
 //! \throw Error(InvalidParameter, field "path") when the file cannot be opened or read.
 TriangleSoup read_stl_file(const std::filesystem::path& path, const StlReadOptions& options = {});
+
+//! What an STL body is, read without parsing it into a mesh: one pass over the bytes, no
+//! allocation. read_stl's rules tell binary from ASCII (the one sniffer: the memory model
+//! predicts from this before any work).
+struct StlShape {
+  std::uint64_t bytes = 0;  //!< the body
+  //! Facets the reader will see at most: the binary count when the size rule says binary
+  //! (84 + 50 n bytes), else the "endfacet" keywords of an ASCII file; 0 for anything else
+  //! (the reader refuses it).
+  std::uint64_t faces = 0;
+  bool binary = false;
+  bool has_z = false;  //!< z_min / z_max were read (some finite corner)
+  double z_min = 0, z_max = 0;
+};
+
+//! The shape of an STL body. O(bytes), no allocation.
+StlShape stl_shape(std::span<const std::uint8_t> bytes);
+
+//! Calls fn(z0, z1, z2) for every facet of `bytes` (of shape `shape`) whose three corner z
+//! values are readable.
+void for_each_facet_z(std::span<const std::uint8_t> bytes, const StlShape& shape,
+                      const std::function<void(double, double, double)>& fn);
 
 //! Merges corners into shared vertices; vertices are numbered in order of first
 //! appearance and positions are the stored floats converted exactly to double.

@@ -565,6 +565,100 @@ class AsciiReader {
 
 }  // namespace
 
+namespace {
+
+//! Whitespace-separated tokens of an ASCII STL, in order (the shape's one pass; the reader
+//! proper is AsciiReader).
+class Tokens {
+ public:
+  explicit Tokens(std::span<const std::uint8_t> bytes)
+      : text_(reinterpret_cast<const char*>(bytes.data()), bytes.size()) {}
+  bool next(std::string_view& token) {
+    while (pos_ < text_.size() && is_space(static_cast<unsigned char>(text_[pos_]))) ++pos_;
+    if (pos_ == text_.size()) return false;
+    const std::size_t start = pos_;
+    while (pos_ < text_.size() && !is_space(static_cast<unsigned char>(text_[pos_]))) ++pos_;
+    token = text_.substr(start, pos_ - start);
+    return true;
+  }
+
+ private:
+  std::string_view text_;
+  std::size_t pos_ = 0;
+};
+
+}  // namespace
+
+StlShape stl_shape(std::span<const std::uint8_t> bytes) {
+  StlShape s;
+  s.bytes = bytes.size();
+  // read_stl's rules 1 and 2.
+  if (bytes.size() >= kPreambleBytes) {
+    const std::uint64_t n = load_u32le(bytes.data() + kHeaderBytes);
+    if (bytes.size() == kPreambleBytes + kFacetBytes * n) {
+      s.binary = true;
+      s.faces = n;
+    }
+  }
+  if (!s.binary && starts_with_solid(bytes) && looks_textual(bytes)) {
+    Tokens tokens(bytes);
+    std::string_view token;
+    while (tokens.next(token))
+      if (iequals(token, "endfacet")) ++s.faces;
+  }
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for_each_facet_z(bytes, s, [&](double a, double b, double c) {
+    for (const double z : {a, b, c}) {
+      if (!std::isfinite(z)) continue;
+      lo = std::min(lo, z);
+      hi = std::max(hi, z);
+    }
+  });
+  if (lo <= hi) {
+    s.has_z = true;
+    s.z_min = lo;
+    s.z_max = hi;
+  }
+  return s;
+}
+
+void for_each_facet_z(std::span<const std::uint8_t> bytes, const StlShape& shape,
+                      const std::function<void(double, double, double)>& fn) {
+  if (shape.binary) {
+    for (std::uint64_t f = 0; f < shape.faces; ++f) {
+      const std::uint8_t* facet = bytes.data() + kPreambleBytes + f * kFacetBytes;
+      // normal (12 bytes), then three corners of 3 floats: z at +8 of each
+      fn(double(load_f32le(facet + kCoordOffset + 8)), double(load_f32le(facet + 24 + 8)),
+         double(load_f32le(facet + 36 + 8)));
+    }
+    return;
+  }
+  if (shape.faces == 0) return;
+  Tokens tokens(bytes);
+  std::string_view token;
+  double z[3];
+  int corner = 0;
+  while (tokens.next(token)) {
+    if (iequals(token, "endfacet")) {
+      if (corner == 3) fn(z[0], z[1], z[2]);
+      corner = 0;
+      continue;
+    }
+    if (!iequals(token, "vertex")) continue;
+    std::string_view coordinate;
+    bool ok = true;
+    double value = 0;
+    for (int k = 0; k < 3 && ok; ++k) {
+      ok = tokens.next(coordinate);
+      if (!ok) break;
+      const auto [end, ec] =
+          std::from_chars(coordinate.data(), coordinate.data() + coordinate.size(), value);
+      ok = ec == std::errc() && end == coordinate.data() + coordinate.size();
+    }
+    if (ok && corner < 3) z[corner++] = value;
+  }
+}
+
 TriangleSoup read_stl(std::span<const std::uint8_t> bytes, const StlReadOptions& options) {
   options.validate();
   const std::uint64_t size = bytes.size();

@@ -5,7 +5,6 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
-#include <span>
 #include <string_view>
 #include <utility>
 #include <vector>
@@ -64,23 +63,5 @@ class Scheme {
   //! Refines one level. Reads only `coarse` (double buffer).
   virtual Level refine_once(const Level& coarse, StepStats& stats) const = 0;
 };
-
-//! Names accepted by make_scheme, in a stable order ("loop", "butterfly", ...).
-std::span<const std::string_view> scheme_names();
-
-//! Parameters some schemes take; every scheme ignores the ones it has no use for.
-struct SchemeOptions {
-  //! sqrt3-unified: alpha of smooth (and dart) input vertices, [0, 1]; 1 interpolates.
-  double alpha = 1.0;
-  //! sqrt3-unified: alpha of crease and corner input vertices (boundaries included), [0, 1].
-  double alpha_features = 1.0;
-  //! loop-g2: the moved eigenvalues go to kappa lambda^2, (0, 1] (spec 6, recommended 0.5).
-  double kappa = 0.5;
-  //! loop-g2: Remark 5.3's gradual modification over this many steps, [0, 8]; 0 = off.
-  int ramp_steps = 0;
-};
-
-//! \throw Error(InvalidParameter, field "scheme") for an unknown name.
-std::unique_ptr<Scheme> make_scheme(std::string_view name, const SchemeOptions& options = {});
 
 }  // namespace stlrefine

@@ -1,13 +1,12 @@
 // SPDX-License-Identifier: MIT
 // Copyright (c) 2026 stlrefine authors
-#include "core/schemes/scheme.h"
-
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <string>
 
 #include "core/error.h"
+#include "core/schemes/registry.h"
 
 namespace stlrefine::test {
 namespace {

@@ -17,7 +17,7 @@
 #include "core/analysis/spectrum.h"
 #include "core/schemes/butterfly.h"
 #include "core/schemes/loop.h"
-#include "core/schemes/scheme.h"
+#include "core/schemes/registry.h"
 
 namespace stlrefine::test {
 namespace {

@@ -21,7 +21,7 @@
 #include "core/schemes/butterfly_g1.h"
 #include "core/schemes/loop.h"
 #include "core/schemes/loop_g2.h"
-#include "core/schemes/scheme.h"
+#include "core/schemes/registry.h"
 #include "tests/core/test_util.h"
 #include "tests/support/shapes.h"
 

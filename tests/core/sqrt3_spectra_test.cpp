@@ -16,7 +16,7 @@
 #include <vector>
 
 #include "core/analysis/spectrum.h"
-#include "core/schemes/scheme.h"
+#include "core/schemes/registry.h"
 
 namespace stlrefine::test {
 namespace {

@@ -11,7 +11,7 @@
 #include <string>
 #include <string_view>
 
-#include "core/schemes/scheme.h"
+#include "core/schemes/registry.h"
 #include "core/schemes/sqrt3_host.h"
 #include "tests/support/mesh_queries.h"
 

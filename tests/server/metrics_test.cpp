@@ -17,7 +17,7 @@
 #include <sstream>
 #include <string>
 
-#include "core/schemes/scheme.h"
+#include "core/schemes/registry.h"
 
 namespace stlrefine::server {
 namespace {

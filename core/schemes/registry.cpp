@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT
 // Copyright (c) 2026 stlrefine authors
-#include "core/schemes/scheme.h"
+#include "core/schemes/registry.h"
 
 #include <array>
 #include <string>
@@ -21,12 +21,10 @@ namespace stlrefine {
 
 namespace {
 
-struct SchemeEntry {
-  std::string_view name;
-  std::unique_ptr<Scheme> (*make)(const SchemeOptions&);
-};
+constexpr std::string_view kUnifiedOptions[] = {"alpha", "alpha_features"};
+constexpr std::string_view kLoopG2Options[] = {"kappa", "ramp_steps"};
 
-// The one table of schemes: name -> factory. No static self-registration.
+// The one table of schemes (registry.h).
 constexpr std::array<SchemeEntry, 8> kSchemes = {{
     {"butterfly",
      [](const SchemeOptions&) -> std::unique_ptr<Scheme> {
@@ -55,16 +53,22 @@ constexpr std::array<SchemeEntry, 8> kSchemes = {{
      [](const SchemeOptions& o) -> std::unique_ptr<Scheme> {
        return std::make_unique<HostScheme<Sqrt3Stencil>>(
            "sqrt3-unified", std::make_unique<LinLuoStencil>(o.alpha, o.alpha_features));
-     }},
+     },
+     kUnifiedOptions},
     {"loop-g2",
      [](const SchemeOptions& o) -> std::unique_ptr<Scheme> {
-       return std::make_unique<HostScheme<Split4Stencil>>(
-           "loop-g2", make_loop_g2_stencil(o.kappa, o.ramp_steps));
-     }},
+       return std::make_unique<HostScheme<Split4Stencil>>("loop-g2",
+                                             make_loop_g2_stencil(o.kappa, o.ramp_steps));
+     },
+     kLoopG2Options,
+     []() -> std::unique_ptr<Split4Stencil> { return std::make_unique<LoopStencil>(); }},
     {"butterfly-g1",
      [](const SchemeOptions&) -> std::unique_ptr<Scheme> {
-       return std::make_unique<HostScheme<Split4Stencil>>("butterfly-g1",
-                                                          make_butterfly_g1_stencil());
+       return std::make_unique<HostScheme<Split4Stencil>>("butterfly-g1", make_butterfly_g1_stencil());
+     },
+     {},
+     []() -> std::unique_ptr<Split4Stencil> {
+       return std::make_unique<ButterflyStencil>(ButterflyStencil::Extraordinary::EightPoint);
      }},
 }};
 
@@ -76,13 +80,22 @@ constexpr std::array<std::string_view, kSchemes.size()> kNames = [] {
 
 }  // namespace
 
+std::span<const SchemeEntry> scheme_registry() {
+  return kSchemes;
+}
+
+const SchemeEntry* find_scheme(std::string_view name) {
+  for (const SchemeEntry& entry : kSchemes)
+    if (entry.name == name) return &entry;
+  return nullptr;
+}
+
 std::span<const std::string_view> scheme_names() {
   return kNames;
 }
 
 std::unique_ptr<Scheme> make_scheme(std::string_view name, const SchemeOptions& options) {
-  for (const SchemeEntry& entry : kSchemes)
-    if (entry.name == name) return entry.make(options);
+  if (const SchemeEntry* entry = find_scheme(name)) return entry->make(options);
   std::string known;
   for (std::string_view n : kNames) known += (known.empty() ? "" : ", ") + std::string(n);
   throw Error(ErrorCode::InvalidParameter, "unknown_scheme",
