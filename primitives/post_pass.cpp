@@ -90,6 +90,26 @@ struct InputSurface::Impl {
   //! fn(face, distance) for every face within r of p, in the tree's order.
   template <class Fn>
   void for_each_face_within(const Vec3& p, double r, Fn&& fn) const;
+
+  //! How well output face `face` agrees with the input: the best cosine between its normal
+  //! and its corners' closest input faces' normals (closest(v)) or, when none agrees within
+  //! kFoldDegrees, of the input faces within the face's longest edge of its centroid; -2 for
+  //! a face without a normal. at(v): the corner positions to measure.
+  template <class At, class Closest>
+  double agreement(const Mesh& refined, FaceId face, const At& at, const Closest& closest) const;
+
+  //! The largest normal change over the output's faces (degrees) and how many are over
+  //! kFoldDegrees (PostPassReport::worst_normal_change_deg).
+  struct Turn {
+    double worst = 0;
+    std::size_t over = 0;
+  };
+  template <class Closest>
+  Turn measure_turn(const Mesh& refined, const Closest& closest) const;
+
+  //! apply() without snapping: each new vertex pulled back within its bound in place, one
+  //! closest face per vertex kept (for the normal change), the figures summed per chunk.
+  PostPassReport apply_bound(Mesh& refined, const PostPassParams& params) const;
 };
 
 namespace {
@@ -160,6 +180,112 @@ void InputSurface::Impl::for_each_face_within(const Vec3& p, double r, Fn&& fn) 
   };
   Within within{*this, p, r, fn};
   tree.traversal(point3(p), within);
+}
+
+const double kCosTurn = std::cos(kFoldDegrees * std::numbers::pi / 180);
+
+template <class At, class Closest>
+double InputSurface::Impl::agreement(const Mesh& refined, FaceId face, const At& at,
+                                     const Closest& closest_face) const {
+  const auto vs = refined.face_vertices(face);
+  const Vec3 a = at(vs[0]), b = at(vs[1]), c = at(vs[2]);
+  const Vec3 n = cross(b - a, c - a);
+  const double len = norm(n);
+  double best = -2;
+  if (!(len > 0)) return best;
+  for (VertexId v : vs) {
+    const Vec3& in = normals[closest_face(v)];
+    if (in != Vec3{}) best = std::max(best, dot(n, in) / len);
+  }
+  if (best >= kCosTurn) return best;
+  // Its corners' closest faces disagree (corners on a crease, or just past it once snapped,
+  // are closest to the other side's chords): any input face within the face's own size of
+  // its centroid that it agrees with will do; a fold agrees with none.
+  const Vec3 centre = (a + b + c) * (1.0 / 3);
+  std::size_t near_face = 0;
+  const double r = distance(centre, closest(centre, near_face, closest_face(vs[0]))) +
+                   std::max({distance(a, b), distance(b, c), distance(c, a)});
+  for_each_face_within(centre, r, [&](std::size_t f, double) {
+    if (normals[f] != Vec3{}) best = std::max(best, dot(n, normals[f]) / len);
+  });
+  return best;
+}
+
+template <class Closest>
+InputSurface::Impl::Turn InputSurface::Impl::measure_turn(const Mesh& refined,
+                                                          const Closest& closest_face) const {
+  const auto& positions = refined.positions();
+  auto at = [&](VertexId v) { return positions[v.idx]; };
+  Turn turn;
+  std::mutex turn_mutex;
+  parallel_for_each_range(refined.num_faces(), [&](std::size_t begin, std::size_t end) {
+    Turn acc;
+    for (std::size_t g = begin; g != end; ++g) {
+      double best = agreement(refined, FaceId(static_cast<std::uint32_t>(g)), at, closest_face);
+      if (best < -1.5) continue;  // degenerate, or no corner's closest face has a normal
+      best = std::clamp(best, -1.0, 1.0);
+      acc.worst = std::max(acc.worst, std::acos(best) * 180 / std::numbers::pi);
+      acc.over += best < kCosTurn;
+    }
+    const std::lock_guard lock(turn_mutex);
+    turn.worst = std::max(turn.worst, acc.worst);
+    turn.over += acc.over;
+  });
+  return turn;
+}
+
+PostPassReport InputSurface::Impl::apply_bound(Mesh& refined, const PostPassParams& params) const {
+  const auto start = std::chrono::steady_clock::now();
+  PostPassReport report;
+  const std::size_t nv = refined.num_vertices();
+  const bool user_bound = params.max_deviation && *params.max_deviation > 0;
+  const bool bound_on = !params.max_deviation || *params.max_deviation > 0;
+  BigVector<Vec3>& out_positions = refined.mutable_positions();
+  std::vector<std::uint32_t> closest_face(nv);
+  std::mutex report_mutex;
+  parallel_for_each_range(nv, [&](std::size_t begin, std::size_t end) {
+    PostPassReport acc;
+    // Vertices near in index are near in space (a level's new vertices follow its edges).
+    std::size_t face = SIZE_MAX;
+    for (std::size_t i = begin; i != end; ++i) {
+      Vec3 p = out_positions[i];  // only this vertex is read: moving it in place is safe
+      const Vec3 q = closest(p, face, face);
+      closest_face[i] = static_cast<std::uint32_t>(face);
+      const auto& t = faces[face];
+      if (p == positions[t[0]] || p == positions[t[1]] || p == positions[t[2]])
+        continue;  // an input vertex
+      ++acc.vertices_checked;
+      double d = distance(p, q);
+      acc.max_distance_before = std::max(acc.max_distance_before, d);
+      if (bound_on) {
+        const double bound = user_bound ? *params.max_deviation : this->bound[face];
+        acc.max_bound = std::max(acc.max_bound, bound);
+        if (d > bound) {
+          const Vec3 back = q + (p - q) * (bound / d);
+          ++acc.pulled_back;
+          acc.max_pull_back = std::max(acc.max_pull_back, distance(back, p));
+          p = out_positions[i] = back;
+          d = distance(p, closest(p, face, face));
+          closest_face[i] = static_cast<std::uint32_t>(face);
+        }
+      }
+      acc.max_distance = std::max(acc.max_distance, d);
+    }
+    const std::lock_guard lock(report_mutex);
+    report.vertices_checked += acc.vertices_checked;
+    report.pulled_back += acc.pulled_back;
+    report.max_pull_back = std::max(report.max_pull_back, acc.max_pull_back);
+    report.max_distance_before = std::max(report.max_distance_before, acc.max_distance_before);
+    report.max_distance = std::max(report.max_distance, acc.max_distance);
+    report.max_bound = std::max(report.max_bound, acc.max_bound);
+  });
+  const Turn turn = measure_turn(refined, [&](VertexId v) { return closest_face[v.idx]; });
+  report.worst_normal_change_deg = turn.worst;
+  report.faces_turned_over_60_deg = turn.over;
+  report.default_bound = bound_on && !user_bound;
+  if (user_bound) report.max_bound = *params.max_deviation;
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return report;
 }
 
 InputSurface::InputSurface(const Mesh& mesh, const Features& features, const RegionMap* regions)
@@ -253,7 +379,7 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
   PostPassReport report;
   const std::size_t nv = refined.num_vertices();
   if (m.faces.empty() || nv == 0) return report;
-  const bool snap = params.snap && !m.regions.empty();
+  if (!params.snap || m.regions.empty()) return m.apply_bound(refined, params);
   const bool user_bound = params.max_deviation && *params.max_deviation > 0;
   const bool bound_on = !params.max_deviation || *params.max_deviation > 0;
   const double curve_tol = 1e-12 * m.diagonal;
@@ -459,7 +585,7 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
           o.fallback_face = static_cast<std::uint32_t>(back_face);
         }
       }
-      if (snap) {
+      {
         std::optional<Vec3> target = snap_target(v, p, d, o);
         if (!target && o.refused && d > 0) {
           // The scheme put the vertex far off (lsf on a zipped side: 2 mm): its region is
@@ -516,34 +642,13 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
   // A snap must not turn a face over: where a face ends more than kFoldDegrees from the input
   // (as measured below) and was not before the pass, its corners snapped onto one primitive
   // go back to their fallback (pulled back within the default bound only). Up to three rounds.
-  const double cos_turn = std::cos(kFoldDegrees * std::numbers::pi / 180);
+  auto closest_of = [&](VertexId v) { return out[v.idx].face; };
   auto agreement = [&](FaceId face, bool before) {
-    const auto vs = refined.face_vertices(face);
     auto at = [&](VertexId v) {
       const Outcome& o = out[v.idx];
       return before && o.is_new ? o.original : positions[v.idx];
     };
-    const Vec3 n = cross(at(vs[1]) - at(vs[0]), at(vs[2]) - at(vs[0]));
-    const double len = norm(n);
-    double best = -2;
-    if (!(len > 0)) return best;
-    for (VertexId v : vs) {
-      const Vec3& in = m.normals[out[v.idx].face];
-      if (in != Vec3{}) best = std::max(best, dot(n, in) / len);
-    }
-    if (best >= cos_turn) return best;
-    // Its corners' closest faces disagree (corners on a crease, or just past it once snapped,
-    // are closest to the other side's chords): any input face within the face's own size of
-    // its centroid that it agrees with will do; a fold agrees with none.
-    const Vec3 a = at(vs[0]), b = at(vs[1]), c = at(vs[2]);
-    const Vec3 centre = (a + b + c) * (1.0 / 3);
-    std::size_t near_face = 0;
-    const double r = distance(centre, closest(centre, near_face, out[vs[0].idx].face)) +
-                     std::max({distance(a, b), distance(b, c), distance(c, a)});
-    m.for_each_face_within(centre, r, [&](std::size_t f, double) {
-      if (m.normals[f] != Vec3{}) best = std::max(best, dot(n, m.normals[f]) / len);
-    });
-    return best;
+    return m.agreement(refined, face, at, closest_of);
   };
   // Above float32 rounding of the coordinates (an STL stores them so): 1e-6 of the diagonal.
   const double collapse = 1e-6 * m.diagonal;
@@ -556,7 +661,7 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
     const Vec3 a = at(vs[0]), b = at(vs[1]), c = at(vs[2]);
     return std::min({distance(a, b), distance(b, c), distance(c, a)});
   };
-  for (int round = 0; round < 3 && snap; ++round) {
+  for (int round = 0; round < 3; ++round) {
     std::vector<std::uint32_t> revert;
     for (std::size_t g = 0; g < refined.num_faces(); ++g) {
       const FaceId face(static_cast<std::uint32_t>(g));
@@ -566,8 +671,8 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
           shortest_edge(face, false) < collapse && shortest_edge(face, true) >= collapse;
       const double after = agreement(face, false);
       if (!collapsed) {
-        if (after < -1.5 || after >= cos_turn) continue;
-        if (agreement(face, true) < cos_turn) continue;  // the scheme's, not the pass's
+        if (after < -1.5 || after >= kCosTurn) continue;
+        if (agreement(face, true) < kCosTurn) continue;  // the scheme's, not the pass's
       }
       // A vertex snapped onto a crease curve stays: a face with its three corners on the
       // curve (butterfly makes them along zipped rims) lies across the curve's chord, and no
@@ -608,26 +713,7 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
     report.max_bound = std::max(report.max_bound, o.bound);
     report.snaps_reverted += o.reverted;
   }
-  // The normal change (PostPassReport::worst_normal_change_deg).
-  struct Turn {
-    double worst = 0;
-    std::size_t over = 0;
-  };
-  Turn turn;
-  std::mutex turn_mutex;
-  parallel_for_each_range(refined.num_faces(), [&](std::size_t begin, std::size_t end) {
-    Turn acc;
-    for (std::size_t g = begin; g != end; ++g) {
-      double best = agreement(FaceId(static_cast<std::uint32_t>(g)), false);
-      if (best < -1.5) continue;  // degenerate, or no corner's closest face has a normal
-      best = std::clamp(best, -1.0, 1.0);
-      acc.worst = std::max(acc.worst, std::acos(best) * 180 / std::numbers::pi);
-      acc.over += best < cos_turn;
-    }
-    const std::lock_guard lock(turn_mutex);
-    turn.worst = std::max(turn.worst, acc.worst);
-    turn.over += acc.over;
-  });
+  const Impl::Turn turn = m.measure_turn(refined, closest_of);
   report.worst_normal_change_deg = turn.worst;
   report.faces_turned_over_60_deg = turn.over;
   report.default_bound = bound_on && !user_bound;
