@@ -234,6 +234,38 @@ InputSurface::Impl::Turn InputSurface::Impl::measure_turn(const Mesh& refined,
   return turn;
 }
 
+namespace {
+
+// Adds the counts and keeps the largest figures of `part` (a chunk's, or one vertex's).
+void add_figures(PostPassReport& total, const PostPassReport& part) {
+  total.vertices_checked += part.vertices_checked;
+  total.snapped += part.snapped;
+  total.snapped_to_curve += part.snapped_to_curve;
+  total.snap_refused += part.snap_refused;
+  total.snaps_reverted += part.snaps_reverted;
+  total.pulled_back += part.pulled_back;
+  total.max_snap_move = std::max(total.max_snap_move, part.max_snap_move);
+  total.max_pull_back = std::max(total.max_pull_back, part.max_pull_back);
+  total.max_distance_before = std::max(total.max_distance_before, part.max_distance_before);
+  total.max_distance = std::max(total.max_distance, part.max_distance);
+  total.max_bound = std::max(total.max_bound, part.max_bound);
+}
+
+// The report's last figures: the normal change, the bound, the time.
+PostPassReport finish_report(PostPassReport report, double worst_normal_change_deg,
+                             std::size_t faces_turned, const PostPassParams& params,
+                             std::chrono::steady_clock::time_point start) {
+  const bool user_bound = params.max_deviation && *params.max_deviation > 0;
+  report.worst_normal_change_deg = worst_normal_change_deg;
+  report.faces_turned_over_60_deg = faces_turned;
+  report.default_bound = !params.max_deviation;
+  if (user_bound) report.max_bound = *params.max_deviation;
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return report;
+}
+
+}  // namespace
+
 PostPassReport InputSurface::Impl::apply_bound(Mesh& refined, const PostPassParams& params) const {
   const auto start = std::chrono::steady_clock::now();
   PostPassReport report;
@@ -272,20 +304,10 @@ PostPassReport InputSurface::Impl::apply_bound(Mesh& refined, const PostPassPara
       acc.max_distance = std::max(acc.max_distance, d);
     }
     const std::lock_guard lock(report_mutex);
-    report.vertices_checked += acc.vertices_checked;
-    report.pulled_back += acc.pulled_back;
-    report.max_pull_back = std::max(report.max_pull_back, acc.max_pull_back);
-    report.max_distance_before = std::max(report.max_distance_before, acc.max_distance_before);
-    report.max_distance = std::max(report.max_distance, acc.max_distance);
-    report.max_bound = std::max(report.max_bound, acc.max_bound);
+    add_figures(report, acc);
   });
   const Turn turn = measure_turn(refined, [&](VertexId v) { return closest_face[v.idx]; });
-  report.worst_normal_change_deg = turn.worst;
-  report.faces_turned_over_60_deg = turn.over;
-  report.default_bound = bound_on && !user_bound;
-  if (user_bound) report.max_bound = *params.max_deviation;
-  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return report;
+  return finish_report(report, turn.worst, turn.over, params, start);
 }
 
 InputSurface::InputSurface(const Mesh& mesh, const Features& features, const RegionMap* regions)
@@ -701,25 +723,22 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
   for (std::size_t i = 0; i < nv; ++i) {
     const Outcome& o = out[i];
     if (!o.is_new) continue;
-    ++report.vertices_checked;
-    report.snapped += o.snapped && !o.to_curve;
-    report.snapped_to_curve += o.to_curve;
-    report.snap_refused += o.refused;
-    report.pulled_back += o.pulled;
-    report.max_snap_move = std::max(report.max_snap_move, o.snap_move);
-    report.max_pull_back = std::max(report.max_pull_back, o.pull_back);
-    report.max_distance_before = std::max(report.max_distance_before, o.distance_before);
-    report.max_distance = std::max(report.max_distance, o.distance_after);
-    report.max_bound = std::max(report.max_bound, o.bound);
-    report.snaps_reverted += o.reverted;
+    PostPassReport one;
+    one.vertices_checked = 1;
+    one.snapped = o.snapped && !o.to_curve;
+    one.snapped_to_curve = o.to_curve;
+    one.snap_refused = o.refused;
+    one.snaps_reverted = o.reverted;
+    one.pulled_back = o.pulled;
+    one.max_snap_move = o.snap_move;
+    one.max_pull_back = o.pull_back;
+    one.max_distance_before = o.distance_before;
+    one.max_distance = o.distance_after;
+    one.max_bound = o.bound;
+    add_figures(report, one);
   }
   const Impl::Turn turn = m.measure_turn(refined, closest_of);
-  report.worst_normal_change_deg = turn.worst;
-  report.faces_turned_over_60_deg = turn.over;
-  report.default_bound = bound_on && !user_bound;
-  if (user_bound) report.max_bound = *params.max_deviation;
-  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return report;
+  return finish_report(report, turn.worst, turn.over, params, start);
 }
 
 }  // namespace stlrefine::primitives
