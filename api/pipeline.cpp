@@ -134,7 +134,6 @@ RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRe
   const bool measure_only = approximating && !prim.max_deviation_given;
   PrimitiveOptions reported = prim;
   if (measure_only) reported.max_deviation = 0;
-  std::size_t snap_turned_faces = 0;  // > 0: the snaps were withdrawn, see below
   if (surface) {
     const CancelScope cancel_scope(cancel);  // a disconnect or deadline stops the pass too
     primitives::PostPassParams pp;
@@ -148,32 +147,7 @@ RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRe
         bytes.size() + surface_bytes + mesh_bytes(refined.mesh) + positions_bytes +
         primitives::InputSurface::predict_apply_bytes(refined.mesh.num_vertices());
     if (grow && !grow(need)) throw MemoryBudgetError("primitives", refined.report.levels, need);
-    if (pp.snap) {
-      // The snaps are kept only when they turn no more faces over 60 degrees than the
-      // deviation bound alone does (issue 17 item 2: they still turn thin faces along some
-      // rims over); otherwise the bound alone is applied and the report says why.
-      BigVector<Vec3> refined_positions = refined.mesh.mutable_positions();
-      primitives::PostPassReport snapped = surface->apply(refined.mesh, pp);
-      if (snapped.faces_turned_over_60_deg > 0) {
-        BigVector<Vec3> snapped_positions = refined.mesh.mutable_positions();
-        refined.mesh.mutable_positions() = refined_positions;
-        pp.snap = false;
-        primitives::PostPassReport bound_only = surface->apply(refined.mesh, pp);
-        if (bound_only.faces_turned_over_60_deg < snapped.faces_turned_over_60_deg) {
-          snap_turned_faces = snapped.faces_turned_over_60_deg;
-          bound_only.seconds += snapped.seconds;
-          post = bound_only;
-        } else {
-          refined.mesh.mutable_positions() = std::move(snapped_positions);
-          snapped.seconds += bound_only.seconds;
-          post = snapped;
-        }
-      } else {
-        post = snapped;
-      }
-    } else {
-      post = surface->apply(refined.mesh, pp);
-    }
+    post = surface->apply_guarded(refined.mesh, pp);
     post->detect_seconds = detect_seconds;
     surface.reset();
     refined.features = Features{};  // the rest needs only the mesh
@@ -201,9 +175,9 @@ RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRe
   if (post && !measure_only) {
     out.report["primitives"] =
         primitives_report_json(regions ? &*regions : nullptr, *post, request.primitives);
-    if (snap_turned_faces > 0)
+    if (post->withdrawn_turned_faces > 0)
       out.report["primitives"]["withdrawn"] =
-          "the snaps turned " + std::to_string(snap_turned_faces) +
+          "the snaps turned " + std::to_string(post->withdrawn_turned_faces) +
           " faces more than 60 degrees (thin faces along rims): not applied; the regions are "
           "listed, the output has the deviation bound alone";
   } else {

@@ -741,4 +741,24 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
   return finish_report(report, turn.worst, turn.over, params, start);
 }
 
+PostPassReport InputSurface::apply_guarded(Mesh& refined, const PostPassParams& params) const {
+  if (!params.snap) return apply(refined, params);
+  BigVector<Vec3> refined_positions = refined.mutable_positions();
+  PostPassReport snapped = apply(refined, params);
+  if (snapped.faces_turned_over_60_deg == 0) return snapped;
+  BigVector<Vec3> snapped_positions = refined.mutable_positions();
+  refined.mutable_positions() = std::move(refined_positions);
+  PostPassParams bound_only_params = params;
+  bound_only_params.snap = false;
+  PostPassReport bound_only = apply(refined, bound_only_params);
+  if (bound_only.faces_turned_over_60_deg < snapped.faces_turned_over_60_deg) {
+    bound_only.withdrawn_turned_faces = snapped.faces_turned_over_60_deg;
+    bound_only.seconds += snapped.seconds;
+    return bound_only;
+  }
+  refined.mutable_positions() = std::move(snapped_positions);
+  snapped.seconds += bound_only.seconds;
+  return snapped;
+}
+
 }  // namespace stlrefine::primitives

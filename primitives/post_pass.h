@@ -64,6 +64,9 @@ struct PostPassReport {
   double worst_normal_change_deg = 0;
   //! Output faces whose normal change is over kFoldDegrees (a fold or a visible ridge).
   std::size_t faces_turned_over_60_deg = 0;
+  //! apply_guarded: > 0 when the snaps turned this many faces over kFoldDegrees, more than
+  //! the deviation bound alone, and were withdrawn (the figures are then the bound's).
+  std::size_t withdrawn_turned_faces = 0;
   double seconds = 0;         //!< apply()
   double detect_seconds = 0;  //!< region detection and the surface's construction (the caller's)
 };
@@ -95,6 +98,11 @@ class InputSurface {
   //! Under a CancelScope (core/parallel.h) a raised flag stops it within a chunk of work:
   //! Error(Cancelled), `refined` partly moved.
   PostPassReport apply(Mesh& refined, const PostPassParams& params) const;
+  //! apply(), with snaps kept only when they turn no more faces over kFoldDegrees than the
+  //! deviation bound alone does (they can still turn thin faces along some rims over);
+  //! otherwise `refined` gets the bound alone and report.withdrawn_turned_faces says how
+  //! many the snaps turned. Holds a copy of the positions while it decides.
+  PostPassReport apply_guarded(Mesh& refined, const PostPassParams& params) const;
 
   //! Bytes the input surface holds from its construction to its destruction (its copy of the
   //! positions and triangles, per-face normals, bounds, regions and crease links, the AABB
