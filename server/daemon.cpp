@@ -2,12 +2,8 @@
 // Copyright (c) 2026 stlrefine authors
 #include "server/daemon.h"
 
-// httplib.h must see the same CPPHTTPLIB_*_SUPPORT macros Debian's libcpp-httplib.so was
-// built with (Request has an extra member under OPENSSL): they come from the
-// httplib::httplib target (pkg-config cflags), never from here.
 #include <arpa/inet.h>
 #include <fcntl.h>
-#include <httplib.h>
 #include <malloc.h>
 #include <netinet/in.h>
 #include <poll.h>
@@ -48,90 +44,56 @@
 #include "core/io/stl.h"
 #include "server/admission.h"
 #include "server/front_end.h"
+#include "server/http.h"
+#include "server/http_adapter.h"
 #include "server/metrics.h"
 #include "server/request_watch.h"
 #include "slicer/writers.h"
 #include "web/assets.h"
 
-// Hardening around cpp-httplib 0.11.4 (Debian 12), and why each piece is needed:
+// The hardening, and why each piece is needed:
 //
-//  - No library thread ever reads from a client. 0.11.4 reads a connection's head and body
-//    on a pool thread with a per-recv timeout and no limit on the head's size or field
-//    count: a few hundred clients trickling bytes starve every other request, and a 100 MB
-//    header line is buffered whole. HttpServer hands every accepted socket to the
-//    FrontEnd (front_end.h), one epoll thread that reads heads (bounded size, field count
-//    and time: 431 / 408), decides on them here (Impl::decide), reads accepted bodies at a
-//    minimum rate, and only then gives the complete request to a worker, which runs the
-//    library's own request processing on a stream that replays the head. /healthz and
-//    /readyz are answered on the event loop itself, so they never wait for a worker.
+//  - No library thread ever reads from a client. cpp-httplib 0.11.4 reads a connection's
+//    head and body on a pool thread with a per-recv timeout and no limit on the head's size
+//    or field count: a few hundred clients trickling bytes starve every other request, and a
+//    100 MB header line is buffered whole. The library only binds and accepts here
+//    (http_adapter.h's Listener); every accepted socket goes to the FrontEnd (front_end.h),
+//    one epoll thread that reads heads (bounded size, field count and time: 431 / 408),
+//    decides on them here (Impl::decide), reads accepted bodies at a minimum rate, and only
+//    then gives the complete request, body included, to a worker as an HttpRequest
+//    (http.h). /healthz and /readyz are answered on the event loop itself, so they never
+//    wait for a worker.
 //  - decide() runs every check that needs only the request line and headers before the
 //    body is read: route (404), method (405), Transfer-Encoding or no Content-Length on
-//    POST (411: 0.11.4 reads such bodies without applying the payload limit), any
-//    Content-Encoding (415: the library would inflate gzip/brotli bodies with no limit on
-//    the inflated size), Content-Type (415), Content-Length over the cap (413), a body on
+//    POST (411), any Content-Encoding (415: no inflating of gzip/brotli bodies with no limit
+//    on the inflated size), Content-Type (415), Content-Length over the cap (413), a body on
 //    a route that takes none (400), parameters (400) and a full house (503). An
 //    `Expect: 100-continue` gets the refusal instead of 100, so a refused upload is never
 //    sent. After any answer the front end drops what the client still sends and then
-//    closes, so a client still uploading is not reset and reads its answer.
-//  - keep_alive_max_count(1): every connection carries one request.
-//  - set_payload_max_length stays as the library's own backstop; the error handler gives
-//    every library answer >= 400 with an empty body (400, 404, 413, ...) a problem+json body.
+//    closes, so a client still uploading is not reset and reads its answer. Every
+//    connection carries one request.
 //  - Compute requests take a ComputeSlots lease and get 503 + Retry-After at once when
 //    none is free. A RequestWatch cancels them when the client hangs up or their deadline
 //    (--request-deadline) passes.
 //  - Memory: decide() reserves a compute request's (or job's) body in the MemoryBudget
-//    before it is read (503 when it does not fit now, 413 when it never can); the handler grows
+//    as it is read (503 when it does not fit now, 413 when it never can); the handler grows
 //    that to the request's predicted peak (api/memory_model.h) before any work (422 naming the
 //    parameter when one request may never have that much, 503 when it does not fit next to
 //    the running ones) and shrinks it to the answer once computed; the rest is given back
 //    when the connection closes.
-//  - httplib's default socket options set SO_REUSEPORT: a second daemon on the same port
-//    would bind successfully and share the traffic. Ours set SO_REUSEADDR only. The
-//    library listens with a backlog of 5; HttpServer widens it.
-//  - Without an exception handler 0.11.4 copies what() into an EXCEPTION_WHAT response
-//    header; ours answers a generic 500 and logs what() on stderr only.
+//  - An exception out of a handler is a generic 500; its what() is logged on stderr only.
 
 namespace stlrefine::server {
 
 namespace {
 
-using httplib::Request;
-using httplib::Response;
-using HandlerResponse = httplib::Server::HandlerResponse;
+using Request = HttpRequest;
+using Response = HttpAnswer;
 
 constexpr const char* kStlContentType = "model/stl";
 constexpr const char* kJsonContentType = "application/json";
 constexpr const char* kReportHeader = "X-Stlrefine-Report";
 constexpr const char* kZipContentType = "application/zip";
-
-//! The accept loop's task queue: runs the task at once. The task only hands the socket to
-//! the FrontEnd (HttpServer::process_and_close_socket), so the accept loop never waits.
-class InlineTaskQueue : public httplib::TaskQueue {
- public:
-  void enqueue(std::function<void()> fn) override { fn(); }
-  void shutdown() override {}
-};
-
-//! httplib::Server used for binding and accepting only: its accepted sockets go to the
-//! FrontEnd, which reads requests and writes answers itself (the library's response writer
-//! stops mid-body once its accept loop has ended, and serves Range requests past the body).
-class HttpServer : public httplib::Server {
- public:
-  std::function<void(socket_t)> on_accept;
-
-  //! 0.11.4 listens with a backlog of 5 (CPPHTTPLIB_LISTEN_BACKLOG, built into the shared
-  //! library); listen() again on the bound socket raises it.
-  void widen_backlog() {
-    const socket_t sock = svr_sock_;
-    if (sock != INVALID_SOCKET) ::listen(sock, SOMAXCONN);
-  }
-
- private:
-  bool process_and_close_socket(socket_t sock) override {
-    on_accept(sock);
-    return true;
-  }
-};
 
 enum class RouteKind {
   Compute,  // POST with an STL body, answered synchronously, takes a compute slot
@@ -240,7 +202,7 @@ std::string request_id(const std::string& given) {
 }
 
 std::string request_id(const Request& req) {
-  return request_id(req.get_header_value("X-Request-Id"));
+  return request_id(req.header("X-Request-Id"));
 }
 
 std::string lowercase(std::string_view s) {
@@ -264,16 +226,6 @@ std::string media_type(const std::string& content_type) {
   return lowercase(v);
 }
 
-// Parameters come from the query string only. httplib also decodes an
-// application/x-www-form-urlencoded *body* into req.params, which for us is STL bytes.
-// Its query parser is not used either: it keeps only the last '='-part of a value
-// ("levels=x=2" is levels 2), drops pairs without a name and merges identical duplicates.
-api::RawParams raw_params(const Request& req) {
-  const std::size_t q = req.target.find('?');
-  if (q == std::string::npos) return {};
-  return api::parse_query(std::string_view(req.target).substr(q + 1));
-}
-
 // One write per line: worker threads log concurrently, and a line built with several <<
 // would interleave with theirs.
 void log_line(const std::string& line) {
@@ -285,116 +237,26 @@ void send_problem(Response& res, const api::Problem& problem) {
   res.set_content(api::problem_body(problem), api::kProblemContentType);
 }
 
-//! A byte range of an answer (RFC 9110 14.1.2).
-struct ByteRange {
-  enum class Kind { Whole, Partial, Unsatisfiable };
-  Kind kind = Kind::Whole;
-  std::uint64_t first = 0, last = 0;  // Partial: inclusive, inside the body
-};
-
-// A decimal number; saturates at the largest value (a last position past the body is
-// clamped anyway, a first position past it is unsatisfiable either way).
-std::optional<std::uint64_t> range_number(std::string_view text) {
-  if (text.empty() ||
-      !std::all_of(text.begin(), text.end(), [](char c) { return c >= '0' && c <= '9'; }))
-    return std::nullopt;
-  std::uint64_t value = 0;
-  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (ec == std::errc::result_out_of_range) return std::numeric_limits<std::uint64_t>::max();
-  if (ec != std::errc() || end != text.data() + text.size()) return std::nullopt;
-  return value;
-}
-
-//! The one range of `header` against a body of `length` bytes. A header that is not one
-//! well-formed byte range (another unit, bad syntax, several ranges) is ignored: the whole
-//! body is sent, as RFC 9110 allows. Nothing outside [0, length) is ever selected.
-ByteRange parse_byte_range(std::string_view header, std::uint64_t length) {
-  ByteRange whole;
-  constexpr std::string_view kUnit = "bytes=";
-  if (header.size() < kUnit.size() || lowercase(header.substr(0, kUnit.size())) != kUnit)
-    return whole;
-  std::string_view spec = header.substr(kUnit.size());
-  while (!spec.empty() && (spec.front() == ' ' || spec.front() == '\t')) spec.remove_prefix(1);
-  while (!spec.empty() && (spec.back() == ' ' || spec.back() == '\t')) spec.remove_suffix(1);
-  const std::size_t dash = spec.find('-');
-  if (dash == std::string_view::npos || spec.find(',') != std::string_view::npos) return whole;
-  const std::string_view first_text = spec.substr(0, dash), last_text = spec.substr(dash + 1);
-  ByteRange r;
-  if (first_text.empty()) {  // a suffix: the last N bytes
-    const std::optional<std::uint64_t> suffix = range_number(last_text);
-    if (!suffix) return whole;
-    if (*suffix == 0 || length == 0) return {ByteRange::Kind::Unsatisfiable, 0, 0};
-    r.first = length - std::min(*suffix, length);
-    r.last = length - 1;
-  } else {
-    const std::optional<std::uint64_t> first = range_number(first_text);
-    if (!first) return whole;
-    std::uint64_t last = std::numeric_limits<std::uint64_t>::max();
-    if (!last_text.empty()) {
-      const std::optional<std::uint64_t> given = range_number(last_text);
-      if (!given || *given < *first) return whole;  // invalid: ignored
-      last = *given;
-    }
-    if (*first >= length) return {ByteRange::Kind::Unsatisfiable, 0, 0};
-    r.first = *first;
-    r.last = std::min(last, length - 1);
-  }
-  r.kind = ByteRange::Kind::Partial;
-  return r;
-}
-
-//! A complete HTTP/1.1 answer the front end writes itself (one request per connection).
-std::string raw_answer(int status, const std::string& content_type, const std::string& body,
-                       const httplib::Headers& headers, bool head_only) {
-  std::string out =
-      "HTTP/1.1 " + std::to_string(status) + " " + api::reason_phrase(status) + "\r\n";
-  out += "Content-Type: " + content_type + "\r\n";
-  out += "Content-Length: " + std::to_string(body.size()) + "\r\n";
-  out += "Connection: close\r\n";
-  for (const auto& [name, value] : headers) out += name + ": " + value + "\r\n";
-  out += "\r\n";
-  if (!head_only) out += body;
-  return out;
-}
-
-//! A request as httplib would have parsed it from the head, for the checks in decide().
-Request to_request(const RequestHead& head) {
-  Request req;
-  req.method = head.method;
-  req.target = head.target;
-  req.version = head.version;
-  const std::size_t q = head.target.find('?');
-  req.path = httplib::detail::decode_url(head.target.substr(0, q), false);
-  if (q != std::string::npos)
-    httplib::detail::parse_query_text(head.target.substr(q + 1), req.params);
-  for (const auto& [name, value] : head.fields) req.headers.emplace(name, value);
-  req.remote_addr = head.remote_ip;
-  req.remote_port = head.remote_port;
-  return req;
-}
-
 }  // namespace
 
 struct Daemon::Impl : FrontEndDelegate {
   explicit Impl(DaemonConfig c);
 
-  void install();
   std::optional<api::Problem> precheck(const Request& req) const;
   api::Problem busy_problem(bool stopping) const;
   //! Headers a problem's status calls for (Retry-After, Allow, WWW-Authenticate).
-  httplib::Headers problem_headers(const api::Problem& problem) const;
+  Fields problem_headers(const api::Problem& problem) const;
   void respond(Response& res, const api::Problem& problem) const;
-  //! The handlers. Large bodies go into `big` (a view kept alive by big.keep, or a file),
-  //! small ones into res.
-  void route(const Request& req, ReadRequest& read, Response& res, Answer& big, bool& ranges);
-  void compute(const Request& req, ReadRequest& read, Response& res, Answer& big,
-               const Route& route);
+  //! The handlers. Large bodies go into res.large (a view kept alive by large.keep, a file,
+  //! or bytes made as they are sent), small ones into res.body.
+  void route(const Request& req, ReadRequest& read, Response& res, bool& ranges);
+  void compute(const Request& req, ReadRequest& read, Response& res, const Route& route);
   void submit_job(const Request& req, std::string_view body, Response& res);
-  void job_item(const Request& req, Response& res, Answer& big);
-  void page(const Request& req, Response& res, Answer& big, std::string_view name) const;
-  //! The answer the front end writes: the head from res, the body from res or big, one byte
-  //! range of it when `ranges` and the client asked; recorded when it is written.
-  Answer finish(const Request& req, Response& res, Answer big, bool ranges,
+  void job_item(const Request& req, Response& res);
+  void page(const Request& req, Response& res, std::string_view name) const;
+  //! The answer the front end writes (http_adapter.h's frame_answer), with its
+  //! X-Request-Id, recorded when it is written.
+  Answer finish(const Request& req, Response res, bool ranges,
                 std::chrono::steady_clock::time_point accepted);
   //! /readyz: 200 with the slots, or the busy / shutting-down problem.
   std::pair<std::string, std::optional<api::Problem>> readiness() const;
@@ -423,7 +285,7 @@ struct Daemon::Impl : FrontEndDelegate {
   api::RequestLimits limits;
   ComputeSlots slots;
   MemoryBudget memory;
-  HttpServer http;
+  Listener listener{[this](int fd) { front->adopt(fd); }};
   std::unique_ptr<FrontEnd> front;
   RequestWatch watch;
   std::atomic<bool> running{false};   // run() is active
@@ -501,7 +363,6 @@ Daemon::Impl::Impl(DaemonConfig c)
   fo.min_rate = config.min_transfer_rate;
   fo.worker_nice = config.compute_nice;
   front = std::make_unique<FrontEnd>(fo, *this);
-  install();
 }
 
 std::optional<api::Problem> Daemon::Impl::precheck(const Request& req) const {
@@ -527,7 +388,7 @@ std::optional<api::Problem> Daemon::Impl::precheck(const Request& req) const {
     // The library reads a DELETE body (a chunked one without any limit) and leaves a GET
     // body unread; neither route takes one.
     // get_header_value returns a copy: keep it alive while the view is used.
-    const std::string length_header = req.get_header_value("Content-Length");
+    const std::string length_header = req.header("Content-Length");
     std::string_view length = length_header;
     while (length.size() > 1 && length.front() == '0') length.remove_prefix(1);
     if (req.has_header("Transfer-Encoding") || (!length.empty() && length != "0")) {
@@ -543,28 +404,26 @@ std::optional<api::Problem> Daemon::Impl::precheck(const Request& req) const {
   // to nothing else.
   if (req.has_header("Transfer-Encoding"))
     return api::length_required("length-required",
-                                "Transfer-Encoding (" +
-                                    shortened(req.get_header_value("Transfer-Encoding")) +
+                                "Transfer-Encoding (" + shortened(req.header("Transfer-Encoding")) +
                                     ") is not accepted; send the body with a Content-Length");
   if (!req.has_header("Content-Length"))
     return api::length_required("length-required", "a POST body needs a Content-Length header");
-  const std::string length_text = req.get_header_value("Content-Length");
+  const std::string length_text = req.header("Content-Length");
   std::uint64_t length = 0;
   const auto [end, ec] =
       std::from_chars(length_text.data(), length_text.data() + length_text.size(), length);
-  if (req.get_header_value_count("Content-Length") != 1 || length_text.empty() ||
-      ec != std::errc() || end != length_text.data() + length_text.size())
+  if (req.header_count("Content-Length") != 1 || length_text.empty() || ec != std::errc() ||
+      end != length_text.data() + length_text.size())
     return api::bad_request("bad-request", "Content-Length must be one decimal number, not '" +
                                                shortened(length_text) + "'");
   if (req.has_header("Content-Encoding")) {
     api::Problem p = api::unsupported_media_type(
-        "unsupported-media-type", "Content-Encoding '" +
-                                      shortened(req.get_header_value("Content-Encoding")) +
+        "unsupported-media-type", "Content-Encoding '" + shortened(req.header("Content-Encoding")) +
                                       "' is not accepted; send the STL bytes as they are");
     p.field = "Content-Encoding";
     return p;
   }
-  const std::string type = media_type(req.get_header_value("Content-Type"));
+  const std::string type = media_type(req.header("Content-Type"));
   // curl --data-binary labels the body application/x-www-form-urlencoded unless told
   // otherwise. The bytes arrive unchanged and are never form-decoded, so the plain
   // `curl --data-binary @part.stl URL` a user types is accepted as raw STL.
@@ -573,7 +432,7 @@ std::optional<api::Problem> Daemon::Impl::precheck(const Request& req) const {
     api::Problem p = api::unsupported_media_type(
         "unsupported-media-type",
         "Content-Type must be model/stl or application/octet-stream, not '" +
-            shortened(req.get_header_value("Content-Type")) + "'");
+            shortened(req.header("Content-Type")) + "'");
     p.field = "Content-Type";
     return p;
   }
@@ -589,11 +448,11 @@ std::optional<api::Problem> Daemon::Impl::precheck(const Request& req) const {
   // Parameters, before the body is uploaded.
   try {
     if (route->kind == RouteKind::Submit || route->path == std::string_view("/v1/refine"))
-      api::parse_refine_params(raw_params(req), limits);
+      api::parse_refine_params(req.parameters(), limits);
     else if (route->path == std::string_view("/v1/slice"))
-      api::parse_slice_params(raw_params(req), limits);
+      api::parse_slice_params(req.parameters(), limits);
     else
-      api::parse_info_params(raw_params(req));
+      api::parse_info_params(req.parameters());
   } catch (const Error& e) {
     return api::problem_from_error(e);
   }
@@ -631,8 +490,8 @@ api::Problem Daemon::Impl::memory_busy_problem(std::uint64_t predicted) const {
   return p;
 }
 
-httplib::Headers Daemon::Impl::problem_headers(const api::Problem& problem) const {
-  httplib::Headers h;
+Fields Daemon::Impl::problem_headers(const api::Problem& problem) const {
+  Fields h;
   // 507: space comes back as finished jobs expire.
   if (problem.status == api::http::kServiceUnavailable ||
       problem.status == api::http::kInsufficientStorage)
@@ -676,25 +535,25 @@ void Daemon::Impl::record(const std::string& method, const std::string& path, in
 
 std::string Daemon::Impl::front_answer(const Request* req, const api::Problem& problem) {
   const std::string id = req ? request_id(*req) : request_id(std::string());
-  httplib::Headers headers = problem_headers(problem);
+  Fields headers = problem_headers(problem);
   headers.emplace("X-Request-Id", id);
   const std::string body = api::problem_body(problem);
   const bool head_only = req && req->method == "HEAD";
   record(req ? req->method : "-", req ? req->path : "-", problem.status,
          head_only ? 0 : body.size(), 0.0, id, req ? req->remote_addr : "");
-  return raw_answer(problem.status, api::kProblemContentType, body, headers, head_only);
+  return whole_answer(problem.status, api::kProblemContentType, body, headers, head_only);
 }
 
 std::string Daemon::Impl::refusal(const RequestHead* head, int status, std::string_view slug,
                                   std::string detail) {
   api::Problem problem = api::make_problem(status, std::string(slug), std::move(detail));
   if (!head) return front_answer(nullptr, problem);
-  const Request req = to_request(*head);
+  const Request req = to_http_request(*head);
   return front_answer(&req, problem);
 }
 
 Verdict Daemon::Impl::decide(const RequestHead& head) {
-  const Request req = to_request(head);
+  const Request req = to_http_request(head);
   Verdict verdict;
   // Probes are answered here, on the event loop: they never wait behind a worker.
   const bool probe = (req.path == "/healthz" || req.path == "/readyz") &&
@@ -717,7 +576,7 @@ Verdict Daemon::Impl::decide(const RequestHead& head) {
            req.remote_addr);
     verdict.kind = Verdict::Kind::Answer;
     verdict.response =
-        raw_answer(api::http::kOk, kJsonContentType, body, {{"X-Request-Id", id}}, head_only);
+        whole_answer(api::http::kOk, kJsonContentType, body, {{"X-Request-Id", id}}, head_only);
     return verdict;
   }
   if (problem) {
@@ -729,7 +588,7 @@ Verdict Daemon::Impl::decide(const RequestHead& head) {
   if (route && has_body(*route)) {
     verdict.kind = Verdict::Kind::ReadBody;
     // precheck validated it: one decimal number, under the cap
-    const std::string length = req.get_header_value("Content-Length");
+    const std::string length = req.header("Content-Length");
     std::from_chars(length.data(), length.data() + length.size(), verdict.body_bytes);
     if (route->kind == RouteKind::Compute || route->kind == RouteKind::Submit) {
       // The body is memory from now on (a job's until it is on disk).
@@ -759,13 +618,11 @@ Verdict Daemon::Impl::decide(const RequestHead& head) {
 }
 
 Answer Daemon::Impl::serve(ReadRequest& read) {
-  const Request req = to_request(read.head);
+  const Request req = to_http_request(read.head, read.body);
   Response res;
-  Answer big;
   bool ranges = false;
   try {
-    route(req, read, res, big, ranges);
-    if (res.status == -1) res.status = api::http::kOk;  // httplib::Response starts without one
+    route(req, read, res, ranges);
   } catch (...) {
     std::string what = "unknown exception";
     try {
@@ -779,34 +636,32 @@ Answer Daemon::Impl::serve(ReadRequest& read) {
     // Whatever the handler had set (a report header, a body) goes: the client gets only the
     // generic problem.
     res = Response();
-    big = Answer();
     ranges = false;
     send_problem(res, api::internal_error());
   }
-  return finish(req, res, std::move(big), ranges, read.accepted);
+  return finish(req, std::move(res), ranges, read.accepted);
 }
 
-void Daemon::Impl::route(const Request& req, ReadRequest& read, Response& res, Answer& big,
-                         bool& ranges) {
+void Daemon::Impl::route(const Request& req, ReadRequest& read, Response& res, bool& ranges) {
   // decide() ran the same checks on the event loop; they run again here because the state
   // may have changed while the body arrived (every slot taken, shutting down).
   if (std::optional<api::Problem> problem = precheck(req)) return respond(res, *problem);
   const Route& r = *find_route(req.path);  // precheck found it
   switch (r.kind) {
     case RouteKind::Compute:
-      return compute(req, read, res, big, r);
+      return compute(req, read, res, r);
     case RouteKind::Submit:
       return submit_job(req, read.body, res);
     case RouteKind::JobItem:
       ranges = true;
-      return job_item(req, res, big);
+      return job_item(req, res);
     case RouteKind::Page: {
       ranges = true;
-      if (req.path == "/") return page(req, res, big, "index.html");
+      if (req.path == "/") return page(req, res, "index.html");
       const std::string name = req.path.substr(std::string_view("/assets/").size());
       if (name.find('/') != std::string::npos)
         return respond(res, api::not_found("not-found", "no route " + shortened(req.path)));
-      return page(req, res, big, name);
+      return page(req, res, name);
     }
     case RouteKind::Plain:
       break;
@@ -834,96 +689,28 @@ void Daemon::Impl::route(const Request& req, ReadRequest& read, Response& res, A
   res.set_content("{\"status\":\"ok\"}\n", kJsonContentType);
 }
 
-Answer Daemon::Impl::finish(const Request& req, Response& res, Answer big, bool ranges,
+Answer Daemon::Impl::finish(const Request& req, Response res, bool ranges,
                             std::chrono::steady_clock::time_point accepted) {
-  if (!res.has_header("X-Request-Id")) res.set_header("X-Request-Id", request_id(req));
-  const bool small = big.body.empty() && big.file < 0 && !big.made;
-  const std::uint64_t length =
-      small ? res.body.size() : big.body.size() + big.file_length + big.made_length;
-  std::uint64_t first = 0, count = length;
-  if (ranges) {
-    res.set_header("Accept-Ranges", "bytes");
-    // If-Range: the range only applies to the representation the client has (its ETag).
-    const std::string if_range = req.get_header_value("If-Range");
-    const bool same =
-        if_range.empty() || (res.has_header("ETag") && if_range == res.get_header_value("ETag"));
-    if (res.status == api::http::kOk && req.method == "GET" && req.has_header("Range") && same) {
-      const ByteRange range = parse_byte_range(req.get_header_value("Range"), length);
-      if (range.kind == ByteRange::Kind::Partial) {
-        res.status = api::http::kPartialContent;
-        res.set_header("Content-Range", "bytes " + std::to_string(range.first) + "-" +
-                                            std::to_string(range.last) + "/" +
-                                            std::to_string(length));
-        first = range.first;
-        count = range.last - range.first + 1;
-      } else if (range.kind == ByteRange::Kind::Unsatisfiable) {
-        const std::string type = res.get_header_value("Content-Type");
-        Response refused;
-        refused.set_header("X-Request-Id", res.get_header_value("X-Request-Id"));
-        refused.set_header("Content-Range", "bytes */" + std::to_string(length));
-        api::Problem p = api::range_not_satisfiable(
-            "range-not-satisfiable",
-            "the range is outside the " + std::to_string(length) + "-byte body");
-        p.field = "Range";
-        send_problem(refused, p);
-        res = std::move(refused);
-        big = Answer();
-        return finish(req, res, std::move(big), false, accepted);
-      }
-    }
-  }
-  // The head: status line, the handler's fields, our framing.
-  std::string head =
-      "HTTP/1.1 " + std::to_string(res.status) + " " + api::reason_phrase(res.status) + "\r\n";
-  const bool not_modified =
-      res.status == api::http::kNotModified;  // keeps the length the 200 would have had
-  for (const auto& [name, value] : res.headers) {
-    if (!not_modified && lowercase(name) == "content-length") continue;
-    head += name + ": " + value + "\r\n";
-  }
-  if (!not_modified) head += "Content-Length: " + std::to_string(count) + "\r\n";
-  head += "Connection: close\r\n\r\n";
-  const bool head_only = req.method == "HEAD" || not_modified;
-  Answer out;
-  if (head_only) {
-    out.head = std::move(head);
-  } else if (small) {
-    out.head = std::move(head);
-    out.head.append(res.body, static_cast<std::size_t>(first), static_cast<std::size_t>(count));
-  } else {
-    out = std::move(big);
-    out.head = std::move(head);
-    if (out.file >= 0) {
-      out.file_offset += first;
-      out.file_length = count;
-    } else if (out.made) {
-      out.made_offset += first;
-      out.made_length = count;
-    } else {
-      out.body = out.body.substr(static_cast<std::size_t>(first), static_cast<std::size_t>(count));
-    }
-  }
-  const std::uint64_t body_bytes = head_only ? 0 : count;
-  out.done = [this, method = req.method, path = req.path, status = res.status,
-              id = res.get_header_value("X-Request-Id"), remote = req.remote_addr, accepted,
-              head_bytes = out.head.size() - (small && !head_only ? count : 0),
-              body_bytes](const AnswerEnd& end) {
-    const double seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - accepted).count();
-    if (end.outcome == AnswerEnd::Outcome::Complete)
-      return record(method, path, status, body_bytes, seconds, id, remote);
-    const std::uint64_t sent = end.bytes_sent > head_bytes ? end.bytes_sent - head_bytes : 0;
-    record(method, path, status, sent, seconds, id, remote, to_string(end.outcome));
-  };
-  return out;
+  const std::string id = request_id(req);
+  res.set_header("X-Request-Id", id);
+  return frame_answer(
+      req, std::move(res), ranges,
+      [this, method = req.method, path = req.path, id, remote = req.remote_addr, accepted](
+          int status, std::uint64_t body_bytes, const AnswerEnd& end) {
+        const double seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - accepted).count();
+        if (end.outcome == AnswerEnd::Outcome::Complete)
+          return record(method, path, status, body_bytes, seconds, id, remote);
+        record(method, path, status, body_bytes, seconds, id, remote, to_string(end.outcome));
+      });
 }
 
-void Daemon::Impl::compute(const Request& req, ReadRequest& read, Response& res, Answer& big,
+void Daemon::Impl::compute(const Request& req, ReadRequest& read, Response& res,
                            const Route& route) {
-  const std::string_view raw_body = read.body;
+  const std::string_view raw_body = req.body;
   if (config.test_hook) config.test_hook(route.path);
   if (config.test_faults) {
-    const std::string fault = req.get_header_value("X-Stlrefine-Test-Fault");
+    const std::string fault = req.header("X-Stlrefine-Test-Fault");
     if (fault == "throw") throw std::runtime_error("test fault secret-4711 in " + req.path);
     // What a failed allocation throws. Not a real huge allocation: under AddressSanitizer
     // (the asan preset) operator new reports and aborts instead of throwing.
@@ -947,11 +734,11 @@ void Daemon::Impl::compute(const Request& req, ReadRequest& read, Response& res,
     std::optional<api::SlicePlan> slice_plan;
     std::optional<api::InfoPlan> info_plan;
     if (path == "/v1/refine")
-      refine_plan = api::plan_refine(raw_params(req), limits, body);
+      refine_plan = api::plan_refine(req.parameters(), limits, body);
     else if (path == "/v1/slice")
-      slice_plan = api::plan_slice(raw_params(req), limits, body);
+      slice_plan = api::plan_slice(req.parameters(), limits, body);
     else
-      info_plan = api::plan_info(raw_params(req), body);
+      info_plan = api::plan_info(req.parameters(), body);
 
     std::optional<ComputeSlots::Lease> lease = slots.try_acquire();
     if (!lease || stopping) return respond(res, busy_problem(stopping));
@@ -985,10 +772,10 @@ void Daemon::Impl::compute(const Request& req, ReadRequest& read, Response& res,
 
     // Large answers are handed to the front end as they are, not copied: a refined STL can
     // be a GiB.
-    auto provide = [&res, &big](std::string bytes, const char* type) {
+    auto provide = [&res](std::string bytes, const char* type) {
       auto data = std::make_shared<const std::string>(std::move(bytes));
-      big.body = *data;
-      big.keep = std::move(data);
+      res.large.body = *data;
+      res.large.keep = std::move(data);
       res.set_header("Content-Type", type);
     };
     if (refine_plan) {
@@ -1028,11 +815,11 @@ void Daemon::Impl::compute(const Request& req, ReadRequest& read, Response& res,
         keep_answer(stl->memory_bytes());
         res.set_header(kReportHeader, report);
         res.set_header("Content-Type", kStlContentType);
-        big.made = [stl = stl.get()](std::uint64_t offset, std::span<char> bytes) {
+        res.large.made = [stl = stl.get()](std::uint64_t offset, std::span<char> bytes) {
           stl->read(offset, bytes);
         };
-        big.made_length = stl->size();
-        big.keep = std::move(stl);
+        res.large.made_length = stl->size();
+        res.large.keep = std::move(stl);
       } else {
         lease.reset();
         keep_answer(out.stl.size());
@@ -1056,7 +843,7 @@ void Daemon::Impl::compute(const Request& req, ReadRequest& read, Response& res,
     res.headers.erase(kReportHeader);
     res.headers.erase("Content-Disposition");
     res.headers.erase("Content-Type");
-    big = Answer();
+    res.large = Answer();
     respond(res, memory_problem(e, memory.capacity(), [this](std::uint64_t bytes) {
               return memory_busy_problem(bytes);
             }));
@@ -1064,7 +851,7 @@ void Daemon::Impl::compute(const Request& req, ReadRequest& read, Response& res,
     res.headers.erase(kReportHeader);
     res.headers.erase("Content-Disposition");
     res.headers.erase("Content-Type");
-    big = Answer();
+    res.large = Answer();
     if (e.code() == ErrorCode::Cancelled && ticket &&
         ticket->reason() == RequestWatch::Reason::Deadline)
       return respond(res, deadline_problem(config.request_deadline));
@@ -1075,7 +862,7 @@ void Daemon::Impl::compute(const Request& req, ReadRequest& read, Response& res,
 std::string Daemon::Impl::tenant(const Request& req) const {
   if (config.api_keys.empty() || !jobs) return {};
   // authorized() let it through: "Bearer <one of the keys>".
-  const std::string header = req.get_header_value("Authorization");
+  const std::string header = req.header("Authorization");
   return jobs->tenant_of(bearer_token(header).value_or(std::string_view()));
 }
 
@@ -1087,7 +874,7 @@ bool Daemon::Impl::authorized(const Request& req) const {
       (route->kind == RouteKind::Page || std::string_view(route->path) == "/healthz" ||
        std::string_view(route->path) == "/readyz" || std::string_view(route->path) == "/metrics"))
     return true;
-  const std::string header = req.get_header_value("Authorization");
+  const std::string header = req.header("Authorization");
   const std::optional<std::string_view> given = bearer_token(header);
   if (!given) return false;
   bool ok = false;
@@ -1101,7 +888,7 @@ void Daemon::Impl::submit_job(const Request& req, std::string_view body, Respons
     // A job that could never get its memory is refused now, not when its turn comes.
     const auto bytes = std::span(reinterpret_cast<const std::uint8_t*>(body.data()), body.size());
     api::RefinePlan plan =
-        api::plan_refine(raw_params(req), limits, bytes, api::ResultSink::JobFiles);
+        api::plan_refine(req.parameters(), limits, bytes, api::ResultSink::JobFiles);
     const api::MemoryEstimate& predicted = plan.memory;
     if (predicted.peak_bytes > memory.capacity())
       return respond(res, api::memory_budget_problem(predicted, memory.capacity()));
@@ -1130,7 +917,7 @@ void Daemon::Impl::submit_job(const Request& req, std::string_view body, Respons
   }
 }
 
-void Daemon::Impl::job_item(const Request& req, Response& res, Answer& big) {
+void Daemon::Impl::job_item(const Request& req, Response& res) {
   // /v1/jobs/{id} or /v1/jobs/{id}/{file}
   const std::string rest = req.path.substr(std::string_view("/v1/jobs/").size());
   const std::size_t slash = rest.find('/');
@@ -1194,8 +981,8 @@ void Daemon::Impl::job_item(const Request& req, Response& res, Answer& big) {
     if (fd >= 0) ::close(fd);
     return respond(res, api::gone("expired", "the results of job " + id + " are gone"));
   }
-  big.file = fd;
-  big.file_length = static_cast<std::uint64_t>(st.st_size);
+  res.large.file = fd;
+  res.large.file_length = static_cast<std::uint64_t>(st.st_size);
   const char* type = file == "result.stl"      ? kStlContentType
                      : file == "report.json"   ? kJsonContentType
                      : file == "contours.json" ? slicer::media_type(slicer::SliceFormat::Json)
@@ -1207,8 +994,7 @@ void Daemon::Impl::job_item(const Request& req, Response& res, Answer& big) {
 
 // The embedded page (web/assets.h). Cache-Control no-cache with a strong ETag: a browser
 // revalidates and gets 304, and never keeps a page from an older daemon.
-void Daemon::Impl::page(const Request& req, Response& res, Answer& big,
-                        std::string_view name) const {
+void Daemon::Impl::page(const Request& req, Response& res, std::string_view name) const {
   if (web::assets().empty())
     return respond(res, api::not_found("page-not-built", std::string(web::missing_reason())));
   const web::Asset* asset = web::find_asset(name);
@@ -1222,7 +1008,7 @@ void Daemon::Impl::page(const Request& req, Response& res, Answer& big,
                    "base-uri 'none'; form-action 'none'; frame-ancestors 'none'");
     res.set_header("Referrer-Policy", "no-referrer");
   }
-  const std::string match = req.get_header_value("If-None-Match");
+  const std::string match = req.header("If-None-Match");
   if (!match.empty() && (match == "*" || match.find(asset->etag) != std::string::npos)) {
     res.status = api::http::kNotModified;
     // The library writes "Content-Length: 0" on an empty answer; a 304 may only carry the
@@ -1231,7 +1017,7 @@ void Daemon::Impl::page(const Request& req, Response& res, Answer& big,
     return;
   }
   res.set_header("Content-Type", std::string(asset->content_type));
-  big.body = asset->bytes;  // embedded in the binary
+  res.large.body = asset->bytes;  // embedded in the binary
 }
 
 std::pair<std::string, std::optional<api::Problem>> Daemon::Impl::readiness() const {
@@ -1243,18 +1029,6 @@ std::pair<std::string, std::optional<api::Problem>> Daemon::Impl::readiness() co
   return {j.dump() + "\n", std::nullopt};
 }
 
-void Daemon::Impl::install() {
-  http.new_task_queue = [] { return new InlineTaskQueue; };
-  http.on_accept = [this](socket_t sock) { front->adopt(sock); };
-  // The library's default options add SO_REUSEPORT, with which a second daemon binds the
-  // same port and silently takes half the connections. SO_REUSEADDR alone still allows a
-  // quick restart.
-  http.set_socket_options([](socket_t sock) {
-    int yes = 1;
-    ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
-  });
-}
-
 Daemon::Daemon(DaemonConfig config) : impl_(std::make_unique<Impl>(std::move(config))) {}
 
 Daemon::~Daemon() {
@@ -1263,23 +1037,13 @@ Daemon::~Daemon() {
 }
 
 int Daemon::bind(const std::string& host, int port) {
-  if (port < 0 || port > 65535) throw std::runtime_error("port must be in [0, 65535]");
-  if (port == 0) {
-    const int bound = impl_->http.bind_to_any_port(host);
-    if (bound < 0) throw std::runtime_error("cannot bind " + host + " (any port)");
-    impl_->http.widen_backlog();
-    return bound;
-  }
-  if (!impl_->http.bind_to_port(host, port))
-    throw std::runtime_error("cannot bind " + host + ":" + std::to_string(port));
-  impl_->http.widen_backlog();
-  return port;
+  return impl_->listener.bind(host, port);
 }
 
 void Daemon::run() {
   impl_->running = true;
   impl_->front->start();
-  if (!impl_->stopping) impl_->http.listen_after_bind();
+  if (!impl_->stopping) impl_->listener.listen();
   // Running jobs get the same grace as the answers, at the same time.
   std::thread jobs_shutdown;
   if (impl_->jobs)
@@ -1297,9 +1061,9 @@ void Daemon::stop() {
   impl_->stopping = true;
   // run() may be between its stopping check and the library's accept loop: wait for the
   // loop to start, or stop() would find nothing to stop.
-  while (impl_->running && !impl_->http.is_running())
+  while (impl_->running && !impl_->listener.is_running())
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  impl_->http.stop();
+  impl_->listener.stop();
 }
 
 void Daemon::cancel_running() {

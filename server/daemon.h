@@ -84,7 +84,7 @@ struct DaemonConfig {
 };
 
 //! The HTTP daemon: routes, hardening around cpp-httplib 0.11.4 (see daemon.cpp), and the
-//! compute slots. httplib stays behind this class (pimpl).
+//! compute slots. cpp-httplib only binds and accepts (server/http_adapter.cpp).
 //!
 //! Routes: POST /v1/refine, POST /v1/slice, POST /v1/info, POST /v1/jobs, GET and DELETE
 //! /v1/jobs/{id}, GET /v1/jobs/{id}/{file}, GET /v1/openapi.json, GET /metrics, GET /healthz,
