@@ -8,19 +8,16 @@
 #include <netinet/tcp.h>
 #include <sys/epoll.h>
 #include <sys/eventfd.h>
-#include <sys/sendfile.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
 #include <algorithm>
-#include <cctype>
 #include <cerrno>
 #include <csignal>
-#include <cstring>
-#include <optional>
 #include <stdexcept>
 
 #include "api/problem.h"
+#include "server/front_end_connection.h"
 #include "server/thread_priority.h"
 
 namespace stlrefine::server {
@@ -30,106 +27,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 
 constexpr std::uint64_t kWakeTag = 0;  // epoll data of the wake eventfd; connections are slot + 1
-
-bool equals_ignore_case(std::string_view a, std::string_view b) {
-  return a.size() == b.size() && std::equal(a.begin(), a.end(), b.begin(), [](char x, char y) {
-           return std::tolower(static_cast<unsigned char>(x)) ==
-                  std::tolower(static_cast<unsigned char>(y));
-         });
-}
-
-// RFC 9110 tchar.
-bool is_tchar(unsigned char c) {
-  return std::isalnum(c) || std::strchr("!#$%&'*+-.^_`|~", c) != nullptr;
-}
-
-std::string_view trim_ows(std::string_view s) {
-  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\t')) s.remove_suffix(1);
-  return s;
-}
-
-struct HeadError {
-  int status;
-  const char* slug;
-  std::string detail;
-};
-
-// Strict: what is accepted here is exactly what httplib parses the same way, so the two
-// never disagree about where the head ends or what a field says (no bare CR or LF, no
-// folded lines, no controls, one space between the request line's parts).
-std::optional<HeadError> parse_head(std::string_view text, RequestHead& head) {
-  // text ends with "\r\n\r\n". Empty lines before the request line are skipped (RFC 9112
-  // 2.2); a head that is nothing else has no request line at all.
-  std::size_t line_start = 0;
-  while (text.substr(line_start, 2) == "\r\n" && line_start + 4 < text.size()) line_start += 2;
-  if (text.substr(line_start, 2) == "\r\n")
-    return HeadError{api::http::kBadRequest, "bad-request", "the request line is empty"};
-  std::size_t lines = 0;
-  while (line_start < text.size()) {
-    const std::size_t end = text.find("\r\n", line_start);
-    const std::string_view line = text.substr(line_start, end - line_start);
-    line_start = end + 2;
-    if (line.empty()) break;  // the blank line
-    for (const char ch : line) {
-      const auto c = static_cast<unsigned char>(ch);
-      if (c == '\r' || c == '\n' || c == 0)
-        return HeadError{api::http::kBadRequest, "bad-request",
-                         "a bare CR, LF or NUL in the request head"};
-    }
-    if (lines++ == 0) {
-      const std::size_t sp1 = line.find(' ');
-      const std::size_t sp2 = sp1 == std::string_view::npos ? sp1 : line.find(' ', sp1 + 1);
-      if (sp2 == std::string_view::npos || line.find(' ', sp2 + 1) != std::string_view::npos)
-        return HeadError{api::http::kBadRequest, "bad-request",
-                         "the request line is not METHOD TARGET VERSION"};
-      head.method = std::string(line.substr(0, sp1));
-      head.target = std::string(line.substr(sp1 + 1, sp2 - sp1 - 1));
-      head.version = std::string(line.substr(sp2 + 1));
-      if (head.method.empty() || !std::all_of(head.method.begin(), head.method.end(), [](char c) {
-            return is_tchar(static_cast<unsigned char>(c));
-          }))
-        return HeadError{api::http::kBadRequest, "bad-request", "the method is not a token"};
-      if (head.target.size() > FrontEnd::kMaxTargetBytes)
-        return HeadError{api::http::kUriTooLong, "uri-too-long",
-                         "the request target is longer than 8192 bytes"};
-      if (head.target.empty() || head.target.front() != '/' ||
-          std::any_of(head.target.begin(), head.target.end(), [](char ch) {
-            const auto c = static_cast<unsigned char>(ch);
-            return c <= 0x20 || c == 0x7f;
-          }))
-        return HeadError{api::http::kBadRequest, "bad-request",
-                         "the request target must be an absolute path"};
-      if (head.version != "HTTP/1.1" && head.version != "HTTP/1.0")
-        return HeadError{api::http::kBadRequest, "bad-request",
-                         "only HTTP/1.0 and HTTP/1.1 are spoken here"};
-      continue;
-    }
-    if (head.fields.size() >= FrontEnd::kMaxFields)
-      return HeadError{api::http::kHeaderFieldsTooLarge, "header-fields-too-large",
-                       "more than " + std::to_string(FrontEnd::kMaxFields) + " header fields"};
-    if (line.size() > FrontEnd::kMaxLineBytes)
-      return HeadError{api::http::kHeaderFieldsTooLarge, "header-fields-too-large",
-                       "a header field line is longer than " +
-                           std::to_string(FrontEnd::kMaxLineBytes) + " bytes"};
-    const std::size_t colon = line.find(':');
-    if (colon == 0 || colon == std::string_view::npos)
-      return HeadError{api::http::kBadRequest, "bad-request", "a header field line has no name"};
-    const std::string_view name = line.substr(0, colon);
-    if (!std::all_of(name.begin(), name.end(),
-                     [](char c) { return is_tchar(static_cast<unsigned char>(c)); }))
-      return HeadError{api::http::kBadRequest, "bad-request", "a header field name is not a token"};
-    const std::string_view value = trim_ows(line.substr(colon + 1));
-    if (std::any_of(value.begin(), value.end(), [](char ch) {
-          const auto c = static_cast<unsigned char>(ch);
-          return (c < 0x20 && c != '\t') || c == 0x7f;
-        }))
-      return HeadError{api::http::kBadRequest, "bad-request",
-                       "a header field value has a control character"};
-    head.fields.emplace_back(std::string(name), std::string(value));
-  }
-  return std::nullopt;
-}
 
 void peer_of(int fd, std::string& ip, int& port) {
   sockaddr_storage addr{};
@@ -147,13 +44,6 @@ void peer_of(int fd, std::string& ip, int& port) {
   }
   ip = text;
 }
-
-// Answers are written in pieces of at most this much per connection and wake-up, so one
-// fast client cannot hold the event loop.
-constexpr std::uint64_t kWriteSlice = 8 << 20;
-// And made bodies (Answer::made) in at most this many pieces of FrontEnd::kMadePiece (1 MiB,
-// about 21,000 STL facets).
-constexpr std::size_t kMadePiecesPerRound = 4;
 
 }  // namespace
 
@@ -214,45 +104,6 @@ Answer& Answer::operator=(Answer&& other) noexcept {
 Answer::~Answer() {
   if (file >= 0) ::close(file);
 }
-
-const std::string* RequestHead::find(std::string_view name) const {
-  for (const auto& field : fields)
-    if (equals_ignore_case(field.first, name)) return &field.second;
-  return nullptr;
-}
-
-struct FrontEnd::Connection {
-  enum class State {
-    Head,    // reading the request head
-    Body,    // reading Content-Length bytes of body
-    Answer,  // writing an answer; input is dropped
-    Linger,  // answered and shut down for writing: input is dropped until EOF or timeout
-  };
-  int fd = -1;
-  std::size_t slot = 0;
-  State state = State::Head;
-  Clock::time_point accepted, deadline;
-  // Body and Answer: bytes moved since window_start (the minimum-rate check).
-  Clock::time_point window_start;
-  std::uint64_t window_bytes = 0;
-  std::string in;                        // the head so far
-  std::size_t scanned = 0;               // in[0, scanned) holds no "\r\n\r\n"
-  std::unique_ptr<ReadRequest> request;  // Body: the request being read
-  std::uint64_t body_expected = 0;
-  std::function<std::string(std::uint64_t)> reserve_body;
-  Answer out;  // Answer: what is written
-  std::uint64_t sent = 0;
-  // A made body's current piece: its bytes [piece_at, piece_at + piece.size()).
-  std::string piece;
-  std::uint64_t piece_at = 0;
-  std::shared_ptr<void> hold;  // released once the answer is written
-  bool in_probe_lane = false;
-  bool read_closed = false;  // the client half-closed while its answer is written
-  std::uint32_t events = 0;  // registered with epoll
-  bool registered = false;
-  std::string remote_ip;
-  int remote_port = 0;
-};
 
 FrontEnd::FrontEnd(Options options, FrontEndDelegate& delegate)
     : options_(options), delegate_(delegate) {
@@ -452,92 +303,6 @@ void FrontEnd::take_new() {
   }
 }
 
-void FrontEnd::answer(Connection& c, Answer answer) {
-  c.request.reset();
-  c.reserve_body = nullptr;
-  c.state = Connection::State::Answer;
-  c.out = std::move(answer);
-  c.sent = 0;
-  c.window_start = Clock::now();
-  c.window_bytes = 0;
-  if (grace_over_) return finish_answer(c, AnswerEnd::Outcome::Shutdown);
-  flush(c);
-}
-
-void FrontEnd::finish_answer(Connection& c, AnswerEnd::Outcome outcome) {
-  if (c.out.done) {
-    AnswerEnd end{outcome, c.sent, c.out.size()};
-    auto done = std::move(c.out.done);
-    done(end);
-  }
-  c.out = Answer();  // the body, its file and what kept them
-  c.piece = std::string();
-  c.piece_at = 0;
-  c.hold.reset();  // the reservation
-  if (outcome != AnswerEnd::Outcome::Complete) return close(c);
-  // Sent: no more from us; read and drop what the client still sends, then close. Closing
-  // with unread input would make the kernel reset the connection, and a client still
-  // uploading could lose the answer.
-  ::shutdown(c.fd, SHUT_WR);
-  c.state = Connection::State::Linger;
-  c.deadline = Clock::now() + kLinger;
-  update_events(c);
-}
-
-void FrontEnd::flush(Connection& c) {
-  const Answer& a = c.out;
-  const std::uint64_t head_end = a.head.size();
-  const std::uint64_t body_end = head_end + a.body.size();
-  const std::uint64_t file_end = body_end + a.file_length;
-  std::uint64_t budget = kWriteSlice;
-  // Making a piece costs the event loop time that sending one does not: fewer per round.
-  std::size_t pieces = kMadePiecesPerRound;
-  while (c.sent < a.size()) {
-    if (budget == 0) return update_events(c);  // the rest on a later round
-    ssize_t n;
-    if (c.sent < head_end) {
-      n = ::send(c.fd, a.head.data() + c.sent, head_end - c.sent, MSG_NOSIGNAL);
-    } else if (c.sent < body_end) {
-      const std::uint64_t at = c.sent - head_end;
-      n = ::send(c.fd, a.body.data() + at, std::min(a.body.size() - at, budget), MSG_NOSIGNAL);
-    } else if (c.sent < file_end) {
-      const std::uint64_t at = c.sent - body_end;
-      auto offset = static_cast<off_t>(a.file_offset + at);
-      n = ::sendfile(c.fd, a.file, &offset, std::min(a.file_length - at, budget));
-      // A file shorter than announced: the answer cannot be completed.
-      if (n == 0) return finish_answer(c, AnswerEnd::Outcome::ClientGone);
-    } else {
-      const std::uint64_t at = c.sent - file_end;
-      if (at < c.piece_at || at >= c.piece_at + c.piece.size()) {
-        if (pieces-- == 0) return update_events(c);  // the rest on a later round
-        // The next piece, made where it is sent; what the kernel took of the last is gone.
-        c.piece.resize(
-            static_cast<std::size_t>(std::min<std::uint64_t>(kMadePiece, a.made_length - at)));
-        c.piece_at = at;
-        try {
-          a.made(a.made_offset + at, std::span(c.piece.data(), c.piece.size()));
-        } catch (...) {  // a broken promise: the answer cannot be completed
-          return finish_answer(c, AnswerEnd::Outcome::ClientGone);
-        }
-      }
-      const std::size_t within = static_cast<std::size_t>(at - c.piece_at);
-      n = ::send(c.fd, c.piece.data() + within,
-                 std::min<std::uint64_t>(c.piece.size() - within, budget), MSG_NOSIGNAL);
-    }
-    if (n > 0) {
-      const auto moved = static_cast<std::uint64_t>(n);
-      c.sent += moved;
-      c.window_bytes += moved;
-      budget -= std::min(budget, moved);
-      continue;
-    }
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) return update_events(c);
-    return finish_answer(c, AnswerEnd::Outcome::ClientGone);  // the peer is gone
-  }
-  finish_answer(c, AnswerEnd::Outcome::Complete);
-}
-
 void FrontEnd::dispatch(Connection& c) {
   std::unique_ptr<ReadRequest> request = std::move(c.request);
   {
@@ -555,132 +320,6 @@ void FrontEnd::dispatch(Connection& c) {
                                      "every worker is busy and " +
                                          std::to_string(options_.max_queued) +
                                          " requests wait; retry later")));
-}
-
-bool FrontEnd::grow_body(Connection& c, std::size_t incoming) {
-  std::string& body = c.request->body;
-  const std::size_t need = body.size() + incoming;
-  if (need <= body.capacity()) return true;
-  std::size_t target = std::max({need, 2 * body.capacity(), kBodyChunk});
-  target = static_cast<std::size_t>(std::min<std::uint64_t>(target, c.body_expected));
-  if (c.reserve_body) {
-    std::string refusal = c.reserve_body(target);
-    if (!refusal.empty()) {
-      answer(c, Answer(std::move(refusal)));
-      return false;
-    }
-  }
-  body.reserve(target);
-  return true;
-}
-
-void FrontEnd::on_head(Connection& c, std::size_t head_end) {
-  const bool probe_lane = c.in_probe_lane;
-  if (probe_lane) {
-    probe_lane_.erase(std::find(probe_lane_.begin(), probe_lane_.end(), c.slot));
-    c.in_probe_lane = false;
-  }
-  auto request = std::make_unique<ReadRequest>();
-  RequestHead& head = request->head;
-  head.remote_ip = c.remote_ip;
-  head.remote_port = c.remote_port;
-  if (std::optional<HeadError> error =
-          parse_head(std::string_view(c.in).substr(0, head_end), head)) {
-    const bool parsed = !head.method.empty() && !head.target.empty();
-    return answer(c, Answer(delegate_.refusal(parsed ? &head : nullptr, error->status, error->slug,
-                                              std::move(error->detail))));
-  }
-  Verdict verdict = delegate_.decide(head);
-  if (verdict.kind == Verdict::Kind::Answer) return answer(c, Answer(std::move(verdict.response)));
-  if (probe_lane) {
-    // Over a connection cap: only what decide() answers at once (the probes, refusals).
-    return answer(
-        c, Answer(delegate_.refusal(&head, api::http::kServiceUnavailable, "overloaded",
-                                    "too many connections are open (from this address, or in all); "
-                                    "retry later")));
-  }
-
-  request->fd = c.fd;
-  request->accepted = c.accepted;
-  request->hold = std::move(verdict.hold);
-  if (verdict.kind == Verdict::Kind::Dispatch) {
-    c.request = std::move(request);
-    c.in.clear();
-    return dispatch(c);
-  }
-  // ReadBody
-  c.body_expected = verdict.body_bytes;
-  c.reserve_body = std::move(verdict.reserve_body);
-  c.request = std::move(request);
-  const std::string_view early =
-      std::string_view(c.in).substr(head_end).substr(0, static_cast<std::size_t>(c.body_expected));
-  if (!early.empty()) {
-    if (!grow_body(c, early.size())) return;
-    c.request->body.append(early);
-  }
-  c.in.clear();
-  c.in.shrink_to_fit();
-  if (c.request->body.size() == c.body_expected) return dispatch(c);
-  const std::string* expect = c.request->head.find("Expect");
-  if (expect && equals_ignore_case(*expect, "100-continue") && c.request->body.empty()) {
-    static constexpr std::string_view kContinue = "HTTP/1.1 100 Continue\r\n\r\n";
-    // 25 bytes into a fresh socket's empty buffer: a partial send means the peer is gone.
-    if (::send(c.fd, kContinue.data(), kContinue.size(), MSG_NOSIGNAL) !=
-        static_cast<ssize_t>(kContinue.size()))
-      return close(c);
-  }
-  c.state = Connection::State::Body;
-  c.window_start = Clock::now();
-  c.window_bytes = 0;
-}
-
-void FrontEnd::on_readable(Connection& c) {
-  char buffer[64 * 1024];
-  // A bounded amount per wake-up, so one fast client cannot starve the others.
-  for (int round = 0; round < 16; ++round) {
-    std::size_t want = sizeof buffer;
-    if (c.state == Connection::State::Head) want = std::min(want, kMaxHeadBytes + 4 - c.in.size());
-    if (c.state == Connection::State::Body)
-      want = std::min<std::uint64_t>(want, c.body_expected - c.request->body.size());
-    const ssize_t n = ::recv(c.fd, buffer, want, 0);
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) return;
-    if (n <= 0) {
-      // EOF or reset. A client that hangs up before its request is complete gets nothing;
-      // one that half-closes while its answer is written still gets it.
-      if (n == 0 && c.state == Connection::State::Answer) {
-        c.read_closed = true;  // EPOLLIN would report the EOF again and again
-        return update_events(c);
-      }
-      return close(c);
-    }
-    const auto got = static_cast<std::size_t>(n);
-    switch (c.state) {
-      case Connection::State::Head: {
-        c.in.append(buffer, got);
-        const std::size_t from = c.scanned >= 3 ? c.scanned - 3 : 0;
-        const std::size_t end = c.in.find("\r\n\r\n", from);
-        if (end != std::string::npos) return on_head(c, end + 4);
-        c.scanned = c.in.size();
-        if (c.in.size() > kMaxHeadBytes) {
-          return answer(c, Answer(delegate_.refusal(nullptr, api::http::kHeaderFieldsTooLarge,
-                                                    "header-fields-too-large",
-                                                    "the request head is longer than " +
-                                                        std::to_string(kMaxHeadBytes) + " bytes")));
-        }
-        break;
-      }
-      case Connection::State::Body:
-        if (!grow_body(c, got)) return;
-        c.request->body.append(buffer, got);
-        c.window_bytes += got;
-        if (c.request->body.size() == c.body_expected) return dispatch(c);
-        break;
-      case Connection::State::Answer:
-      case Connection::State::Linger:
-        break;  // dropped
-    }
-  }
 }
 
 bool FrontEnd::too_slow(Connection& c, Clock::time_point now, std::chrono::milliseconds window,

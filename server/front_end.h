@@ -19,18 +19,9 @@
 #include <utility>
 #include <vector>
 
+#include "server/request_head.h"
+
 namespace stlrefine::server {
-
-//! A request line and header fields as the client sent them (values trimmed).
-struct RequestHead {
-  std::string method, target, version;
-  std::vector<std::pair<std::string, std::string>> fields;
-  std::string remote_ip;
-  int remote_port = 0;
-
-  //! The first value of a field (names are case-insensitive), or nullptr.
-  const std::string* find(std::string_view name) const;
-};
 
 //! How the writing of an answer ended.
 struct AnswerEnd {

@@ -1,0 +1,139 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#include "server/job_routes.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <span>
+
+#include "api/plan.h"
+#include "core/error.h"
+#include "slicer/writers.h"
+
+namespace stlrefine::server {
+
+namespace {
+
+// Result files a job may have.
+bool job_file_name(const std::string& name) {
+  return name == "result.stl" || name == "report.json" || name == "contours.json" ||
+         name == "contours.svg" || name == "contours.cli";
+}
+
+}  // namespace
+
+void serve_job_submit(const RouteContext& ctx, const HttpRequest& req, HttpAnswer& res) {
+  const std::string_view body = req.body;
+  if (ctx.config.test_hook) ctx.config.test_hook("/v1/jobs");
+  try {
+    // A job that could never get its memory is refused now, not when its turn comes.
+    const auto bytes = std::span(reinterpret_cast<const std::uint8_t*>(body.data()), body.size());
+    api::RefinePlan plan =
+        api::plan_refine(req.parameters(), ctx.limits, bytes, api::ResultSink::JobFiles);
+    const api::MemoryEstimate& predicted = plan.memory;
+    if (predicted.peak_bytes > ctx.memory.capacity())
+      return ctx.respond(res, api::memory_budget_problem(predicted, ctx.memory.capacity()));
+    const std::size_t q = req.target.find('?');
+    std::string query = q == std::string::npos ? "" : req.target.substr(q + 1);
+    const std::uint64_t result_bytes = predicted_result_bytes(plan.request, predicted);
+    const SubmitResult submitted = ctx.stopping
+                                       ? SubmitResult::refused(SubmitResult::Status::ShuttingDown)
+                                       : ctx.jobs->submit(std::move(plan.request), std::move(query),
+                                                          body, ctx.tenant(req), result_bytes);
+    if (submitted.status == SubmitResult::Status::NoSpace)
+      return ctx.respond(res, no_space_problem(submitted));
+    const std::optional<JobView>& job = submitted.job;
+    if (!job) {
+      api::Problem p =
+          submitted.status == SubmitResult::Status::ShuttingDown
+              ? ctx.busy_problem(true)
+              : api::service_unavailable("queue-full", "the job queue is full; retry later");
+      return ctx.respond(res, p);
+    }
+    res.status = api::http::kAccepted;
+    res.set_header("Location", "/v1/jobs/" + job->id);
+    res.set_content(job_json(*job).dump(2) + "\n", kJsonContentType);
+  } catch (const Error& e) {
+    ctx.respond(res, api::problem_from_error(e));
+  }
+}
+
+void serve_job_item(const RouteContext& ctx, const HttpRequest& req, HttpAnswer& res) {
+  // /v1/jobs/{id} or /v1/jobs/{id}/{file}
+  const std::string rest = req.path.substr(std::string_view("/v1/jobs/").size());
+  const std::size_t slash = rest.find('/');
+  const std::string id = rest.substr(0, slash);
+  const std::string file = slash == std::string::npos ? "" : rest.substr(slash + 1);
+  if (slash != std::string::npos && !job_file_name(file))
+    return ctx.respond(res, api::not_found("not-found", "no route " + shortened(req.path)));
+  if (!file.empty() && req.method == "DELETE") {
+    api::Problem p = api::method_not_allowed(
+        "method-not-allowed", "DELETE is not allowed on a job's files (allowed: GET, HEAD)");
+    p.extensions["allow"] = "GET, HEAD";
+    return ctx.respond(res, p);
+  }
+  JobView job;
+  // Another tenant's job is Unknown, exactly as an id that was never issued.
+  const std::string owner = ctx.tenant(req);
+  const JobStore::Lookup found =
+      req.method == "DELETE" ? ctx.jobs->cancel(id, owner, &job) : ctx.jobs->find(id, owner, &job);
+  if (found == JobStore::Lookup::Unknown)
+    return ctx.respond(res, api::not_found("unknown-job", "no job " + shortened(id)));
+  if (req.method == "DELETE") {
+    // A cancel either wins (the job ends cancelled, whatever the runner was doing) or says
+    // it came too late: the job had finished, and DELETE removed its results.
+    nlohmann::ordered_json j = job_json(job);
+    if (found == JobStore::Lookup::TooLate) {
+      j["cancel"] = "too_late";
+      j["cancel_detail"] = "the job had already ended " + std::string(to_string(job.state)) +
+                           "; its results were deleted";
+    } else if (found == JobStore::Lookup::Expired) {
+      j["cancel"] = "too_late";
+      j["cancel_detail"] = "the job had already ended and its results were removed";
+    } else {
+      // A running job stops at its next cancellation check and then reads "cancelled".
+      j["cancel"] = "cancelled";
+    }
+    res.set_content(j.dump(2) + "\n", kJsonContentType);
+    return;
+  }
+  if (found == JobStore::Lookup::Expired && (req.method != "DELETE" && !file.empty())) {
+    return ctx.respond(res, api::gone("expired", "the results of job " + id +
+                                                     " were removed after the retention period"));
+  }
+  if (file.empty()) {
+    if (found == JobStore::Lookup::Expired && req.method != "DELETE") res.status = api::http::kGone;
+    res.set_content(job_json(job).dump(2) + "\n", kJsonContentType);
+    return;
+  }
+  if (job.state != JobState::Done) {
+    api::Problem p =
+        api::conflict("not-done", "job " + id + " is " + to_string(job.state) + ", not done");
+    p.extensions["state"] = to_string(job.state);
+    return ctx.respond(res, p);
+  }
+  if (std::find(job.results.begin(), job.results.end(), file) == job.results.end())
+    return ctx.respond(res, api::not_found("no-such-result", "job " + id + " has no " + file));
+  // The front end sends the file from its descriptor: results can be large. It was written by
+  // rename, so it is complete; the open descriptor keeps it readable if it expires meanwhile.
+  const int fd = ::open(ctx.jobs->result_path(id, file).c_str(), O_RDONLY | O_CLOEXEC);
+  struct stat st {};
+  if (fd < 0 || ::fstat(fd, &st) != 0) {
+    if (fd >= 0) ::close(fd);
+    return ctx.respond(res, api::gone("expired", "the results of job " + id + " are gone"));
+  }
+  res.large.file = fd;
+  res.large.file_length = static_cast<std::uint64_t>(st.st_size);
+  const char* type = file == "result.stl"      ? kStlContentType
+                     : file == "report.json"   ? kJsonContentType
+                     : file == "contours.json" ? slicer::media_type(slicer::SliceFormat::Json)
+                     : file == "contours.svg"  ? slicer::media_type(slicer::SliceFormat::Svg)
+                                               : "application/octet-stream";
+  res.set_header("Content-Type", type);
+  res.set_header("Content-Disposition", "attachment; filename=\"" + file + "\"");
+}
+
+}  // namespace stlrefine::server

@@ -1,0 +1,19 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+#pragma once
+
+// The job routes: POST /v1/jobs (queue a refinement, 202 with its Location), GET / HEAD /
+// DELETE /v1/jobs/{id} (its state; cancel) and GET / HEAD /v1/jobs/{id}/{file} (a result,
+// sent from its file). The store and its runners are jobs.h.
+
+#include "server/http.h"
+#include "server/route_context.h"
+
+namespace stlrefine::server {
+
+//! POST /v1/jobs. \pre ctx.jobs
+void serve_job_submit(const RouteContext& ctx, const HttpRequest& req, HttpAnswer& res);
+//! /v1/jobs/{id} and /v1/jobs/{id}/{file}. \pre ctx.jobs
+void serve_job_item(const RouteContext& ctx, const HttpRequest& req, HttpAnswer& res);
+
+}  // namespace stlrefine::server

@@ -1,0 +1,250 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+// The job store's runners: a queued job waits for a compute slot and its memory, runs from
+// the plan made when it was submitted, and writes its results by atomic rename.
+#include <malloc.h>
+
+#include <algorithm>
+#include <thread>
+
+#include "api/pipeline.h"
+#include "core/error.h"
+#include "core/io/stl.h"
+#include "server/admission.h"
+#include "server/job_record.h"
+#include "server/thread_priority.h"
+#include "slicer/writers.h"
+
+namespace stlrefine::server {
+
+namespace fs = std::filesystem;
+using namespace job_files;
+
+void JobStore::run_jobs() {
+  lower_thread_priority(config_.runner_nice);
+  for (;;) {
+    std::shared_ptr<Job> job;
+    {
+      std::unique_lock lock(mutex_);
+      work_.wait(lock, [&] { return !queue_.empty() || stopping_; });
+      if (stopping_) return;
+      job = queue_.front();
+      queue_.pop_front();
+      ++running_;
+      job->state = JobState::Running;
+      job->stage = "waiting for a compute slot";
+    }
+    run_one(job);
+    std::lock_guard lock(mutex_);
+    --running_;
+    work_.notify_all();  // shutdown() waits for running_ == 0
+  }
+}
+
+void JobStore::run_one(const std::shared_ptr<Job>& job) {
+  const auto cancelled = [&] { return job->cancel || cancel_all_ || cancel_noted(*job); };
+  // Jobs share the compute slots with the synchronous routes: wait for one, polling so a
+  // cancel or shutdown is seen.
+  std::optional<ComputeSlots::Lease> lease;
+  while (!(lease = slots_.try_acquire()) && !cancelled())
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  {
+    std::lock_guard lock(mutex_);
+    job->started = Clock::now();
+    job->stage = "starting";
+    persist_or_log(*job);
+  }
+  // Done: results written; Cancelled: stopped by a cancel (which one is decided below,
+  // under the lock); Failed: `problem`.
+  JobState state = JobState::Failed;
+  std::optional<api::Problem> problem;
+  nlohmann::ordered_json report;
+  std::vector<std::string> results;
+  std::uint64_t bytes = 0;
+  std::optional<MemoryBudget::Reservation> memory;
+  std::shared_ptr<RequestWatch::Ticket> ticket;
+  struct Refused {
+    api::Problem problem;
+  };
+  try {
+    if (!lease) throw Error(ErrorCode::Cancelled, "cancelled", "cancelled before it started");
+    const std::string input = read_file(job->dir / kInputFile);
+    const auto input_bytes =
+        std::span(reinterpret_cast<const std::uint8_t*>(input.data()), input.size());
+    // The request was parsed and validated when it was submitted; planned on its body now.
+    const api::RefinePlan plan =
+        api::plan_refine(job->request, input_bytes, api::ResultSink::JobFiles);
+    if (config_.memory) {
+      // Its predicted peak, before any work (the face budget first); it waits for that like
+      // for a slot.
+      const ReserveFn reserve = [&](std::uint64_t peak) {
+        if ((memory = config_.memory->try_reserve(peak))) return true;
+        {
+          std::lock_guard lock(mutex_);
+          job->stage = "waiting for memory";
+        }
+        while (!(memory = config_.memory->try_reserve(peak)) && !cancelled())
+          std::this_thread::sleep_for(std::chrono::milliseconds(20));
+        if (!memory) throw Error(ErrorCode::Cancelled, "cancelled", "cancelled before it started");
+        return true;
+      };
+      if (std::optional<api::Problem> refused =
+              admit(plan, config_.memory->capacity(), reserve, job_busy_problem))
+        throw Refused{*refused};
+    }
+    {
+      // The deadline counts from here; DELETE and shutdown raise the same flag.
+      std::lock_guard lock(mutex_);
+      ticket = watch_.watch(-1, config_.deadline);
+      job->ticket = ticket;
+      if (job->cancel)
+        ticket->raise(job->cancel_reason == CancelReason::Client ? RequestWatch::Reason::Cancelled
+                                                                 : RequestWatch::Reason::Shutdown);
+    }
+    auto progress = [&](double fraction, std::string_view stage) {
+      cancel_noted(*job);  // from another replica
+      std::lock_guard lock(mutex_);
+      job->progress = std::clamp(fraction, 0.0, 1.0);
+      job->stage = std::string(stage);
+    };
+    // The reservation grows with the refinement. Memory held by other work may come back:
+    // wait for it a while (cancellable), then give up rather than hold half a hierarchy.
+    auto grow = [&](std::uint64_t needed) {
+      if (!memory) return true;  // no budget configured
+      if (needed > config_.memory->capacity()) return false;
+      const auto until = std::chrono::steady_clock::now() + kGrowWait;
+      while (!memory->grow_to(needed)) {
+        if (std::chrono::steady_clock::now() > until || ticket->cancel) return false;
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      }
+      return true;
+    };
+    api::RefinedMesh refined =
+        api::run_refine_to_mesh(input_bytes, plan, progress, &ticket->cancel, grow);
+    const api::RefineOutcome& out = refined.outcome;
+    report = out.report;
+    // Each file is listed once it is whole, so a failure below removes exactly those.
+    if (refined.stream()) {  // binary: made as it is written, never whole in memory
+      const auto start = std::chrono::steady_clock::now();
+      write_atomically(job->dir / "result.stl",
+                       [&](const ByteSink& sink) { write_binary_stl(refined.mesh, sink); });
+      bytes += binary_stl_size(refined.mesh.num_faces());
+      // The report's write time is the streamed write's (run_refine's included its own).
+      const double seconds =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      report["seconds"]["write"] = seconds;
+      report["seconds"]["total"] = report["seconds"]["total"].get<double>() + seconds;
+    } else {
+      write_atomically(job->dir / "result.stl", out.stl);
+      bytes += out.stl.size();
+    }
+    results.push_back("result.stl");
+    if (out.contours) {
+      const std::string name =
+          std::string("contours") + slicer::file_extension(job->request.slice->format);
+      write_atomically(job->dir / name, *out.contours);
+      results.push_back(name);
+      bytes += out.contours->size();
+    }
+    const std::string report_text = report.dump(2) + "\n";
+    write_atomically(job->dir / "report.json", report_text);
+    results.push_back("report.json");
+    bytes += report_text.size();
+    state = JobState::Done;
+  } catch (const Refused& r) {
+    problem = r.problem;
+  } catch (const MemoryBudgetError& e) {
+    if (job->cancel || cancel_all_) {
+      state = JobState::Cancelled;
+    } else {
+      problem = config_.memory ? memory_problem(e, config_.memory->capacity(), job_busy_problem)
+                               : api::problem_from_error(e);
+    }
+  } catch (const Error& e) {
+    if (e.code() == ErrorCode::Cancelled || job->cancel || cancel_all_)
+      state = JobState::Cancelled;
+    else
+      problem = api::problem_from_error(e);
+  } catch (const std::system_error& e) {
+    if (no_space(e.code())) {
+      log_line("job " + job->id + " failed: " + e.what());
+      problem = no_space_result_problem();
+    } else {
+      log_line("job " + job->id + " failed: " + e.what());
+      problem = api::internal_error();
+    }
+  } catch (const std::exception& e) {
+    log_line("job " + job->id + " failed: " + e.what());
+    problem = api::internal_error();
+  }
+  lease.reset();
+  ::malloc_trim(0);  // what the refinement freed goes back before its reservation does
+  memory.reset();
+  std::error_code ignored;
+  fs::remove(job->dir / kInputFile, ignored);
+  const auto discard = [&] {
+    for (const std::string& name : results) fs::remove(job->dir / name, ignored);
+    results.clear();
+    bytes = 0;
+  };
+  if (state != JobState::Done) discard();  // a write that failed half-way
+
+  JobView done;
+  {
+    // Another replica's cancel note is either here now, or it finds the job finished.
+    DirLock dir_lock(job->dir);
+    std::lock_guard lock(mutex_);
+    if (fs::exists(job->dir / kCancelFile, ignored)) request_cancel(*job, CancelReason::Client);
+    const CancelReason why = job->cancel_reason;
+    if (why == CancelReason::Client) {
+      // A cancel answered Found before this point: it wins, even over finished work.
+      const bool discarded = state == JobState::Done;
+      discard();
+      state = JobState::Cancelled;
+      problem = cancel_problem(why, discarded);
+    } else if (state == JobState::Cancelled) {
+      if (ticket && ticket->reason() == RequestWatch::Reason::Deadline) {
+        state = JobState::Failed;
+        problem = deadline_problem(config_.deadline);
+      } else {
+        problem = cancel_problem(why != CancelReason::None ? why : shutdown_reason_, false);
+      }
+    }
+    job->ticket.reset();
+    job->state = state;
+    job->finished = Clock::now();
+    job->progress = state == JobState::Done ? 1.0 : job->progress;
+    job->stage = to_string(state);
+    job->report = std::move(report);
+    if (problem) job->problem = api::to_json(*problem);
+    job->results = results;
+    job->result_bytes = bytes;
+    release_disk(*job);
+    std::optional<std::error_code> unrecorded;
+    try {
+      persist(*job);
+    } catch (const std::exception& e) {
+      log_line("job " + job->id + ": cannot record its state: " + e.what());
+      const auto* error = dynamic_cast<const std::system_error*>(&e);
+      unrecorded = error ? error->code() : std::error_code();
+    }
+    if (unrecorded && state == JobState::Done) {
+      // Results nobody can find after a restart, and that replicas see running forever:
+      // rather a failed job (job.json's last write was "starting").
+      discard();
+      job->state = JobState::Failed;
+      job->stage = to_string(JobState::Failed);
+      job->problem =
+          api::to_json(no_space(*unrecorded) ? no_space_result_problem() : api::internal_error());
+      job->results.clear();
+      job->result_bytes = 0;
+      persist_or_log(*job);
+    }
+    done = view(*job);
+  }
+  if (on_finished_)
+    on_finished_(done, std::chrono::duration<double>(done.finished - done.started).count());
+  janitor_wake_.notify_one();  // the disk budget may now be exceeded
+}
+
+}  // namespace stlrefine::server
