@@ -202,7 +202,7 @@ std::uint64_t stl_bytes(std::uint64_t faces, StlFormat format) {
   return faces > (UINT64_MAX - kPreamble) / kFacet ? UINT64_MAX : kPreamble + kFacet * faces;
 }
 
-std::uint64_t refined_memory_bytes(std::span<const std::uint8_t> bytes,
+std::uint64_t refined_memory_bytes(std::span<const std::uint8_t> bytes, const StlShape& shape,
                                    const RefineRequest& request, std::uint64_t input_faces,
                                    std::uint64_t output_faces, std::uint64_t mesh_bytes) {
   double peak = kC.fixed + double(bytes.size()) + double(mesh_bytes) +
@@ -210,8 +210,7 @@ std::uint64_t refined_memory_bytes(std::span<const std::uint8_t> bytes,
   if (request.slice) {
     const double growth =
         input_faces > 0 ? std::sqrt(double(output_faces) / double(input_faces)) : 1.0;
-    const std::uint64_t points =
-        grown_points(bytes, stl_shape(bytes), request.slice->params, growth);
+    const std::uint64_t points = grown_points(bytes, shape, request.slice->params, growth);
     peak += kC.slice_face * double(output_faces) +
             kC.contour_growth * point_bytes(request.slice->format) * double(points);
   }

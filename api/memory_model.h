@@ -74,8 +74,9 @@ MemoryEstimate estimate_refine_memory(std::span<const std::uint8_t> bytes, const
 //! api::run_refine's figure once the refinement is done: the body, the refined mesh's
 //! arrays (`mesh_bytes`, see stlrefine::mesh_bytes), the STL it is written to and, with a
 //! slice, what slicing adds, predicted as estimate_refine_memory does but from the faces
-//! actually made. `input_faces`: of the ingested mesh.
-std::uint64_t refined_memory_bytes(std::span<const std::uint8_t> bytes,
+//! actually made. `shape`: the body's (stl_shape, as the plan has it); `input_faces`: of the
+//! ingested mesh.
+std::uint64_t refined_memory_bytes(std::span<const std::uint8_t> bytes, const StlShape& shape,
                                    const RefineRequest& request, std::uint64_t input_faces,
                                    std::uint64_t output_faces, std::uint64_t mesh_bytes);
 

@@ -67,11 +67,12 @@ InfoOutcome run_info(std::span<const std::uint8_t> bytes, const InfoRequest& req
 namespace {
 
 // run_refine; with `keep` and binary output, the STL is not written: the refined mesh is
-// moved to *keep and the report gives the STL's size (84 + 50 n) and no write time.
+// moved to *keep and the report gives the STL's size (84 + 50 n) and no write time. `shape`:
+// the body's, from the plan (null: sniffed here when the slice's prediction needs it).
 RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRequest& request,
-                             const Scheme& scheme, const ProgressFn& progress,
-                             const std::atomic<bool>* cancel, const MemoryGrowFn& grow,
-                             Mesh* keep) {
+                             const Scheme& scheme, const StlShape* shape,
+                             const ProgressFn& progress, const std::atomic<bool>* cancel,
+                             const MemoryGrowFn& grow, Mesh* keep) {
   const auto start = Clock::now();
   RefineTimes times;
 
@@ -154,8 +155,10 @@ RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRe
   }
   if (grow) {
     // The hierarchy is gone; the mesh, its STL (and contours) are what the rest holds.
-    const std::uint64_t rest = refined_memory_bytes(
-        bytes, request, input_faces, refined.mesh.num_faces(), mesh_bytes(refined.mesh));
+    const StlShape sniffed = shape || !request.slice ? StlShape{} : stl_shape(bytes);
+    const std::uint64_t rest =
+        refined_memory_bytes(bytes, shape ? *shape : sniffed, request, input_faces,
+                             refined.mesh.num_faces(), mesh_bytes(refined.mesh));
     if (!grow(rest))
       throw MemoryBudgetError(request.refine.adaptive() ? "max_level" : "levels",
                               refined.report.levels, rest);
@@ -201,27 +204,28 @@ RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineReques
                          const MemoryGrowFn& grow) {
   // A bad parameter is reported before the file is read.
   const std::unique_ptr<Scheme> scheme = make_scheme(request.refine);
-  return refine_outcome(bytes, request, *scheme, progress, cancel, grow, nullptr);
+  return refine_outcome(bytes, request, *scheme, nullptr, progress, cancel, grow, nullptr);
 }
 
 RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefinePlan& plan,
                          const ProgressFn& progress, const std::atomic<bool>* cancel,
                          const MemoryGrowFn& grow) {
-  return refine_outcome(bytes, plan.request, *plan.scheme, progress, cancel, grow, nullptr);
+  return refine_outcome(bytes, plan.request, *plan.scheme, &plan.shape, progress, cancel, grow,
+                        nullptr);
 }
 
 RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineRequest& request,
                          const Scheme& scheme, const ProgressFn& progress,
                          const std::atomic<bool>* cancel, const MemoryGrowFn& grow) {
-  return refine_outcome(bytes, request, scheme, progress, cancel, grow, nullptr);
+  return refine_outcome(bytes, request, scheme, nullptr, progress, cancel, grow, nullptr);
 }
 
 RefinedMesh run_refine_to_mesh(std::span<const std::uint8_t> bytes, const RefinePlan& plan,
                                const ProgressFn& progress, const std::atomic<bool>* cancel,
                                const MemoryGrowFn& grow) {
   RefinedMesh out;
-  out.outcome =
-      refine_outcome(bytes, plan.request, *plan.scheme, progress, cancel, grow, &out.mesh);
+  out.outcome = refine_outcome(bytes, plan.request, *plan.scheme, &plan.shape, progress, cancel,
+                               grow, &out.mesh);
   return out;
 }
 
@@ -230,7 +234,7 @@ RefinedMesh run_refine_to_mesh(std::span<const std::uint8_t> bytes, const Refine
                                const MemoryGrowFn& grow) {
   const std::unique_ptr<Scheme> scheme = make_scheme(request.refine);
   RefinedMesh out;
-  out.outcome = refine_outcome(bytes, request, *scheme, progress, cancel, grow, &out.mesh);
+  out.outcome = refine_outcome(bytes, request, *scheme, nullptr, progress, cancel, grow, &out.mesh);
   return out;
 }
 

@@ -55,7 +55,8 @@ struct RefineOutcome {
 //! figures comparable with estimate_refine_memory's peak_bytes: the body (`bytes`) plus,
 //! while refining, what refine holds (the input mesh, the hierarchy or levels, its slack),
 //! then, before the STL is written, refined_memory_bytes (the refined mesh, the STL, and the
-//! slice's contours predicted from the faces made). With the post-pass (primitives=auto or
+//! slice's contours predicted from the faces made, on the plan's shape of the body: with
+//! `grow`, the plan is one made with the body). With the post-pass (primitives=auto or
 //! max_deviation), first the body, the input mesh and InputSurface::predict_bytes before it
 //! is built, that surface held beside refine's figures, and before it is applied the refined
 //! mesh and predict_apply_bytes (refused: MemoryBudgetError, field "primitives", level 0 before

@@ -11,19 +11,6 @@
 
 namespace stlrefine::api {
 
-namespace {
-
-RefinePlan plan_parsed(RefineRequest request, std::span<const std::uint8_t> bytes,
-                       ResultSink sink) {
-  RefinePlan plan = plan_refine(std::move(request));
-  plan.shape = stl_shape(bytes);
-  plan.predicted_faces = predict_faces(plan.shape.faces, *plan.scheme, plan.request.refine);
-  plan.memory = estimate_refine_memory(bytes, plan.shape, plan.request, *plan.scheme, sink);
-  return plan;
-}
-
-}  // namespace
-
 RefinePlan plan_refine(RefineRequest request) {
   RefinePlan plan;
   plan.scheme = make_scheme(request.refine);  // validates, then makes it: once per request
@@ -31,14 +18,21 @@ RefinePlan plan_refine(RefineRequest request) {
   return plan;
 }
 
+RefinePlan plan_body(RefinePlan plan, std::span<const std::uint8_t> bytes, ResultSink sink) {
+  plan.shape = stl_shape(bytes);
+  plan.predicted_faces = predict_faces(plan.shape.faces, *plan.scheme, plan.request.refine);
+  plan.memory = estimate_refine_memory(bytes, plan.shape, plan.request, *plan.scheme, sink);
+  return plan;
+}
+
 RefinePlan plan_refine(const RawParams& raw, const RequestLimits& limits,
                        std::span<const std::uint8_t> bytes, ResultSink sink) {
-  return plan_parsed(parse_refine_fields(raw, limits), bytes, sink);
+  return plan_body(plan_refine(parse_refine_fields(raw, limits)), bytes, sink);
 }
 
 RefinePlan plan_refine(RefineRequest request, std::span<const std::uint8_t> bytes,
                        ResultSink sink) {
-  return plan_parsed(std::move(request), bytes, sink);
+  return plan_body(plan_refine(std::move(request)), bytes, sink);
 }
 
 void refuse_over_face_budget(const RefinePlan& plan) {
@@ -47,16 +41,24 @@ void refuse_over_face_budget(const RefinePlan& plan) {
 
 SlicePlan plan_slice(const RawParams& raw, const RequestLimits& limits,
                      std::span<const std::uint8_t> bytes) {
+  return plan_slice(parse_slice_params(raw, limits), bytes);
+}
+
+SlicePlan plan_slice(SliceRequest request, std::span<const std::uint8_t> bytes) {
   SlicePlan plan;
-  plan.request = parse_slice_params(raw, limits);
+  plan.request = std::move(request);
   plan.shape = stl_shape(bytes);
   plan.memory = estimate_slice_memory(bytes, plan.shape, plan.request);
   return plan;
 }
 
 InfoPlan plan_info(const RawParams& raw, std::span<const std::uint8_t> bytes) {
+  return plan_info(parse_info_params(raw), bytes);
+}
+
+InfoPlan plan_info(InfoRequest request, std::span<const std::uint8_t> bytes) {
   InfoPlan plan;
-  plan.request = parse_info_params(raw);
+  plan.request = std::move(request);
   plan.shape = stl_shape(bytes);
   plan.memory = estimate_info_memory(plan.shape);
   return plan;

@@ -23,7 +23,7 @@ struct RefinePlan {
   RefineRequest request;  //!< parsed and validated
   //! Made once from request.refine (scheme name and options). Shared: a plan can be copied.
   std::shared_ptr<const Scheme> scheme;
-  StlShape shape;  //!< of the body
+  StlShape shape;  //!< of the body (empty in a plan made without it)
   //! Faces the refinement makes from shape.faces (predict_faces: exact in the uniform
   //! mode, a bound in the adaptive one).
   std::uint64_t predicted_faces = 0;
@@ -40,9 +40,13 @@ RefinePlan plan_refine(const RawParams& raw, const RequestLimits& limits,
 RefinePlan plan_refine(RefineRequest request, std::span<const std::uint8_t> bytes,
                        ResultSink sink = ResultSink::Answer);
 //! The parameters and the scheme alone, before the body is read (the CLI: it reports a bad
-//! parameter before it opens the file, and has no memory budget): `shape`, `predicted_faces`
-//! and `memory` are left empty.
+//! parameter before it opens the file, and has no memory budget; the daemon: it refuses a bad
+//! parameter before the upload): `shape`, `predicted_faces` and `memory` are left empty.
 RefinePlan plan_refine(RefineRequest request);
+//! Completes a plan made before the body (plan_refine(RefineRequest)) with the body's shape,
+//! the predicted faces and memory: nothing is parsed, validated or made again.
+RefinePlan plan_body(RefinePlan plan, std::span<const std::uint8_t> bytes,
+                     ResultSink sink = ResultSink::Answer);
 
 //! The plan's own face budget on the body's facets (before ingest; run_refine checks the
 //! ingested count again). \throw FaceBudgetError (BudgetExceeded, field max_faces).
@@ -57,6 +61,8 @@ struct SlicePlan {
 //! \throw Error(InvalidParameter) naming the field, as parse_slice_params.
 SlicePlan plan_slice(const RawParams& raw, const RequestLimits& limits,
                      std::span<const std::uint8_t> bytes);
+//! The same for parameters parsed before the body (parse_slice_params).
+SlicePlan plan_slice(SliceRequest request, std::span<const std::uint8_t> bytes);
 
 //! An info report, resolved.
 struct InfoPlan {
@@ -66,5 +72,7 @@ struct InfoPlan {
 };
 //! \throw Error(InvalidParameter) naming the field, as parse_info_params.
 InfoPlan plan_info(const RawParams& raw, std::span<const std::uint8_t> bytes);
+//! The same for parameters parsed before the body (parse_info_params).
+InfoPlan plan_info(InfoRequest request, std::span<const std::uint8_t> bytes);
 
 }  // namespace stlrefine::api

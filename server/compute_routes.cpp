@@ -21,10 +21,10 @@
 
 namespace stlrefine::server {
 
-void serve_compute(const RouteContext& ctx, const HttpRequest& req, const Route& route, int fd,
+void serve_compute(const RouteContext& ctx, const HttpRequest& req, CheckedRequest checked, int fd,
                    std::shared_ptr<MemoryBudget::Reservation> reservation, HttpAnswer& res) {
   const std::string_view raw_body = req.body;
-  if (ctx.config.test_hook) ctx.config.test_hook(route.path);
+  if (ctx.config.test_hook) ctx.config.test_hook(checked.route->path);
   if (ctx.config.test_faults) {
     const std::string fault = req.header("X-Stlrefine-Test-Fault");
     if (fault == "throw") throw std::runtime_error("test fault secret-4711 in " + req.path);
@@ -41,20 +41,20 @@ void serve_compute(const RouteContext& ctx, const HttpRequest& req, const Route&
     ~TrimAfter() { ::malloc_trim(0); }
   } trim_after;
   try {
-    // Planned (parsed again, cheap: the pre-routing check only validated): the parameters,
-    // the scheme, the body's shape and the predicted memory, once.
+    // The plan: the parameters precheck resolved before the upload (a refinement's scheme
+    // made there), completed with the body's shape (sniffed once, here) and the predicted
+    // faces and memory.
     const auto body =
         std::span(reinterpret_cast<const std::uint8_t*>(raw_body.data()), raw_body.size());
-    const std::string_view path = route.path;
     std::optional<api::RefinePlan> refine_plan;
     std::optional<api::SlicePlan> slice_plan;
     std::optional<api::InfoPlan> info_plan;
-    if (path == "/v1/refine")
-      refine_plan = api::plan_refine(req.parameters(), ctx.limits, body);
-    else if (path == "/v1/slice")
-      slice_plan = api::plan_slice(req.parameters(), ctx.limits, body);
+    if (checked.refine)
+      refine_plan = api::plan_body(std::move(*checked.refine), body);
+    else if (checked.slice)
+      slice_plan = api::plan_slice(std::move(*checked.slice), body);
     else
-      info_plan = api::plan_info(req.parameters(), body);
+      info_plan = api::plan_info(std::move(*checked.info), body);
 
     std::optional<ComputeSlots::Lease> lease = ctx.slots.try_acquire();
     if (!lease || ctx.stopping) return ctx.respond(res, ctx.busy_problem(ctx.stopping));

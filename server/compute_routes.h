@@ -17,10 +17,11 @@
 
 namespace stlrefine::server {
 
-//! Answers `req` on the compute route `route`. `fd`: the client's socket, watched for a
-//! hang-up; `reservation`: the body's memory (null: one is made), grown to the plan's
-//! predicted peak before any work and shrunk to the answer once computed.
-void serve_compute(const RouteContext& ctx, const HttpRequest& req, const Route& route, int fd,
+//! Answers `req` (its body read) on the compute route `checked.route`, whose parameters
+//! RouteContext::precheck resolved. `fd`: the client's socket, watched for a hang-up (-1:
+//! none); `reservation`: the body's memory (null: one is made), grown to the plan's predicted
+//! peak before any work and shrunk to the answer once computed.
+void serve_compute(const RouteContext& ctx, const HttpRequest& req, CheckedRequest checked, int fd,
                    std::shared_ptr<MemoryBudget::Reservation> reservation, HttpAnswer& res);
 
 }  // namespace stlrefine::server

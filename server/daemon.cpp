@@ -83,6 +83,14 @@ std::string request_id_of(const HttpRequest& req) {
   return request_id(req.header("X-Request-Id"));
 }
 
+//! What decide() hands to the worker with a request (ReadRequest::hold, kept until the
+//! answer is written): what the checks before the body found, and the body's memory
+//! reservation (compute and job routes).
+struct Accepted {
+  CheckedRequest checked;
+  std::shared_ptr<MemoryBudget::Reservation> reservation;
+};
+
 }  // namespace
 
 struct Daemon::Impl : FrontEndDelegate {
@@ -250,7 +258,8 @@ Verdict Daemon::Impl::decide(const RequestHead& head) {
   // Probes are answered here, on the event loop: they never wait behind a worker.
   const bool probe = (req.path == "/healthz" || req.path == "/readyz") &&
                      (req.method == "GET" || req.method == "HEAD");
-  std::optional<api::Problem> problem = ctx.precheck(req);
+  auto accepted = std::make_shared<Accepted>();
+  std::optional<api::Problem> problem = ctx.precheck(req, accepted->checked);
   if (probe && !problem) {
     std::string body = "{\"status\":\"ok\"}\n";
     if (req.path == "/readyz") {
@@ -276,8 +285,9 @@ Verdict Daemon::Impl::decide(const RequestHead& head) {
     verdict.response = front_answer(&req, *problem);
     return verdict;
   }
-  const Route* route = find_route(req.path);
-  if (route && has_body(*route)) {
+  verdict.hold = accepted;
+  const Route* route = accepted->checked.route;
+  if (has_body(*route)) {
     verdict.kind = Verdict::Kind::ReadBody;
     // precheck validated it: one decimal number, under the cap
     const std::string length = req.header("Content-Length");
@@ -299,7 +309,7 @@ Verdict Daemon::Impl::decide(const RequestHead& head) {
       // so sockets that declare large bodies and trickle them cannot pin the budget.
       std::optional<MemoryBudget::Reservation> held = memory.try_reserve(0);
       auto reservation = std::make_shared<MemoryBudget::Reservation>(std::move(*held));
-      verdict.hold = reservation;
+      accepted->reservation = reservation;
       verdict.reserve_body = [this, reservation, req](std::uint64_t bytes) -> std::string {
         if (reservation->grow_to(bytes)) return {};
         return front_answer(&req, ctx.memory_busy_problem(bytes));
@@ -335,16 +345,20 @@ Answer Daemon::Impl::serve(ReadRequest& read) {
 }
 
 void Daemon::Impl::route(const HttpRequest& req, ReadRequest& read, HttpAnswer& res, bool& ranges) {
-  // decide() ran the same checks on the event loop; they run again here because the state
-  // may have changed while the body arrived (every slot taken, shutting down).
-  if (std::optional<api::Problem> problem = ctx.precheck(req)) return ctx.respond(res, *problem);
-  const Route& r = *find_route(req.path);  // precheck found it
+  // decide() ran every check on the event loop and resolved the parameters; what may have
+  // changed while the body arrived (every slot taken, the job queue full, shutting down) is
+  // checked again.
+  Accepted& accepted = *std::static_pointer_cast<Accepted>(read.hold);
+  const Route& r = *accepted.checked.route;
+  if (has_body(r))
+    if (std::optional<api::Problem> problem = ctx.check_capacity(r))
+      return ctx.respond(res, *problem);
   switch (r.kind) {
     case RouteKind::Compute:
-      return serve_compute(ctx, req, r, read.fd,
-                           std::static_pointer_cast<MemoryBudget::Reservation>(read.hold), res);
+      return serve_compute(ctx, req, std::move(accepted.checked), read.fd, accepted.reservation,
+                           res);
     case RouteKind::Submit:
-      return serve_job_submit(ctx, req, res);
+      return serve_job_submit(ctx, req, std::move(*accepted.checked.refine), res);
     case RouteKind::JobItem:
       ranges = true;
       return serve_job_item(ctx, req, res);

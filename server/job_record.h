@@ -32,7 +32,9 @@ struct JobStore::Job {
   std::string instance;  // the replica running it (JobsConfig::instance); "owner" on disk
   std::string tenant;    // who may see it (submit's owner); "tenant" on disk
   std::filesystem::path dir;
-  api::RefineRequest request;
+  //! Made at submit, and what the runner uses. Empty for a job read from disk at a start
+  //! (such a job is never run: an unfinished one is failed).
+  api::RefinePlan plan;
   std::string scheme, query;
   JobState state = JobState::Queued;
   bool expired = false;

@@ -25,14 +25,14 @@ bool job_file_name(const std::string& name) {
 
 }  // namespace
 
-void serve_job_submit(const RouteContext& ctx, const HttpRequest& req, HttpAnswer& res) {
+void serve_job_submit(const RouteContext& ctx, const HttpRequest& req, api::RefinePlan parameters,
+                      HttpAnswer& res) {
   const std::string_view body = req.body;
   if (ctx.config.test_hook) ctx.config.test_hook("/v1/jobs");
   try {
     // A job that could never get its memory is refused now, not when its turn comes.
     const auto bytes = std::span(reinterpret_cast<const std::uint8_t*>(body.data()), body.size());
-    api::RefinePlan plan =
-        api::plan_refine(req.parameters(), ctx.limits, bytes, api::ResultSink::JobFiles);
+    api::RefinePlan plan = api::plan_body(std::move(parameters), bytes, api::ResultSink::JobFiles);
     const api::MemoryEstimate& predicted = plan.memory;
     if (predicted.peak_bytes > ctx.memory.capacity())
       return ctx.respond(res, api::memory_budget_problem(predicted, ctx.memory.capacity()));
@@ -41,8 +41,8 @@ void serve_job_submit(const RouteContext& ctx, const HttpRequest& req, HttpAnswe
     const std::uint64_t result_bytes = predicted_result_bytes(plan.request, predicted);
     const SubmitResult submitted = ctx.stopping
                                        ? SubmitResult::refused(SubmitResult::Status::ShuttingDown)
-                                       : ctx.jobs->submit(std::move(plan.request), std::move(query),
-                                                          body, ctx.tenant(req), result_bytes);
+                                       : ctx.jobs->submit(std::move(plan), std::move(query), body,
+                                                          ctx.tenant(req), result_bytes);
     if (submitted.status == SubmitResult::Status::NoSpace)
       return ctx.respond(res, no_space_problem(submitted));
     const std::optional<JobView>& job = submitted.job;

@@ -6,13 +6,17 @@
 // DELETE /v1/jobs/{id} (its state; cancel) and GET / HEAD /v1/jobs/{id}/{file} (a result,
 // sent from its file). The store and its runners are jobs.h.
 
+#include "api/plan.h"
 #include "server/http.h"
 #include "server/route_context.h"
 
 namespace stlrefine::server {
 
-//! POST /v1/jobs. \pre ctx.jobs
-void serve_job_submit(const RouteContext& ctx, const HttpRequest& req, HttpAnswer& res);
+//! POST /v1/jobs with its body read; `parameters`: the plan RouteContext::precheck made
+//! before the body, completed here with it and handed to the job store (whose runner uses
+//! it). \pre ctx.jobs
+void serve_job_submit(const RouteContext& ctx, const HttpRequest& req, api::RefinePlan parameters,
+                      HttpAnswer& res);
 //! /v1/jobs/{id} and /v1/jobs/{id}/{file}. \pre ctx.jobs
 void serve_job_item(const RouteContext& ctx, const HttpRequest& req, HttpAnswer& res);
 

@@ -71,9 +71,9 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
     const std::string input = read_file(job->dir / kInputFile);
     const auto input_bytes =
         std::span(reinterpret_cast<const std::uint8_t*>(input.data()), input.size());
-    // The request was parsed and validated when it was submitted; planned on its body now.
-    const api::RefinePlan plan =
-        api::plan_refine(job->request, input_bytes, api::ResultSink::JobFiles);
+    // Planned when it was submitted (parsed, validated, its scheme made, its body's shape
+    // sniffed, its faces and memory predicted): nothing is planned again.
+    const api::RefinePlan& plan = job->plan;
     if (config_.memory) {
       // Its predicted peak, before any work (the face budget first); it waits for that like
       // for a slot.
@@ -141,7 +141,7 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
     results.push_back("result.stl");
     if (out.contours) {
       const std::string name =
-          std::string("contours") + slicer::file_extension(job->request.slice->format);
+          std::string("contours") + slicer::file_extension(plan.request.slice->format);
       write_atomically(job->dir / name, *out.contours);
       results.push_back(name);
       bytes += out.contours->size();

@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <span>
 #include <stdexcept>
 
 #include "server/job_record.h"
@@ -75,6 +76,14 @@ void JobStore::release_disk(Job& job) {
 SubmitResult JobStore::submit(api::RefineRequest request, std::string query,
                               std::string_view stl_bytes, std::string owner,
                               std::uint64_t predicted_result_bytes) {
+  const auto bytes =
+      std::span(reinterpret_cast<const std::uint8_t*>(stl_bytes.data()), stl_bytes.size());
+  return submit(api::plan_refine(std::move(request), bytes, api::ResultSink::JobFiles),
+                std::move(query), stl_bytes, std::move(owner), predicted_result_bytes);
+}
+
+SubmitResult JobStore::submit(api::RefinePlan plan, std::string query, std::string_view stl_bytes,
+                              std::string owner, std::uint64_t predicted_result_bytes) {
   using Status = SubmitResult::Status;
   std::uint64_t needed = 0;
   auto job = std::make_shared<Job>();
@@ -82,9 +91,9 @@ SubmitResult JobStore::submit(api::RefineRequest request, std::string query,
   job->instance = config_.instance;
   job->tenant = std::move(owner);
   job->dir = config_.data_dir / job->id;
-  job->scheme = request.refine.scheme;
+  job->scheme = plan.request.refine.scheme;
   job->query = std::move(query);
-  job->request = std::move(request);
+  job->plan = std::move(plan);
   job->created = Clock::now();
   const std::uint64_t input = stl_bytes.size();
   const std::uint64_t reserve = saturating_add(input, predicted_result_bytes);

@@ -23,6 +23,7 @@
 
 #include "api/memory_model.h"
 #include "api/params.h"
+#include "api/plan.h"
 #include "api/problem.h"
 #include "server/compute_slots.h"
 #include "server/memory_budget.h"
@@ -145,6 +146,11 @@ class JobStore {
   //! finished. The input is written to disk before the job is visible; a write that fails
   //! leaves no job directory behind (NoSpace when it failed for want of space, otherwise
   //! the exception propagates).
+  //! `plan` is what the job's runner uses (made with `stl_bytes`; nothing is planned again).
+  SubmitResult submit(api::RefinePlan plan, std::string query, std::string_view stl_bytes,
+                      std::string owner, std::uint64_t predicted_result_bytes);
+  //! submit for a request parsed and validated: planned here on `stl_bytes`.
+  //! \throw Error(InvalidParameter) when its scheme cannot be made from it.
   SubmitResult submit(api::RefineRequest request, std::string query, std::string_view stl_bytes,
                       std::string owner, std::uint64_t predicted_result_bytes);
 

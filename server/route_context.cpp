@@ -7,6 +7,7 @@
 #include <charconv>
 #include <string_view>
 
+#include "api/plan.h"
 #include "core/error.h"
 
 namespace stlrefine::server {
@@ -50,8 +51,10 @@ void send_problem(HttpAnswer& res, const api::Problem& problem) {
   res.set_content(api::problem_body(problem), api::kProblemContentType);
 }
 
-std::optional<api::Problem> RouteContext::precheck(const HttpRequest& req) const {
+std::optional<api::Problem> RouteContext::precheck(const HttpRequest& req,
+                                                   CheckedRequest& checked) const {
   const Route* route = find_route(req.path);
+  checked = CheckedRequest{route, std::nullopt, std::nullopt, std::nullopt};
   if (!route) return api::not_found("not-found", "no route " + shortened(req.path));
   if (!method_allowed(*route, req.method)) {
     api::Problem p = api::method_not_allowed(
@@ -130,20 +133,25 @@ std::optional<api::Problem> RouteContext::precheck(const HttpRequest& req) const
     return p;
   }
 
-  // Parameters, before the body is uploaded.
+  // Parameters, before the body is uploaded: resolved once, for the handler. A refinement's
+  // validation makes its scheme (make_scheme(RefineParams)); that scheme is the one it runs.
   try {
+    const api::RawParams raw = req.parameters();
     if (route->kind == RouteKind::Submit || route->path == std::string_view("/v1/refine"))
-      api::parse_refine_params(req.parameters(), limits);
+      checked.refine = api::plan_refine(api::parse_refine_fields(raw, limits));
     else if (route->path == std::string_view("/v1/slice"))
-      api::parse_slice_params(req.parameters(), limits);
+      checked.slice = api::parse_slice_params(raw, limits);
     else
-      api::parse_info_params(req.parameters());
+      checked.info = api::parse_info_params(raw);
   } catch (const Error& e) {
     return api::problem_from_error(e);
   }
+  return check_capacity(*route);
+}
 
+std::optional<api::Problem> RouteContext::check_capacity(const Route& route) const {
   // A full house is told at once. The handler takes the slot for real after the upload.
-  if (route->kind == RouteKind::Submit) {
+  if (route.kind == RouteKind::Submit) {
     if (stopping || jobs->queued() >= jobs->config().max_queued) {
       if (stopping) return busy_problem(true);
       api::Problem p = api::service_unavailable("queue-full",

@@ -13,6 +13,7 @@
 #include <string>
 
 #include "api/params.h"
+#include "api/plan.h"
 #include "api/problem.h"
 #include "server/compute_slots.h"
 #include "server/daemon.h"
@@ -24,6 +25,16 @@
 #include "server/routes.h"
 
 namespace stlrefine::server {
+
+//! What the checks before the body found: the route and, for a route with a body, its
+//! parameters resolved once (a refinement's plan without its body: parsed, validated, its
+//! scheme made). The handler completes that with the body; nothing is parsed again.
+struct CheckedRequest {
+  const Route* route = nullptr;
+  std::optional<api::RefinePlan> refine;   //!< /v1/refine, /v1/jobs
+  std::optional<api::SliceRequest> slice;  //!< /v1/slice
+  std::optional<api::InfoRequest> info;    //!< /v1/info
+};
 
 struct RouteContext {
   const DaemonConfig& config;
@@ -37,8 +48,11 @@ struct RouteContext {
 
   //! Every check that needs only the request line and headers, before the body is read
   //! (route, method, API key, framing, type, length, parameters, a full house), in that
-  //! order; nullopt when the request may proceed.
-  std::optional<api::Problem> precheck(const HttpRequest& req) const;
+  //! order; nullopt when the request may proceed, with what was found in `checked`.
+  std::optional<api::Problem> precheck(const HttpRequest& req, CheckedRequest& checked) const;
+  //! The one check that can change while a body arrives: a full house (every compute slot
+  //! taken, the job queue full, shutting down) on a route with a body.
+  std::optional<api::Problem> check_capacity(const Route& route) const;
   bool authorized(const HttpRequest& req) const;
   //! The tenant that owns the jobs this request may see (JobStore::tenant_of its API key);
   //! empty without API keys.
