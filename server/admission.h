@@ -4,8 +4,8 @@
 
 // Admission: what a planned computation goes through before any work, and how a refusal of
 // its memory while it runs is answered. The one sequence the synchronous routes
-// (daemon.cpp) and the job runner (jobs.cpp) share; they differ only in how they wait for
-// memory (`reserve`) and in their busy answer (`busy`).
+// (compute_routes.cpp) and the job runner (job_runner.cpp) share; they differ only in how they wait
+// for memory (`reserve`) and in their busy answer (`busy`).
 
 #include <cstdint>
 #include <functional>

@@ -78,17 +78,10 @@ void JobStore::load_existing() {
       if (!finished(job->state)) {
         // It was queued or running when this daemon stopped: say so, never drop it silently
         // (cancelled, if another replica's cancel was accepted for it).
-        job->finished = Clock::now();
-        if (fs::exists(job->dir / kCancelFile, ec)) {
-          job->state = JobState::Cancelled;
-          job->stage = "cancelled";
-          job->problem = api::to_json(cancel_problem(CancelReason::Client, false));
-        } else {
-          job->state = JobState::Failed;
-          job->stage = "interrupted";
-          job->problem = api::to_json(api::server_error(
-              "interrupted", "the daemon stopped before this job finished; submit it again"));
-        }
+        end_unrun(
+            *job, "interrupted",
+            api::server_error("interrupted",
+                              "the daemon stopped before this job finished; submit it again"));
         // Its input, and results it wrote before job.json could list them.
         if (!link)
           for (const fs::directory_entry& file : fs::directory_iterator(job->dir, ec))

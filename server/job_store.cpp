@@ -214,6 +214,20 @@ api::Problem JobStore::cancel_problem(CancelReason why, bool discarded) const {
                                         : "cancelled by the client");
 }
 
+void JobStore::end_unrun(Job& job, const char* stage, const api::Problem& failure) const {
+  std::error_code ignored;
+  job.finished = Clock::now();
+  if (fs::exists(job.dir / kCancelFile, ignored)) {  // accepted by another replica
+    job.state = JobState::Cancelled;
+    job.stage = "cancelled";
+    job.problem = api::to_json(cancel_problem(CancelReason::Client, false));
+  } else {
+    job.state = JobState::Failed;
+    job.stage = stage;
+    job.problem = api::to_json(failure);
+  }
+}
+
 JobStore::Lookup JobStore::cancel(const std::string& id, const std::string& owner, JobView* out) {
   if (!well_formed_id(id)) return Lookup::Unknown;
   {
@@ -316,17 +330,10 @@ void JobStore::shutdown(std::chrono::milliseconds grace) {
       grace_ = grace;
       for (const auto& job : queue_) {
         std::error_code ignored;
-        job->finished = Clock::now();
-        if (fs::exists(job->dir / kCancelFile, ignored)) {  // accepted by another replica
-          job->state = JobState::Cancelled;
-          job->stage = "cancelled";
-          job->problem = api::to_json(cancel_problem(CancelReason::Client, false));
-        } else {
-          job->state = JobState::Failed;
-          job->stage = "shutting down";
-          job->problem = api::to_json(api::service_unavailable(
-              "shutting-down", "the server shut down before this job started; submit it again"));
-        }
+        end_unrun(
+            *job, "shutting down",
+            api::service_unavailable(
+                "shutting-down", "the server shut down before this job started; submit it again"));
         release_disk(*job);
         fs::remove(job->dir / kInputFile, ignored);
         persist_or_log(*job);

@@ -216,6 +216,10 @@ class JobStore {
   void cancel_running(CancelReason why);
   void release_disk(Job& job);  // under mutex_
   api::Problem cancel_problem(CancelReason why, bool discarded) const;
+  //! A job that will not run (found unfinished at a start, queued at shutdown) ends now:
+  //! cancelled when another replica's cancel was accepted for it, else failed at `stage`
+  //! with `failure`.
+  void end_unrun(Job& job, const char* stage, const api::Problem& failure) const;
 
   JobsConfig config_;
   ComputeSlots& slots_;
