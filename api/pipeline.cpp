@@ -50,6 +50,10 @@ nlohmann::ordered_json run_info(std::span<const std::uint8_t> bytes, const InfoR
   return run_info(bytes, request, false).report;
 }
 
+nlohmann::ordered_json run_info(std::span<const std::uint8_t> bytes, const InfoPlan& plan) {
+  return run_info(bytes, plan.request, false).report;
+}
+
 InfoOutcome run_info(std::span<const std::uint8_t> bytes, const InfoRequest& request,
                      bool curvature_csv) {
   request.features.validate();
@@ -249,6 +253,11 @@ std::string slice_to_string(const Mesh& mesh, const SliceOptions& options,
       progress, cancel);
   if (stats) *stats = s;
   return out;
+}
+
+SliceOutcome run_slice(std::span<const std::uint8_t> bytes, const SlicePlan& plan,
+                       const ProgressFn& progress, const std::atomic<bool>* cancel) {
+  return run_slice(bytes, plan.request, progress, cancel);
 }
 
 SliceOutcome run_slice(std::span<const std::uint8_t> bytes, const SliceRequest& request,

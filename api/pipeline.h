@@ -27,6 +27,9 @@ struct InfoOutcome {
   std::optional<std::string> curvature_csv;
 };
 
+//! run_info of a plan (the daemon's: its request parsed and validated before the body).
+nlohmann::ordered_json run_info(std::span<const std::uint8_t> bytes, const InfoPlan& plan);
+
 //! run_info, optionally with the per-vertex curvature table.
 InfoOutcome run_info(std::span<const std::uint8_t> bytes, const InfoRequest& request,
                      bool curvature_csv);
@@ -110,6 +113,9 @@ struct SliceOutcome {
 //! \throw Error(MalformedStl | NotTriangleMesh | InvalidParameter | BudgetExceeded |
 //! Cancelled | Internal)
 SliceOutcome run_slice(std::span<const std::uint8_t> bytes, const SliceRequest& request,
+                       const ProgressFn& progress = {}, const std::atomic<bool>* cancel = nullptr);
+//! run_slice of a plan (the daemon's: its request parsed before the body).
+SliceOutcome run_slice(std::span<const std::uint8_t> bytes, const SlicePlan& plan,
                        const ProgressFn& progress = {}, const std::atomic<bool>* cancel = nullptr);
 
 //! Contours of `mesh` as one string in options.format (what run_slice and run_refine use).

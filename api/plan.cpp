@@ -45,11 +45,9 @@ SlicePlan plan_slice(const RawParams& raw, const RequestLimits& limits,
 }
 
 SlicePlan plan_slice(SliceRequest request, std::span<const std::uint8_t> bytes) {
-  SlicePlan plan;
-  plan.request = std::move(request);
-  plan.shape = stl_shape(bytes);
-  plan.memory = estimate_slice_memory(bytes, plan.shape, plan.request);
-  return plan;
+  const StlShape shape = stl_shape(bytes);
+  MemoryEstimate memory = estimate_slice_memory(bytes, shape, request);
+  return SlicePlan(std::move(request), shape, std::move(memory));
 }
 
 InfoPlan plan_info(const RawParams& raw, std::span<const std::uint8_t> bytes) {
@@ -57,11 +55,8 @@ InfoPlan plan_info(const RawParams& raw, std::span<const std::uint8_t> bytes) {
 }
 
 InfoPlan plan_info(InfoRequest request, std::span<const std::uint8_t> bytes) {
-  InfoPlan plan;
-  plan.request = std::move(request);
-  plan.shape = stl_shape(bytes);
-  plan.memory = estimate_info_memory(plan.shape);
-  return plan;
+  const StlShape shape = stl_shape(bytes);
+  return InfoPlan(std::move(request), shape, estimate_info_memory(shape));
 }
 
 }  // namespace stlrefine::api

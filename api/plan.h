@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <utility>
 
 #include "api/memory_model.h"
 #include "api/params.h"
@@ -57,6 +58,9 @@ struct SlicePlan {
   SliceRequest request;  //!< parsed and validated
   StlShape shape;
   MemoryEstimate memory;
+  //! Made by plan_slice. (No default: `run_slice(bytes, {})` means a default SliceRequest.)
+  SlicePlan(SliceRequest r, const StlShape& s, MemoryEstimate m)
+      : request(std::move(r)), shape(s), memory(std::move(m)) {}
 };
 //! \throw Error(InvalidParameter) naming the field, as parse_slice_params.
 SlicePlan plan_slice(const RawParams& raw, const RequestLimits& limits,
@@ -69,6 +73,9 @@ struct InfoPlan {
   InfoRequest request;  //!< parsed and validated
   StlShape shape;
   MemoryEstimate memory;
+  //! Made by plan_info. (No default: `run_info(bytes, {})` means a default InfoRequest.)
+  InfoPlan(InfoRequest r, const StlShape& s, MemoryEstimate m)
+      : request(std::move(r)), shape(s), memory(std::move(m)) {}
 };
 //! \throw Error(InvalidParameter) naming the field, as parse_info_params.
 InfoPlan plan_info(const RawParams& raw, std::span<const std::uint8_t> bytes);

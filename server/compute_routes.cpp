@@ -141,13 +141,13 @@ void serve_compute(const RouteContext& ctx, const HttpRequest& req, CheckedReque
         provide(std::move(out.stl), kStlContentType);
       }
     } else if (slice_plan) {
-      api::SliceOutcome out = api::run_slice(body, slice_plan->request, {}, cancel);
+      api::SliceOutcome out = api::run_slice(body, *slice_plan, {}, cancel);
       lease.reset();
       keep_answer(out.contours.size());
       res.set_header(kReportHeader, out.report.dump(-1, ' ', true));
       provide(std::move(out.contours), slicer::media_type(slice_plan->request.slice.format));
     } else {
-      const nlohmann::ordered_json report = api::run_info(body, info_plan->request);
+      const nlohmann::ordered_json report = api::run_info(body, *info_plan);
       lease.reset();
       keep_answer(0);
       res.set_content(report.dump(2, ' ', true) + "\n", kJsonContentType);
