@@ -63,7 +63,7 @@ void refuse_collapsing_tolerance(const TriangleSoup& soup, const IndexedSoup& we
 }  // namespace
 
 Ingested ingest_stl(std::span<const std::uint8_t> bytes, double weld_tolerance,
-                    const StlReadOptions& options) {
+                    const StlReadOptions& options, const UnitOptions& units) {
   const auto start = std::chrono::steady_clock::now();
   Ingested in;
   in.weld_tolerance = weld_tolerance;
@@ -78,6 +78,7 @@ Ingested ingest_stl(std::span<const std::uint8_t> bytes, double weld_tolerance,
     in.welded_vertices = welded.positions.size();
     in.result = build_mesh(welded);
   }
+  in.units = apply_units(in.result.mesh, units);
   in.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return in;
 }

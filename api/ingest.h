@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <span>
 
+#include "api/units.h"
 #include "core/io/stl.h"
 #include "core/mesh/build_mesh.h"
 
@@ -19,15 +20,21 @@ struct Ingested {
   std::uint64_t trailing_bytes = 0;  //!< ignored bytes after the last binary facet
   std::size_t welded_vertices = 0;   //!< distinct positions after welding
   double weld_tolerance = 0;
-  IngestResult result;  //!< the mesh and what ingest repaired
+  IngestResult result;  //!< the mesh (in mm) and what ingest repaired
+  UnitsReport units;    //!< the units assumed and the size in mm
   double seconds = 0;   //!< wall time of read + weld + build
 };
 
-//! bytes -> read_stl -> weld -> build_mesh.
+//! bytes -> read_stl -> weld -> build_mesh -> apply_units (weld_tolerance is in the file's
+//! units).
 //! \throw Error(MalformedStl) with byte offset or line; Error(NotTriangleMesh), with field
 //! "weld_tolerance" (reason "weld_collapsed") when the tolerance merged two corners of every
 //! triangle of a file that has a proper one; Error(InvalidParameter) for a bad tolerance.
 Ingested ingest_stl(std::span<const std::uint8_t> bytes, double weld_tolerance,
-                    const StlReadOptions& options = {});
+                    const StlReadOptions& options = {}, const UnitOptions& units = {});
+inline Ingested ingest_stl(std::span<const std::uint8_t> bytes, double weld_tolerance,
+                           const UnitOptions& units) {
+  return ingest_stl(bytes, weld_tolerance, StlReadOptions{}, units);
+}
 
 }  // namespace stlrefine::api

@@ -5,8 +5,10 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <iomanip>
 #include <limits>
 #include <set>
+#include <sstream>
 #include <system_error>
 
 #include "api/param_table.h"
@@ -113,6 +115,13 @@ std::string url_decode(std::string_view text) {
     }
   }
   return out;
+}
+
+double parse_scale(std::string_view text) {
+  const double s = parse_number("scale", text);
+  if (!(s > 0 && s <= 1e6))
+    throw invalid("scale", "out_of_range", "scale = " + shown(text) + " is outside (0, 1e6]");
+  return s;
 }
 
 double parse_weld_tolerance(std::string_view text) {
@@ -248,8 +257,11 @@ const ParamRow kParams[] = {
     {.name = "layer_height",
      .type = ParamType::Number,
      .description = "Layer height in mm.",
-     .help = "Layer thickness in mm [1e-4, 1e4] (0.1); planes at z_min + (k + 1/2) h",
+     .help = "Layer thickness in mm; planes at z_min + (k + 1/2) h",
      .example = "0.5",
+     .default_value = "0.1",
+     .minimum = 1e-4,
+     .maximum = 1e4,
      .slice =
          [](SliceRequest& r, const std::string& v) {
            r.slice.params.layer_height = parse_number("layer_height", v);
@@ -257,8 +269,9 @@ const ParamRow kParams[] = {
     {.name = "format",
      .type = ParamType::String,
      .description = "Contour format: json, svg, cli, cli-binary.",
-     .help = "json, svg, cli, cli-binary (json)",
+     .help = "json, svg, cli, cli-binary",
      .example = "svg",
+     .default_value = "json",
      .slice = [](SliceRequest& r,
                  const std::string& v) { r.slice.format = slicer::parse_slice_format(v); }},
     {.name = "z_min",
@@ -285,8 +298,11 @@ const ParamRow kParams[] = {
     {.name = "max_layers",
      .type = ParamType::Integer,
      .description = "Refuse with 422 when the plan has more layers.",
-     .help = "Refuse before any work above this many layers [1, 1000000]",
+     .help = "Refuse before any work above this many layers",
      .example = "100",
+     .default_value = "1000000",
+     .minimum = 1,
+     .maximum = 1e6,
      .slice =
          [](SliceRequest& r, const std::string& v) {
            // A request may only lower the default cap.
@@ -296,15 +312,19 @@ const ParamRow kParams[] = {
     {.name = "scheme",
      .type = ParamType::String,
      .description = "Subdivision scheme.",
-     .help = "Subdivision scheme (butterfly)",
+     .help = "Subdivision scheme",
      .example = "loop",
+     .default_value = "butterfly",
      .refine = [](RefineRequest& r, const std::string& v,
                   const RequestLimits&) { r.refine.scheme = v; }},
     {.name = "levels",
      .type = ParamType::Integer,
      .description = "Uniform subdivision steps, 0..8.",
-     .help = "Subdivision steps [0, 8] (1)",
+     .help = "Subdivision steps",
      .example = "2",
+     .default_value = "1",
+     .minimum = 0,
+     .maximum = 8,
      .refine = [](RefineRequest& r, const std::string& v,
                   const RequestLimits&) { r.refine.levels = parse_int("levels", v); }},
     {.name = "crease_angle",
@@ -315,34 +335,72 @@ const ParamRow kParams[] = {
      .help = "Sharp edges: auto (default: found from the geometry) or a dihedral angle in "
              "degrees above which an edge is sharp [0, 180]",
      .example = "30",
+     .default_value = "auto",
      .refine = [](RefineRequest& r, const std::string& v,
                   const RequestLimits&) { parse_crease_angle(v, r.refine.features); },
      .info = [](InfoRequest& r, const std::string& v) { parse_crease_angle(v, r.features); }},
     {.name = "max_faces",
      .type = ParamType::Integer,
      .description = "Face budget of the output; refused with 422 before any work above it.",
-     .help = "Refuse before any work if the output would have more faces (20000000)",
+     .help = "Refuse before any work if the output would have more faces (the daemon's "
+             "default is its cap; the CLI's 20000000)",
      .example = "1000",
+     .minimum = 1,
+     .maximum = 2147483647,
      .refine = refine_max_faces},
     {.name = "weld_tolerance",
      .type = ParamType::Number,
-     .description = "Distance in mm below which STL corners are welded.",
-     .help = "Merge corners closer than this (model units; 0 = exact, default)",
+     .description = "Distance below which STL corners are welded, in the file's units (before "
+                    "units= converts them).",
+     .help = "Merge corners closer than this (in the file's units, before units=; 0 = exact)",
      .example = "0.01",
+     .default_value = "0",
+     .minimum = 0,
      .refine = [](RefineRequest& r, const std::string& v,
                   const RequestLimits&) { r.weld_tolerance = parse_weld_tolerance(v); },
      .slice = [](SliceRequest& r,
                  const std::string& v) { r.weld_tolerance = parse_weld_tolerance(v); },
      .info = [](InfoRequest& r,
                 const std::string& v) { r.weld_tolerance = parse_weld_tolerance(v); }},
+    {.name = "units",
+     .type = ParamType::String,
+     .description =
+         "What the file's numbers are in: mm, cm, m, in; auto (default) reads mm and flags a "
+         "part whose size is implausible in mm (every extent under 1 mm, or one over 2 m) "
+         "with a warning in the report, without converting it. The output is in mm.",
+     .help = "What the file's numbers are in: mm, cm, m, in, or auto (read as mm; a part "
+             "under 1 mm or over 2 m is flagged in the report, not converted); the output is "
+             "in mm",
+     .example = "m",
+     .default_value = "auto",
+     .refine = [](RefineRequest& r, const std::string& v,
+                  const RequestLimits&) { r.units.units = parse_length_unit(v); },
+     .slice = [](SliceRequest& r, const std::string& v) { r.units.units = parse_length_unit(v); },
+     .info = [](InfoRequest& r, const std::string& v) { r.units.units = parse_length_unit(v); }},
+    {.name = "scale",
+     .type = ParamType::Number,
+     .description = "Multiplies the part after the unit conversion.",
+     .help = "Multiply the part by this after the unit conversion",
+     .example = "2",
+     .default_value = "1",
+     .minimum = 0,
+     .maximum = 1e6,
+     .exclusive_minimum = true,
+     .refine = [](RefineRequest& r, const std::string& v,
+                  const RequestLimits&) { r.units.scale = parse_scale(v); },
+     .slice = [](SliceRequest& r, const std::string& v) { r.units.scale = parse_scale(v); },
+     .info = [](InfoRequest& r, const std::string& v) { r.units.scale = parse_scale(v); }},
     {.name = "adaptive_tol",
      .type = ParamType::Number,
      .description =
          "Chordal tolerance in mm, 0..1e6: curvature-adaptive refinement until every new point "
          "is within it of its flat edge or triangle (lsf, butterfly, sqrt3 schemes).",
      .help = "Curvature-adaptive: refine where the new point leaves its flat edge or triangle "
-             "by more than this (mm; lsf, butterfly, sqrt3 schemes; 0 = off, default)",
+             "by more than this (mm; lsf, butterfly, sqrt3 schemes; 0 = off)",
      .example = "0.1",
+     .default_value = "0",
+     .minimum = 0,
+     .maximum = 1e6,
      .refine =
          [](RefineRequest& r, const std::string& v, const RequestLimits&) {
            r.refine.adaptive_tol = parse_number("adaptive_tol", v);
@@ -350,8 +408,11 @@ const ParamRow kParams[] = {
     {.name = "max_level",
      .type = ParamType::Integer,
      .description = "Level cap of the adaptive mode, 1..8.",
-     .help = "Level cap of the adaptive mode [1, 8] (4)",
+     .help = "Level cap of the adaptive mode",
      .example = "3",
+     .default_value = "4",
+     .minimum = 1,
+     .maximum = 8,
      .refine = [](RefineRequest& r, const std::string& v,
                   const RequestLimits&) { r.refine.max_level = parse_int("max_level", v); }},
     {.name = "slice",
@@ -359,57 +420,28 @@ const ParamRow kParams[] = {
      .description = "Also slice the refined mesh at this layer height (mm).",
      .help = "Also slice the refined mesh with this layer height (mm)",
      .example = "0.5",
+     .minimum = 1e-4,
+     .maximum = 1e4,
      .refine = refine_slice},
     {.name = "slice_format",
      .type = ParamType::String,
      .description = "Contour format of the slice: json, svg, cli, cli-binary.",
-     .help = "Contour format: json, svg, cli, cli-binary (json)",
+     .help = "Contour format: json, svg, cli, cli-binary",
      .example = "svg",
+     .default_value = "json",
      .refine = refine_slice_format},
-    {.name = "alpha",
-     .type = ParamType::Number,
-     .description = "sqrt3-unified: 1 interpolates, 0 approximates (Kobbelt), in between blends.",
-     .help = "sqrt3-unified: 1 interpolates the input vertices, 0 approximates (Kobbelt's "
-             "sqrt3) [0, 1] (1)",
-     .example = "0.5",
-     .refine = [](RefineRequest& r, const std::string& v,
-                  const RequestLimits&) { r.refine.alpha = parse_number("alpha", v); }},
-    {.name = "alpha_features",
-     .type = ParamType::Number,
-     .description = "sqrt3-unified: alpha of crease and corner vertices.",
-     .help = "sqrt3-unified: alpha of crease and corner vertices, so feature lines can stay "
-             "exact while the rest is smoothed [0, 1] (1)",
-     .example = "0.5",
-     .refine =
-         [](RefineRequest& r, const std::string& v, const RequestLimits&) {
-           r.refine.alpha_features = parse_number("alpha_features", v);
-         }},
-    {.name = "kappa",
-     .type = ParamType::Number,
-     .description =
-         "loop-g2: the eigenvalues Prautzsch and Umlauf move go to kappa lambda^2, in (0, 1] "
-         "(default 0.5).",
-     .help = "loop-g2: the moved eigenvalues go to kappa lambda^2 (0, 1] (0.5)",
-     .example = "0.25",
-     .refine = [](RefineRequest& r, const std::string& v,
-                  const RequestLimits&) { r.refine.kappa = parse_number("kappa", v); }},
-    {.name = "ramp_steps",
-     .type = ParamType::Integer,
-     .description =
-         "loop-g2: gradual modification (PU Remark 5.3) over this many steps, 0..8; 0 = off.",
-     .help = "loop-g2: modify gradually over this many steps (PU Remark 5.3) [0, 8] (0 = off)",
-     .example = "4",
-     .refine = [](RefineRequest& r, const std::string& v,
-                  const RequestLimits&) { r.refine.ramp_steps = parse_int("ramp_steps", v); }},
     {.name = "adaptive_angle",
      .type = ParamType::Number,
      .description =
          "Degrees, 0..180: curvature-adaptive refinement where the normals of neighbouring "
          "faces across a non-sharp edge differ by more (lsf, butterfly, sqrt3 schemes).",
      .help = "Curvature-adaptive: refine where neighbouring faces' normals differ by more than "
-             "this across a non-sharp edge (degrees [0, 180]; 0 = off, default; with "
-             "--adaptive-tol either refines)",
+             "this across a non-sharp edge (degrees; 0 = off; with --adaptive-tol either "
+             "refines)",
      .example = "0",
+     .default_value = "0",
+     .minimum = 0,
+     .maximum = 180,
      .refine =
          [](RefineRequest& r, const std::string& v, const RequestLimits&) {
            r.refine.adaptive_angle = parse_number("adaptive_angle", v);
@@ -421,9 +453,10 @@ const ParamRow kParams[] = {
          "the new vertices of their regions exactly on them; off (default): do not (auto can "
          "still turn thin faces along some rims over).",
      .help = "auto: recognise planes, spheres, cylinders, cones and tori on the input and put "
-             "the new vertices of their regions exactly on them; off: do not (off; auto can "
-             "still turn thin faces along some rims over)",
+             "the new vertices of their regions exactly on them; off: do not (auto can still "
+             "turn thin faces along some rims over)",
      .example = "auto",
+     .default_value = "off",
      .refine = refine_primitives},
     {.name = "primitive_tol",
      .type = ParamType::Number,
@@ -431,8 +464,12 @@ const ParamRow kParams[] = {
          "A region is recognised when every input vertex lies within this fraction of the "
          "bounding box diagonal of the primitive, (0, 0.01], default 1e-6.",
      .help = "A region is recognised when every input vertex of it lies within this fraction "
-             "of the bounding box diagonal of the primitive (0, 0.01] (1e-6)",
+             "of the bounding box diagonal of the primitive",
      .example = "0.00001",
+     .default_value = "1e-06",
+     .minimum = 0,
+     .maximum = 0.01,
+     .exclusive_minimum = true,
      .refine = refine_primitive_tol},
     {.name = "max_deviation",
      .type = ParamType::String,
@@ -446,12 +483,16 @@ const ParamRow kParams[] = {
              "no bound, only measured; auto = the input's local chordal error, the default "
              "for interpolating schemes; off = neither bound nor measured, the fastest)",
      .example = "0.01",
+     .default_value = "auto",
      .refine = refine_max_deviation},
     {.name = "threads",
      .type = ParamType::Integer,
      .description = "Worker threads, 0..256 (0 = every core).",
-     .help = "Worker threads [0, 256] (0 = every core)",
+     .help = "Worker threads (0 = every core)",
      .example = "1",
+     .default_value = "0",
+     .minimum = 0,
+     .maximum = 256,
      .cli_only = true,
      .refine = [](RefineRequest& r, const std::string& v,
                   const RequestLimits&) { r.refine.threads = parse_int("threads", v); },
@@ -459,9 +500,52 @@ const ParamRow kParams[] = {
                  const std::string& v) { r.slice.params.threads = parse_int("threads", v); }},
 };
 
+// A scheme option's row, made from its declaration in the registry.
+ParamRow scheme_option_row(const SchemeOptionSpec& spec) {
+  return {.name = spec.name,
+          .type = spec.integer ? ParamType::Integer : ParamType::Number,
+          .description = spec.description,
+          .help = spec.help,
+          .example = spec.example,
+          .minimum = spec.minimum,
+          .maximum = spec.maximum,
+          .exclusive_minimum = spec.exclusive_minimum,
+          .scheme_option = &spec};
+}
+
+// kParams, then every scheme's options.
+const std::vector<ParamRow>& all_rows() {
+  static const std::vector<ParamRow> rows = [] {
+    std::vector<ParamRow> r(std::begin(kParams), std::end(kParams));
+    for (const SchemeOptionSpec* spec : scheme_option_specs())
+      r.push_back(scheme_option_row(*spec));
+    return r;
+  }();
+  return rows;
+}
+
+// Shortest text that reads back as `value` ("0.5", "1e-06", "2147483647").
+std::string number_text(double value) {
+  std::ostringstream out;
+  out << std::setprecision(10) << value;
+  return out.str();
+}
+
+// A scheme option's value: a number (an integer where it is one), checked against its
+// declaration.
+double read_scheme_option(const SchemeOptionSpec& spec, std::string_view text) {
+  const double value =
+      spec.integer
+          ? static_cast<double>(parse_integer(spec.name, text, std::numeric_limits<int>::min(),
+                                              std::numeric_limits<int>::max()))
+          : parse_number(spec.name, text);
+  spec.check(value);
+  return value;
+}
+
 std::vector<std::string_view> names_of(RequestKind kind, bool with_cli_only) {
   std::vector<std::string_view> names;
-  for (const ParamRow& row : kParams)
+  for (const ParamRow& row : all_rows())
     if (row.takes(kind) && (with_cli_only || !row.cli_only)) names.push_back(row.name);
   return names;
 }
@@ -483,7 +567,7 @@ const char* to_string(ParamType type) {
 bool ParamRow::takes(RequestKind kind) const {
   switch (kind) {
     case RequestKind::Refine:
-      return refine != nullptr;
+      return refine != nullptr || scheme_option != nullptr;
     case RequestKind::Slice:
       return slice != nullptr;
     case RequestKind::Info:
@@ -493,11 +577,11 @@ bool ParamRow::takes(RequestKind kind) const {
 }
 
 std::span<const ParamRow> param_table() {
-  return kParams;
+  return all_rows();
 }
 
 const ParamRow* find_param(std::string_view name) {
-  for (const ParamRow& row : kParams)
+  for (const ParamRow& row : all_rows())
     if (row.name == name) return &row;
   return nullptr;
 }
@@ -505,9 +589,38 @@ const ParamRow* find_param(std::string_view name) {
 std::vector<std::string_view> schemes_using(std::string_view name) {
   std::vector<std::string_view> schemes;
   for (const SchemeEntry& entry : scheme_registry())
-    for (std::string_view option : entry.options)
-      if (option == name) schemes.push_back(entry.name);
+    for (const SchemeOptionSpec& option : entry.options)
+      if (option.name == name) schemes.push_back(entry.name);
   return schemes;
+}
+
+std::string range_text(const ParamRow& row) {
+  // Built with push_back / append: GCC 12's -Wrestrict misfires on short string literals.
+  std::string text;
+  if (row.minimum && row.maximum) {
+    text.push_back(row.exclusive_minimum ? '(' : '[');
+    text.append(number_text(*row.minimum)).append(", ").append(number_text(*row.maximum));
+    text.push_back(']');
+  } else if (row.minimum) {
+    text.push_back('>');
+    if (!row.exclusive_minimum) text.push_back('=');
+    text.append(" ").append(number_text(*row.minimum));
+  } else if (row.maximum) {
+    text.append("<= ").append(number_text(*row.maximum));
+  }
+  return text;
+}
+
+std::string default_text(const ParamRow& row) {
+  if (row.scheme_option) return number_text(row.scheme_option->default_value);
+  return std::string(row.default_value);
+}
+
+std::string cli_help(const ParamRow& row) {
+  std::string help(row.help);
+  if (const std::string range = range_text(row); !range.empty()) help += " " + range;
+  if (const std::string value = default_text(row); !value.empty()) help += " (" + value + ")";
+  return help;
 }
 
 std::string cli_option(std::string_view name) {
@@ -564,7 +677,13 @@ RefineRequest parse_refine_fields(const RawParams& params, const RequestLimits& 
   RefineParams& p = request.refine;
   p.max_faces = limits.default_max_faces != 0 ? std::min(limits.default_max_faces, limits.max_faces)
                                               : limits.max_faces;
-  for (const auto& [name, value] : params) find_param(name)->refine(request, value, limits);
+  for (const auto& [name, value] : params) {
+    const ParamRow& row = *find_param(name);
+    if (row.scheme_option)
+      p.scheme_options.set(row.name, read_scheme_option(*row.scheme_option, value));
+    else
+      row.refine(request, value, limits);
+  }
   if (request.slice) {
     const bool has_height = std::any_of(params.begin(), params.end(),
                                         [](const auto& kv) { return kv.first == "slice"; });

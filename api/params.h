@@ -9,6 +9,7 @@
 #include <utility>
 #include <vector>
 
+#include "api/units.h"
 #include "core/features/features.h"
 #include "core/io/stl.h"
 #include "core/refine.h"
@@ -39,7 +40,8 @@ struct RequestLimits {
 //! What `info` needs besides the STL bytes.
 struct InfoRequest {
   FeatureParams features;     //!< `crease_angle`: `auto` (default) or degrees [0, 180]
-  double weld_tolerance = 0;  //!< `weld_tolerance`, model units, >= 0; 0 = exact welding
+  double weld_tolerance = 0;  //!< `weld_tolerance`, the file's units, >= 0; 0 = exact welding
+  UnitOptions units;          //!< `units`, `scale`
 };
 
 //! Planes and output format of a slice, alone (`slice`) or after a refinement.
@@ -55,6 +57,7 @@ struct SliceOptions {
 struct SliceRequest {
   SliceOptions slice;
   double weld_tolerance = 0;  //!< as in InfoRequest
+  UnitOptions units;          //!< as in InfoRequest
 };
 
 //! The post-pass after refinement (issue 17 items 4 and 6): recognised primitives and the
@@ -85,10 +88,11 @@ struct PrimitiveOptions {
 //! What `refine` needs besides the STL bytes.
 struct RefineRequest {
   //! `scheme`, `levels`, `crease_angle`, `max_faces`, `threads`, `adaptive_tol`,
-  //! `adaptive_angle`, `max_level`, `alpha`, `alpha_features` (sqrt3-unified), `kappa`,
-  //! `ramp_steps` (loop-g2)
+  //! `adaptive_angle`, `max_level`, and the schemes' options (`alpha`, `kappa`, ...: the
+  //! registry's, into RefineParams::scheme_options)
   RefineParams refine;
   double weld_tolerance = 0;                    //!< as in InfoRequest
+  UnitOptions units;                            //!< as in InfoRequest
   StlFormat output_format = StlFormat::Binary;  //!< not a parameter: the CLI's --ascii
   //! `slice` (layer height, mm) and `slice_format`: also slice the refined mesh.
   std::optional<SliceOptions> slice;

@@ -57,7 +57,7 @@ nlohmann::ordered_json run_info(std::span<const std::uint8_t> bytes, const InfoP
 InfoOutcome run_info(std::span<const std::uint8_t> bytes, const InfoRequest& request,
                      bool curvature_csv) {
   request.features.validate();
-  const Ingested in = ingest_stl(bytes, request.weld_tolerance);
+  const Ingested in = ingest_stl(bytes, request.weld_tolerance, request.units);
   const Mesh& mesh = in.result.mesh;
   const Features features = detect_features(mesh, request.features);
   const std::vector<VertexCurvature> curvatures = vertex_curvatures(mesh, features);
@@ -81,12 +81,19 @@ RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRe
   RefineTimes times;
 
   if (request.slice) request.slice->params.validate();
-  Ingested in = ingest_stl(bytes, request.weld_tolerance);
+  Ingested in = ingest_stl(bytes, request.weld_tolerance, request.units);
   times.ingest = in.seconds;
   refuse_over_face_budget(in.result.mesh.num_faces(), scheme, request.refine);
   // The layer budget on the input's bounds, before any refinement work. (Refinement moves
   // the bounds a little; the refined mesh is planned again by the slicer itself.)
-  if (request.slice) slicer::plan_layers(in.result.mesh, request.slice->params);
+  if (request.slice) {
+    try {
+      slicer::plan_layers(in.result.mesh, request.slice->params);
+    } catch (Error& e) {
+      if (e.field() == "layer_height") e.with_field("slice");  // the name this request used
+      throw;
+    }
+  }
 
   // The post-pass keeps what it needs of the input (its triangles in an AABB tree, the
   // recognised regions) before the mesh is moved into refine. Its memory is asked for first,
@@ -265,7 +272,7 @@ SliceOutcome run_slice(std::span<const std::uint8_t> bytes, const SliceRequest& 
   const auto start = Clock::now();
   request.slice.params.validate();  // a bad parameter is reported before the file is read
   request.slice.writer.validate();
-  const Ingested in = ingest_stl(bytes, request.weld_tolerance);
+  const Ingested in = ingest_stl(bytes, request.weld_tolerance, request.units);
   SliceOutcome out;
   slicer::SliceStats stats;
   out.contours = slice_to_string(in.result.mesh, request.slice, &stats, progress, cancel);

@@ -71,6 +71,8 @@ CodeInfo info_for(ErrorCode code) {
       return {"not-triangle-mesh", "Not a triangle mesh"};
     case ErrorCode::BudgetExceeded:
       return {"budget-exceeded", "Face budget exceeded"};
+    case ErrorCode::NothingToMake:
+      return {"nothing-to-make", "Nothing to make from this part"};
     case ErrorCode::Cancelled:
       return {"cancelled", "Request cancelled"};
     case ErrorCode::Internal:
@@ -90,6 +92,8 @@ int http_status(ErrorCode code) {
     case ErrorCode::NotTriangleMesh:
       return http::kUnprocessableContent;
     case ErrorCode::BudgetExceeded:
+      return http::kUnprocessableContent;
+    case ErrorCode::NothingToMake:
       return http::kUnprocessableContent;
     case ErrorCode::Cancelled:
       return http::kServiceUnavailable;  // only when the daemon shuts down

@@ -27,7 +27,21 @@ Json input_json(const Ingested& in) {
   j["vertices_before_weld"] = 3 * in.triangles;
   j["vertices_after_weld"] = in.welded_vertices;
   j["weld_tolerance"] = in.weld_tolerance;
+  const UnitsReport& u = in.units;
+  j["units"] = {{"units", to_string(u.units)},
+                {"assumed", u.assumed},
+                {"scale", u.scale},
+                {"factor_to_mm", u.factor},
+                {"size_mm", vec3_json(u.size_mm)}};
   return j;
+}
+
+// What a caller should look at before printing: one {code, message} per finding.
+Json warnings_json(const Ingested& in) {
+  Json list = Json::array();
+  if (in.units.warning)
+    list.push_back({{"code", "suspicious_units"}, {"message", *in.units.warning}});
+  return list;
 }
 
 Json distribution_json(const Distribution& d, bool any) {
@@ -123,6 +137,7 @@ Json info_report(const Ingested& in, const MeshStats& s, const Features& feature
 
   Json j;
   j["input"] = input_json(in);
+  j["warnings"] = warnings_json(in);
   j["ingest"] = ingest_report_json(in.result.report);
   j["mesh"] = std::move(mesh);
   j["features"] = std::move(feat);
@@ -141,6 +156,15 @@ Json refine_report(const Ingested& in, const RefineReport& r, const RefineReques
   j["crease_mode"] = to_string(request.refine.features.crease_mode);
   j["crease_angle_deg"] = request.refine.features.crease_angle_deg;  // used in angle mode only
   j["input"] = std::move(input);
+  Json warnings = warnings_json(in);
+  if (request.refine.adaptive() && r.output_faces == r.input_faces)
+    warnings.push_back(
+        {{"code", "adaptive_refined_nothing"},
+         {"message", "the adaptive criteria (adaptive_tol " + std::to_string(r.adaptive_tol) +
+                         " mm, adaptive_angle " + std::to_string(r.adaptive_angle) +
+                         " deg) refined no face of this part: every chord is already within "
+                         "them (is the part in mm? see input.units)"}});
+  j["warnings"] = std::move(warnings);
   j["output"] = {{"format", to_string(request.output_format)},
                  {"vertices", r.output_vertices},
                  {"faces", r.output_faces},
@@ -274,6 +298,7 @@ Json slice_report(const Ingested& in, const slicer::SliceStats& stats, const Sli
   input["faces"] = in.result.mesh.num_faces();
   Json j;
   j["input"] = std::move(input);
+  j["warnings"] = warnings_json(in);
   j["slice"] = slice_stats_json(stats, request.slice, bytes);
   j["seconds"] = {{"ingest", in.seconds}, {"slice", stats.seconds}, {"total", total_seconds}};
   j["ingest"] = ingest_report_json(in.result.report);

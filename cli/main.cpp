@@ -87,6 +87,8 @@ int exit_code(ErrorCode code) {
       return kExitBadInput;
     case ErrorCode::BudgetExceeded:
       return kExitBudget;
+    case ErrorCode::NothingToMake:
+      return kExitBadInput;
     case ErrorCode::Cancelled:
       return kExitInternal;
     case ErrorCode::Internal:
@@ -104,7 +106,8 @@ std::string option_name(std::string field) {
 
 Failure failure_from_error(const Error& e, const std::string& input) {
   std::string message;
-  if (e.code() == ErrorCode::InvalidParameter && !e.field().empty()) {
+  if ((e.code() == ErrorCode::InvalidParameter || e.code() == ErrorCode::NothingToMake) &&
+      !e.field().empty()) {
     message = option_name(e.field()) + ": " + e.what();
   } else if (e.code() == ErrorCode::MalformedStl || e.code() == ErrorCode::NotTriangleMesh) {
     message = input;
@@ -223,7 +226,7 @@ std::string scheme_list() {
 void add_param_options(CLI::App& cmd, api::RequestKind kind, ParamValues& values) {
   for (const api::ParamRow& row : api::param_table()) {
     if (!row.takes(kind)) continue;
-    std::string help(row.help);
+    std::string help = api::cli_help(row);
     if (row.name == "scheme") help = "Subdivision scheme: " + scheme_list() + " (butterfly)";
     cmd.add_option(api::cli_option(row.name), values[row.name], help);
   }
@@ -325,7 +328,7 @@ int run_slice(const CLI::App& cmd, const SliceCliOptions& o) {
 
 struct SpectrumOptions {
   std::string scheme = "butterfly", valence = "3..16", format, output;
-  std::string kappa, alpha, alpha_features;
+  ParamValues options;  // the schemes' options (api/param_table.h rows with scheme_option)
   int count = 7;
   bool unmodified = false, curve = false, markdown = false;
 };
@@ -364,16 +367,14 @@ int run_spectrum(const CLI::App& cmd, const SpectrumOptions& o) {
   if (o.markdown) {
     text = an::spectra_markdown();
   } else {
-    // The scheme and its options are validated as a refinement would validate them.
-    stlrefine::RefineParams p;
-    p.scheme = o.scheme;
+    // The scheme and its options are read and validated as a refinement's.
+    api::RawParams raw = {{"scheme", o.scheme}};
+    for (const api::ParamRow& row : api::param_table())
+      if (row.scheme_option && cmd.get_option(api::cli_option(row.name))->count() > 0)
+        raw.emplace_back(std::string(row.name), o.options.at(row.name));
     std::unique_ptr<stlrefine::Scheme> scheme;
     try {
-      if (cmd.get_option("--kappa")->count()) p.kappa = api::parse_number("kappa", o.kappa);
-      if (cmd.get_option("--alpha")->count()) p.alpha = api::parse_number("alpha", o.alpha);
-      if (cmd.get_option("--alpha-features")->count())
-        p.alpha_features = api::parse_number("alpha_features", o.alpha_features);
-      scheme = stlrefine::make_scheme(p);
+      scheme = stlrefine::make_scheme(api::parse_refine_params(raw, {}).refine);
     } catch (const Error& e) {
       throw failure_from_error(e, "");
     }
@@ -381,12 +382,12 @@ int run_spectrum(const CLI::App& cmd, const SpectrumOptions& o) {
     // analysed on its own.
     std::unique_ptr<stlrefine::Split4Stencil> base;
     if (o.unmodified) {
-      const stlrefine::SchemeEntry* entry = stlrefine::find_scheme(p.scheme);
+      const stlrefine::SchemeEntry* entry = stlrefine::find_scheme(o.scheme);
       if (!entry->base) throw Failure{kExitUsage, "--unmodified: " + bases_message()};
       base = entry->base();
     }
     const an::Refiner refiner = base ? an::Refiner::of(*base) : an::Refiner::of(*scheme);
-    const std::string title = p.scheme + (o.unmodified ? " (unmodified base)" : "");
+    const std::string title = o.scheme + (o.unmodified ? " (unmodified base)" : "");
     if (o.curve) {
       text = an::format_curve(title + " curve rule",
                               an::spectrum(an::curve_subdivision_matrix(refiner))) +
@@ -453,10 +454,10 @@ int main(int argc, char** argv) {
                            "(Markdown, one row per valence; default for a range)");
   spectrum_cmd->add_option("--count", spectrum.count, "Eigenvalues per table row (7)")
       ->check(CLI::Range(1, 1000));
-  spectrum_cmd->add_option("--kappa", spectrum.kappa, "loop-g2: kappa (0, 1] (0.5)");
-  spectrum_cmd->add_option("--alpha", spectrum.alpha, "sqrt3-unified: alpha [0, 1] (1)");
-  spectrum_cmd->add_option("--alpha-features", spectrum.alpha_features,
-                           "sqrt3-unified: alpha of crease and corner vertices [0, 1] (1)");
+  for (const api::ParamRow& row : api::param_table())
+    if (row.scheme_option)
+      spectrum_cmd->add_option(api::cli_option(row.name), spectrum.options[row.name],
+                               api::cli_help(row));
   spectrum_cmd->add_flag("--unmodified", spectrum.unmodified,
                          "loop-g2, butterfly-g1: the base scheme before the spectral change");
   spectrum_cmd->add_flag("--curve", spectrum.curve,

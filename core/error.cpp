@@ -14,6 +14,8 @@ const char* to_string(ErrorCode code) {
       return "not_triangle_mesh";
     case ErrorCode::BudgetExceeded:
       return "budget_exceeded";
+    case ErrorCode::NothingToMake:
+      return "nothing_to_make";
     case ErrorCode::Cancelled:
       return "cancelled";
     case ErrorCode::Internal:

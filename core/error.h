@@ -16,8 +16,10 @@ enum class ErrorCode {
   MalformedStl,      //!< the bytes are not a readable STL (HTTP 422)
   NotTriangleMesh,   //!< readable, but nothing we can refine (e.g. every facet degenerate) (422)
   BudgetExceeded,    //!< the request would exceed a face or memory budget (422)
-  Cancelled,         //!< the caller's cancel flag was raised
-  Internal,          //!< a broken invariant: a bug, never the user's fault (500)
+  //! valid parameters that make nothing from this part, e.g. a slice without a layer (422)
+  NothingToMake,
+  Cancelled,  //!< the caller's cancel flag was raised
+  Internal,   //!< a broken invariant: a bug, never the user's fault (500)
 };
 
 const char* to_string(ErrorCode code);

@@ -33,13 +33,7 @@ void validate_fields(const RefineParams& p) {
   require_in_range("adaptive_tol", p.adaptive_tol, 0.0, 1e6);
   require_in_range("adaptive_angle", p.adaptive_angle, 0.0, 180.0);
   require_in_range("max_level", p.max_level, 1, 8);
-  require_in_range("alpha", p.alpha, 0.0, 1.0);
-  require_in_range("alpha_features", p.alpha_features, 0.0, 1.0);
-  if (!(p.kappa > 0 && p.kappa <= 1))
-    throw Error(ErrorCode::InvalidParameter, "out_of_range",
-                "kappa = " + std::to_string(p.kappa) + " is outside (0, 1]")
-        .with_field("kappa");
-  require_in_range("ramp_steps", p.ramp_steps, 0, 8);
+  validate_scheme_options(p.scheme_options);
 }
 
 void require_adaptive_mode(const RefineParams& p, const Scheme& s) {
@@ -65,13 +59,9 @@ void RefineParams::validate(const Scheme& s) const {
 
 std::unique_ptr<Scheme> make_scheme(const RefineParams& params) {
   validate_fields(params);
-  std::unique_ptr<Scheme> s = make_scheme(params.scheme, scheme_options(params));
+  std::unique_ptr<Scheme> s = make_scheme(params.scheme, params.scheme_options);
   require_adaptive_mode(params, *s);
   return s;
-}
-
-SchemeOptions scheme_options(const RefineParams& params) {
-  return {params.alpha, params.alpha_features, params.kappa, params.ramp_steps};
 }
 
 const Split4Stencil* adaptive_scheme(const Scheme& scheme) {

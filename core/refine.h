@@ -39,18 +39,11 @@ struct RefineParams {
   //! use 20 and 10). With adaptive_tol as well, either criterion refines.
   double adaptive_angle = 0;
   int max_level = 4;  //!< [1, 8]: the level cap of the adaptive mode
-  //! sqrt3-unified only (ignored by the other schemes): the Lin-Luo alpha of smooth input
-  //! vertices [0, 1] (1 interpolates, 0 is Kobbelt's sqrt3) ...
-  double alpha = 1.0;
-  //! ... and of crease and corner input vertices (boundaries included) [0, 1], so a part can
-  //! stay exact on its feature lines and be smoothed elsewhere.
-  double alpha_features = 1.0;
-  //! loop-g2 only: the eigenvalues Prautzsch and Umlauf move go to kappa lambda^2, (0, 1]
-  //! (smaller: further below lambda^2, larger negative weights; spec 6).
-  double kappa = 0.5;
-  //! loop-g2 only: Remark 5.3's gradual modification, the move growing as
-  //! sqrt(step / ramp_steps) until step ramp_steps, [0, 8]; 0 = the full move from the start.
-  int ramp_steps = 0;
+  //! The options of schemes (sqrt3-unified's alpha and alpha_features, loop-g2's kappa
+  //! and ramp_steps, ...), by name: those given; a scheme reads its own and ignores the
+  //! others, missing ones at their defaults. Declared with their ranges in the registry
+  //! (core/schemes/registry.cpp).
+  SchemeOptions scheme_options;
 
   //! True when a curvature-adaptive criterion is on.
   bool adaptive() const { return adaptive_tol > 0 || adaptive_angle > 0; }
@@ -62,9 +55,6 @@ struct RefineParams {
   //! `scheme` has the adaptive mode asked for; makes nothing.
   void validate(const Scheme& scheme) const;
 };
-
-//! The scheme options params carry (alpha, alpha_features, kappa, ramp_steps).
-SchemeOptions scheme_options(const RefineParams& params);
 
 //! The scheme params name, with their options, after validating them: a request makes its
 //! scheme once, here, and hands it to check_face_budget and refine.

@@ -67,7 +67,7 @@ void slice_checked(const Mesh& mesh, slicer::SliceFormat format) {
 // One scheme, one level (or the adaptive mode), then our own output read back and sliced.
 void refine_checked(std::span<const std::uint8_t> bytes, api::RefineRequest request,
                     slicer::SliceFormat format) {
-  const auto scheme = make_scheme(request.refine.scheme, scheme_options(request.refine));
+  const auto scheme = make_scheme(request.refine.scheme, request.refine.scheme_options);
   api::RefineOutcome out;
   try {
     out = api::run_refine(bytes, request);
@@ -148,7 +148,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     request.refine.max_faces = kMaxOutputFaces;
     request.refine.threads = 1;
     request.refine.features.crease_angle_deg = kCreaseAngles[i % kCreaseAngles.size()];
-    request.refine.alpha = 0.5;  // sqrt3-unified: half-way, exact on features
+    request.refine.scheme_options.set("alpha", 0.5);  // sqrt3-unified: half-way, exact on features
     request.output_format = i % 2 ? StlFormat::Ascii : StlFormat::Binary;
     if (i == 1) request.weld_tolerance = 1e-3;
     refine_checked(bytes, request, kFormats[i % kFormats.size()]);

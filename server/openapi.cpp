@@ -6,6 +6,7 @@
 // route or parameter the server does not serve; a parameter without a description fails the
 // OpenAPI test (tests/server/jobs_test.cpp), so it cannot be served undocumented either.
 
+#include <cctype>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -28,6 +29,25 @@ Json problem_response(const char* description) {
        {{"application/problem+json", {{"schema", {{"$ref", "#/components/schemas/Problem"}}}}}}}};
 }
 
+// The type, range and default of a row (api/param_table.h).
+Json parameter_schema(const api::ParamRow& row) {
+  Json schema = {{"type", api::to_string(row.type)}};
+  const auto number = [&](double value) -> Json {
+    if (row.type == api::ParamType::Integer) return static_cast<long long>(value);
+    return value;
+  };
+  if (row.minimum) schema["minimum"] = number(*row.minimum);
+  if (row.minimum && row.exclusive_minimum) schema["exclusiveMinimum"] = true;  // OpenAPI 3.0
+  if (row.maximum) schema["maximum"] = number(*row.maximum);
+  if (const std::string value = api::default_text(row); !value.empty()) {
+    if (row.type == api::ParamType::String)
+      schema["default"] = value;
+    else
+      schema["default"] = number(std::stod(value));
+  }
+  return schema;
+}
+
 Json query_parameters(const std::vector<std::string_view>& names) {
   Json params = Json::array();
   for (std::string_view name : names) {
@@ -38,7 +58,7 @@ Json query_parameters(const std::vector<std::string_view>& names) {
     p["required"] = false;
     if (row && !row->description.empty()) {
       p["description"] = row->description;
-      p["schema"] = {{"type", api::to_string(row->type)}};
+      p["schema"] = parameter_schema(*row);
     } else {
       p["schema"] = {{"type", "string"}};  // undocumented: the OpenAPI test fails on this
     }
@@ -61,6 +81,17 @@ Json stl_body() {
         {"application/octet-stream", {{"schema", {{"type", "string"}, {"format", "binary"}}}}}}}};
 }
 
+Json header(const char* description, const char* type = "string") {
+  return {{"description", description}, {"schema", {{"type", type}}}};
+}
+
+// Busy and shutting-down answers say when to come back.
+Json retry_later(const char* description) {
+  Json r = problem_response(description);
+  r["headers"]["Retry-After"] = header("Seconds to wait before trying again.", "integer");
+  return r;
+}
+
 Json common_errors(Json responses, bool with_body) {
   responses["400"] = problem_response("A parameter is malformed or out of range.");
   if (with_body) {
@@ -72,23 +103,37 @@ Json common_errors(Json responses, bool with_body) {
   if (with_body) responses["408"] = problem_response("The body stalled or arrived too slowly.");
   responses["431"] = problem_response("Header fields too large or too many.");
   responses["401"] = problem_response("An API key is required.");
-  responses["503"] = problem_response(
+  responses["503"] = retry_later(
       "Busy (every compute slot taken, or not enough memory next to the running requests), "
       "overloaded or shutting down; see Retry-After.");
   if (with_body) {
     responses["422"] = problem_response(
         "Not a usable STL, or over a budget: faces (max_faces), layers, contour points, or the "
         "memory one request may have (title \"Memory budget exceeded\", field names the "
-        "parameter to lower, predicted_bytes, memory_budget_bytes).");
+        "parameter to lower, predicted_bytes, memory_budget_bytes); or nothing to make from "
+        "this part (a slice without a layer: field layer_height or slice).");
     responses["504"] =
         problem_response("The computation ran longer than the server's request deadline.");
   }
   return responses;
 }
 
+Json binary_response(const char* description, std::initializer_list<const char*> types) {
+  Json content;
+  for (const char* type : types)
+    content[type] = {{"schema", {{"type", "string"}, {"format", "binary"}}}};
+  return {{"description", description}, {"content", std::move(content)}};
+}
+
 Json binary_response(const char* description, const char* type) {
-  return {{"description", description},
-          {"content", {{type, {{"schema", {{"type", "string"}, {"format", "binary"}}}}}}}};
+  return binary_response(description, {type});
+}
+
+// The media types of the slice formats (slicer/writers.cpp), without parameters.
+std::initializer_list<const char*> contour_types() {
+  static constexpr std::initializer_list<const char*> kTypes = {
+      "application/json", "image/svg+xml", "text/plain", "application/octet-stream"};
+  return kTypes;
 }
 
 Json json_response(const char* description) {
@@ -98,6 +143,46 @@ Json json_response(const char* description) {
 
 Json operation(const char* summary, Json responses) {
   return {{"summary", summary}, {"responses", std::move(responses)}};
+}
+
+// A stable operationId per path and method ("refine", "getJob"), for generated clients.
+std::string operation_id(const std::string& path, const std::string& method) {
+  static const std::pair<const char*, const char*> kIds[] = {
+      {"post /v1/refine", "refine"},
+      {"post /v1/slice", "slice"},
+      {"post /v1/info", "info"},
+      {"post /v1/jobs", "submitJob"},
+      {"get /v1/jobs/{id}", "getJob"},
+      {"delete /v1/jobs/{id}", "cancelJob"},
+      {"get /v1/jobs/{id}/{file}", "downloadJobFile"},
+      {"get /v1/openapi.json", "getOpenApi"},
+      {"get /metrics", "getMetrics"},
+      {"get /healthz", "getHealth"},
+      {"get /readyz", "getReady"},
+      {"get /", "getPage"},
+      {"get /assets/{file}", "getAsset"},
+  };
+  const std::string key = method + " " + path;
+  for (const auto& [k, id] : kIds)
+    if (key == k) return id;
+  // A route added without a name here: method + the path's words ("getV1Things").
+  std::string id = method;
+  bool upper = true;
+  for (char c : path) {
+    if (std::isalnum(static_cast<unsigned char>(c))) {
+      id += upper ? static_cast<char>(std::toupper(static_cast<unsigned char>(c))) : c;
+      upper = false;
+    } else {
+      upper = true;
+    }
+  }
+  return id;
+}
+
+// Routes answered without an API key (Daemon::Impl::authorized).
+bool public_route(const std::string& path) {
+  return path == "/" || path == "/assets/{file}" || path == "/healthz" || path == "/readyz" ||
+         path == "/metrics";
 }
 
 Json build() {
@@ -112,10 +197,15 @@ Json build() {
           common_errors(p == "/v1/refine"
                             ? Json{{"200", binary_response("The refined STL (a zip with "
                                                            "contours and report when sliced).",
-                                                           "model/stl")}}
+                                                           {"model/stl", "application/zip"})}}
                             : Json{{"202", json_response("The queued job; "
                                                          "Location names it.")}},
                         true));
+      if (p == "/v1/refine")
+        op["responses"]["200"]["headers"]["X-Stlrefine-Report"] =
+            header("The refine report (JSON, one line).");
+      else
+        op["responses"]["202"]["headers"]["Location"] = header("The job's URL: /v1/jobs/{id}.");
       if (p == "/v1/jobs")
         op["responses"]["507"] = problem_response(
             "No room in the data directory for the input and the predicted results.");
@@ -125,7 +215,11 @@ Json build() {
     } else if (p == "/v1/slice") {
       Json op = operation(
           "Slice an STL into layer contours",
-          common_errors({{"200", binary_response("The contours.", "application/json")}}, true));
+          common_errors(
+              {{"200", binary_response("The contours, in the format asked for.", contour_types())}},
+              true));
+      op["responses"]["200"]["headers"]["X-Stlrefine-Report"] =
+          header("The slice report (JSON, one line).");
       op["parameters"] = query_parameters(api::slice_param_names(limits));
       op["requestBody"] = stl_body();
       item["post"] = op;
@@ -161,14 +255,16 @@ Json build() {
               {"enum",
                {"result.stl", "report.json", "contours.json", "contours.svg", "contours.cli"}}}}}});
       item["parameters"] = params;
-      item["get"] = operation("Download a result of a done job",
-                              {{"200", binary_response("The file.", "application/octet-stream")},
-                               {"206", binary_response("One byte range of the file (Range).",
-                                                       "application/octet-stream")},
-                               {"416", problem_response("The Range starts past the end.")},
-                               {"404", problem_response("Unknown job or no such result.")},
-                               {"409", problem_response("The job is not done.")},
-                               {"410", problem_response("Removed after retention.")}});
+      item["get"] = operation(
+          "Download a result of a done job",
+          {{"200", binary_response("The file.", {"model/stl", "application/json", "image/svg+xml",
+                                                 "text/plain", "application/octet-stream"})},
+           {"206",
+            binary_response("One byte range of the file (Range).", "application/octet-stream")},
+           {"416", problem_response("The Range starts past the end.")},
+           {"404", problem_response("Unknown job or no such result.")},
+           {"409", problem_response("The job is not done.")},
+           {"410", problem_response("Removed after retention.")}});
     } else if (p == "/v1/openapi.json") {
       item["get"] = operation("This document", {{"200", json_response("OpenAPI 3.0.3")}});
     } else if (p == "/metrics") {
@@ -208,6 +304,12 @@ Json build() {
     } else {
       item["get"] = operation(route.path.c_str(), {{"200", {{"description", "OK"}}}});
     }
+    for (auto& [method, op] : item.items()) {
+      if (method == "parameters") continue;
+      op["operationId"] = operation_id(p, method);
+      if (public_route(p)) op["security"] = Json::array();  // no key needed
+      op["responses"]["default"] = problem_response("Any other error, as a problem.");
+    }
     paths[p] = item;
   }
 
@@ -227,7 +329,14 @@ Json build() {
                                                {"status", {{"type", "integer"}}},
                                                {"detail", {{"type", "string"}}},
                                                {"field", {{"type", "string"}}}}}};
-  doc["components"]["securitySchemes"]["bearer"] = {{"type", "http"}, {"scheme", "bearer"}};
+  doc["components"]["securitySchemes"]["bearer"] = {
+      {"type", "http"},
+      {"scheme", "bearer"},
+      {"description", "Only when the server is started with API keys (--api-key-file)."}};
+  // The key applies to every operation but the public ones (their own empty `security`);
+  // a server without keys ignores it.
+  doc["security"] = Json::array({{{"bearer", Json::array()}}});
+  doc["servers"] = Json::array({{{"url", "/"}, {"description", "This server."}}});
   return doc;
 }
 

@@ -141,6 +141,19 @@ SlicePlan plan_layers(const Mesh& mesh, const SliceParams& params) {
   while (n > 0 && layer_z(n - 1) > hi) --n;
   while (layer_z(n) <= hi) ++n;
   if (n > params.max_layers) throw too_many(describe(std::to_string(n)));
+  // No plane inside the part (it is less than half a layer tall, or the z range is): an
+  // empty answer would read as success. Often a part in metres or inches read as mm.
+  if (n == 0) {
+    char height[32];
+    const bool own_range = !params.z_min && !params.z_max;
+    std::snprintf(height, sizeof height, "%.4g",
+                  own_range ? plan.bounds.max.z - plan.bounds.min.z : hi - lo);
+    throw Error(ErrorCode::NothingToMake, "no_layers",
+                describe("no") + " (planes are at z_min + (k + 1/2) h; " +
+                    (own_range ? "the part is " : "the z range is ") + height +
+                    " mm tall): use a smaller layer_height, or units= if the part is not in mm")
+        .with_field("layer_height");
+  }
   check_layer_cost(n, "a larger layer_height or a narrower z range (z_min, z_max)");
   plan.heights.resize(n);
   for (std::size_t k = 0; k < n; ++k) plan.heights[k] = layer_z(k);

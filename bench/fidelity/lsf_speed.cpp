@@ -108,7 +108,7 @@ int main(int argc, char** argv) {
     stlrefine::refine(ingest.mesh, row.params);  // warm-up: page faults, TBB pool
     rows.push_back(row);
     if (!stencil_only) continue;
-    const auto made = stlrefine::make_scheme(scheme, stlrefine::scheme_options(row.params));
+    const auto made = stlrefine::make_scheme(scheme, row.params.scheme_options);
     const auto* split4 =
         dynamic_cast<const stlrefine::HostScheme<stlrefine::Split4Stencil>*>(made.get());
     if (!split4) {

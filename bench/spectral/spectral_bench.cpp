@@ -315,8 +315,7 @@ int main(int argc, char** argv) {
                  "each step: `def` = angle deficit / (fan area / 3), `fit` = quadratic height "
                  "fit over its two rings. Predicted growth = (mu / lambda^2)^2 per level from "
                  "the scheme's spectrum (> 1: K blows up).\n\n";
-    SchemeOptions ramp;
-    ramp.ramp_steps = 6;
+    const SchemeOptions ramp{{"ramp_steps", 6}};
     std::vector<std::pair<std::string, SchemeOptions>> algos{
         {"loop", {}}, {"loop-g2", {}}, {"loop-g2 ramp 6", ramp}};
     for (const Surface& s : surfaces())

@@ -21,8 +21,42 @@ namespace stlrefine {
 
 namespace {
 
-constexpr std::string_view kUnifiedOptions[] = {"alpha", "alpha_features"};
-constexpr std::string_view kLoopG2Options[] = {"kappa", "ramp_steps"};
+// The options' declarations (scheme_options.h): the one place their ranges and defaults live.
+constexpr SchemeOptionSpec kUnifiedOptions[] = {
+    {.name = "alpha",
+     .default_value = 1.0,
+     .minimum = 0.0,
+     .maximum = 1.0,
+     .description = "sqrt3-unified: 1 interpolates, 0 approximates (Kobbelt), in between blends.",
+     .help = "sqrt3-unified: 1 interpolates the input vertices, 0 approximates (Kobbelt's sqrt3)",
+     .example = "0.5"},
+    {.name = "alpha_features",
+     .default_value = 1.0,
+     .minimum = 0.0,
+     .maximum = 1.0,
+     .description = "sqrt3-unified: alpha of crease and corner vertices.",
+     .help = "sqrt3-unified: alpha of crease and corner vertices, so feature lines can stay "
+             "exact while the rest is smoothed",
+     .example = "0.5"},
+};
+constexpr SchemeOptionSpec kLoopG2Options[] = {
+    {.name = "kappa",
+     .default_value = 0.5,
+     .minimum = 0.0,
+     .maximum = 1.0,
+     .exclusive_minimum = true,
+     .description = "loop-g2: the eigenvalues Prautzsch and Umlauf move go to kappa lambda^2.",
+     .help = "loop-g2: the moved eigenvalues go to kappa lambda^2",
+     .example = "0.25"},
+    {.name = "ramp_steps",
+     .integer = true,
+     .default_value = 0,
+     .minimum = 0,
+     .maximum = 8,
+     .description = "loop-g2: gradual modification (PU Remark 5.3) over this many steps; 0 = off.",
+     .help = "loop-g2: modify gradually over this many steps (PU Remark 5.3; 0 = off)",
+     .example = "4"},
+};
 
 // The one table of schemes (registry.h).
 constexpr std::array<SchemeEntry, 8> kSchemes = {{
@@ -52,19 +86,21 @@ constexpr std::array<SchemeEntry, 8> kSchemes = {{
     {"sqrt3-unified",
      [](const SchemeOptions& o) -> std::unique_ptr<Scheme> {
        return std::make_unique<HostScheme<Sqrt3Stencil>>(
-           "sqrt3-unified", std::make_unique<LinLuoStencil>(o.alpha, o.alpha_features));
+           "sqrt3-unified",
+           std::make_unique<LinLuoStencil>(o.get("alpha"), o.get("alpha_features")));
      },
      kUnifiedOptions},
     {"loop-g2",
      [](const SchemeOptions& o) -> std::unique_ptr<Scheme> {
-       return std::make_unique<HostScheme<Split4Stencil>>("loop-g2",
-                                             make_loop_g2_stencil(o.kappa, o.ramp_steps));
+       return std::make_unique<HostScheme<Split4Stencil>>(
+           "loop-g2", make_loop_g2_stencil(o.get("kappa"), static_cast<int>(o.get("ramp_steps"))));
      },
      kLoopG2Options,
      []() -> std::unique_ptr<Split4Stencil> { return std::make_unique<LoopStencil>(); }},
     {"butterfly-g1",
      [](const SchemeOptions&) -> std::unique_ptr<Scheme> {
-       return std::make_unique<HostScheme<Split4Stencil>>("butterfly-g1", make_butterfly_g1_stencil());
+       return std::make_unique<HostScheme<Split4Stencil>>("butterfly-g1",
+                                                          make_butterfly_g1_stencil());
      },
      {},
      []() -> std::unique_ptr<Split4Stencil> {
@@ -94,8 +130,40 @@ std::span<const std::string_view> scheme_names() {
   return kNames;
 }
 
+const SchemeOptionSpec* find_scheme_option(std::string_view name) {
+  for (const SchemeEntry& entry : kSchemes)
+    for (const SchemeOptionSpec& spec : entry.options)
+      if (spec.name == name) return &spec;
+  return nullptr;
+}
+
+std::vector<const SchemeOptionSpec*> scheme_option_specs() {
+  std::vector<const SchemeOptionSpec*> specs;
+  for (const SchemeEntry& entry : kSchemes)
+    for (const SchemeOptionSpec& spec : entry.options)
+      if (find_scheme_option(spec.name) == &spec) specs.push_back(&spec);
+  return specs;
+}
+
+void validate_scheme_options(const SchemeOptions& options) {
+  for (const auto& [name, value] : options.values()) {
+    const SchemeOptionSpec* spec = find_scheme_option(name);
+    if (!spec)
+      throw Error(ErrorCode::InvalidParameter, "unknown_parameter",
+                  "'" + name + "' is no scheme's option")
+          .with_field(name);
+    spec->check(value);
+  }
+}
+
 std::unique_ptr<Scheme> make_scheme(std::string_view name, const SchemeOptions& options) {
-  if (const SchemeEntry* entry = find_scheme(name)) return entry->make(options);
+  if (const SchemeEntry* entry = find_scheme(name)) {
+    validate_scheme_options(options);
+    SchemeOptions complete;
+    for (const SchemeOptionSpec& spec : entry->options)
+      complete.set(spec.name, options.find(spec.name).value_or(spec.default_value));
+    return entry->make(complete);
+  }
   std::string known;
   for (std::string_view n : kNames) known += (known.empty() ? "" : ", ") + std::string(n);
   throw Error(ErrorCode::InvalidParameter, "unknown_scheme",

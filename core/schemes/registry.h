@@ -2,39 +2,31 @@
 // Copyright (c) 2026 stlrefine authors
 #pragma once
 
-// The one table of schemes: name -> factory, the options each one reads, and the base a
-// spectral scheme modifies. No static self-registration. Adding a scheme: its stencil file,
-// one row in registry.cpp, and the rows of its parameters in the parameter table
-// (api/param_table.h).
+// The one table of schemes: name -> factory, the options each one reads (declared here, with
+// their types, defaults, ranges and texts: api/param_table.h makes the query parameters, CLI
+// options and OpenAPI entries from them), and the base a spectral scheme modifies. No static
+// self-registration. Adding a scheme: its stencil file and one row in registry.cpp, with the
+// declarations of its options (docs/architecture.md).
 
 #include <memory>
 #include <span>
 #include <string_view>
+#include <vector>
 
 #include "core/schemes/scheme.h"
+#include "core/schemes/scheme_options.h"
 
 namespace stlrefine {
 
 class Split4Stencil;
 
-//! Parameters some schemes take; every scheme ignores the ones it has no use for.
-struct SchemeOptions {
-  //! sqrt3-unified: alpha of smooth (and dart) input vertices, [0, 1]; 1 interpolates.
-  double alpha = 1.0;
-  //! sqrt3-unified: alpha of crease and corner input vertices (boundaries included), [0, 1].
-  double alpha_features = 1.0;
-  //! loop-g2: the moved eigenvalues go to kappa lambda^2, (0, 1] (spec 6, recommended 0.5).
-  double kappa = 0.5;
-  //! loop-g2: Remark 5.3's gradual modification over this many steps, [0, 8]; 0 = off.
-  int ramp_steps = 0;
-};
-
 //! One row of the registry.
 struct SchemeEntry {
   std::string_view name;
+  //! Called with a value for every option in `options` (make_scheme fills in defaults).
   std::unique_ptr<Scheme> (*make)(const SchemeOptions&);
-  //! The SchemeOptions it reads, by their parameter names ("alpha", "kappa", ...).
-  std::span<const std::string_view> options = {};
+  //! The options it reads. Two schemes reading an option of the same name declare it alike.
+  std::span<const SchemeOptionSpec> options = {};
   //! Spectral schemes (loop-g2, butterfly-g1): the stencil they modify, analysed on its own
   //! by `stlrefine spectrum --unmodified`; null for the others.
   std::unique_ptr<Split4Stencil> (*base)() = nullptr;
@@ -49,7 +41,21 @@ const SchemeEntry* find_scheme(std::string_view name);
 //! Names accepted by make_scheme, in the registry's order.
 std::span<const std::string_view> scheme_names();
 
-//! \throw Error(InvalidParameter, field "scheme") for an unknown name.
+//! The declaration of the option `name` (the first scheme's that reads it), or null.
+const SchemeOptionSpec* find_scheme_option(std::string_view name);
+
+//! Every option's declaration once, in the registry's order.
+std::vector<const SchemeOptionSpec*> scheme_option_specs();
+
+//! Every value of `options` is some scheme's option and inside its range. Values a scheme
+//! does not read are allowed (and ignored by it), as a request may name any scheme.
+//! \throw Error(InvalidParameter, "unknown_parameter" | "out_of_range" | "not_a_number")
+//! naming the option.
+void validate_scheme_options(const SchemeOptions& options);
+
+//! Makes `name` with `options` (validated; the options it reads and were not given at their
+//! defaults). \throw Error(InvalidParameter, field "scheme") for an unknown name, or as
+//! validate_scheme_options.
 std::unique_ptr<Scheme> make_scheme(std::string_view name, const SchemeOptions& options = {});
 
 }  // namespace stlrefine

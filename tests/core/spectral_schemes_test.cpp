@@ -49,10 +49,9 @@ std::vector<Case> cases() {
                  [] { return std::unique_ptr<Split4Stencil>(new LoopStencil); },
                  loop_g2_rule,
                  0.5});
-  SchemeOptions quarter;
-  quarter.kappa = 0.25;
-  out.push_back({"loop-g2", quarter, [] { return std::unique_ptr<Split4Stencil>(new LoopStencil); },
-                 loop_g2_rule, 0.25});
+  out.push_back({"loop-g2", SchemeOptions{{"kappa", 0.25}},
+                 [] { return std::unique_ptr<Split4Stencil>(new LoopStencil); }, loop_g2_rule,
+                 0.25});
   out.push_back({"butterfly-g1",
                  {},
                  [] {
@@ -263,8 +262,7 @@ TEST(LoopG2, UnchangedValencesAndTheRamp) {
   EXPECT_TRUE(loop_g2_masks().at(kSpectralMaxValence + 1).empty());
   // Remark 5.3: plain Loop in step 0, the full move from step ramp_steps on.
   const analysis::NetLevel net = analysis::make_net_level(9, 3, 3);
-  SchemeOptions ramp;
-  ramp.ramp_steps = 6;
+  const SchemeOptions ramp{{"ramp_steps", 6}};
   const auto ramped = make_scheme("loop-g2", ramp), full = make_scheme("loop-g2"),
              loop = make_scheme("loop");
   StepStats stats;

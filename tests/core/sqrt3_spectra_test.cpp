@@ -148,7 +148,8 @@ TEST(Sqrt3Spectra, KobbeltCurveRule) {
 TEST(Sqrt3Spectra, UnifiedCurveRuleWithConstantAlpha) {
   // Spec 4: constant-alpha blends have 1, 1/3, then everything below 1/3.
   for (double alpha : {0.25, 0.5, 0.75}) {
-    const std::vector<double> got = curve_spectrum("sqrt3-unified", SchemeOptions{alpha, alpha});
+    const std::vector<double> got =
+        curve_spectrum("sqrt3-unified", SchemeOptions{{"alpha", alpha}, {"alpha_features", alpha}});
     expect_spectrum(got, {1, 1.0 / 3}, "unified curve, alpha " + std::to_string(alpha));
     EXPECT_LT(std::abs(got[2]), 1.0 / 3 - 1e-3) << alpha;
   }

@@ -30,7 +30,8 @@ constexpr double kExact = 1e-14;
 constexpr std::array<const char*, 3> kSqrt3Schemes = {"sqrt3", "sqrt3-interp", "sqrt3-unified"};
 
 std::unique_ptr<Scheme> unified(double alpha, double alpha_features) {
-  return make_scheme("sqrt3-unified", SchemeOptions{alpha, alpha_features});
+  return make_scheme("sqrt3-unified",
+                     SchemeOptions{{"alpha", alpha}, {"alpha_features", alpha_features}});
 }
 
 Level run(const Scheme& scheme, Level level, int steps) {
@@ -854,7 +855,7 @@ TEST(Sqrt3Params, AlphaRangesAreValidatedByName) {
     for (const char* field : {"alpha", "alpha_features"}) {
       RefineParams p;
       p.scheme = "sqrt3-unified";
-      (std::string(field) == "alpha" ? p.alpha : p.alpha_features) = bad;
+      p.scheme_options.set(field, bad);
       try {
         p.validate();
         ADD_FAILURE() << field << " = " << bad << " accepted";
@@ -865,8 +866,7 @@ TEST(Sqrt3Params, AlphaRangesAreValidatedByName) {
     }
   }
   RefineParams edge;
-  edge.alpha = 0;
-  edge.alpha_features = 1;
+  edge.scheme_options.set("alpha", 0).set("alpha_features", 1);
   EXPECT_NO_THROW(edge.validate());
 }
 
@@ -881,10 +881,10 @@ TEST(Sqrt3Params, RefineRunsTheSqrt3SchemesWithTheirAlpha) {
     EXPECT_EQ(r.mesh.check_invariants(), "");
   }
   p.scheme = "sqrt3-unified";
-  p.alpha = 0.0;
-  p.alpha_features = 1.0;  // every input vertex of this cylinder but the cap centres
+  p.scheme_options.set("alpha", 0.0)
+      .set("alpha_features", 1.0);  // every input vertex of this cylinder but the cap centres
   const RefineResult features_exact = refine(input, p);
-  p.alpha_features = 0.0;
+  p.scheme_options.set("alpha_features", 0.0);
   const RefineResult smoothed = refine(input, p);
   EXPECT_GT(smoothed.report.max_input_displacement, 0.1);
   // The cap centres sit at the mean of their (planar) ring: they do not move either.

@@ -9,7 +9,10 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <iomanip>
 #include <nlohmann/json.hpp>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -124,14 +127,142 @@ TEST(ParamTable, EveryRowIsInTheOpenApiDocument) {
 
 TEST(ParamTable, EverySchemeOptionHasARefineRow) {
   for (const SchemeEntry& entry : scheme_registry())
-    for (std::string_view option : entry.options) {
-      const ParamRow* row = api::find_param(option);
-      ASSERT_NE(row, nullptr) << entry.name << " " << option;
-      EXPECT_TRUE(row->takes(RequestKind::Refine)) << entry.name << " " << option;
+    for (const SchemeOptionSpec& option : entry.options) {
+      const ParamRow* row = api::find_param(option.name);
+      ASSERT_NE(row, nullptr) << entry.name << " " << option.name;
+      EXPECT_TRUE(row->takes(RequestKind::Refine)) << entry.name << " " << option.name;
+      EXPECT_FALSE(row->takes(RequestKind::Slice)) << option.name;
+      // Two schemes reading an option of the same name declare it alike.
+      const SchemeOptionSpec& first = *find_scheme_option(option.name);
+      EXPECT_EQ(first.integer, option.integer) << option.name;
+      EXPECT_EQ(first.default_value, option.default_value) << option.name;
+      EXPECT_EQ(first.minimum, option.minimum) << option.name;
+      EXPECT_EQ(first.maximum, option.maximum) << option.name;
+      EXPECT_EQ(first.exclusive_minimum, option.exclusive_minimum) << option.name;
+      // Its default is inside its range, and the scheme is made with it.
+      EXPECT_NO_THROW(option.check(option.default_value)) << option.name;
+      EXPECT_NO_THROW(make_scheme(entry.name, SchemeOptions{{option.name, option.default_value}}));
     }
   EXPECT_EQ(api::schemes_using("kappa"), std::vector<std::string_view>{"loop-g2"});
   EXPECT_EQ(api::schemes_using("alpha"), std::vector<std::string_view>{"sqrt3-unified"});
   EXPECT_TRUE(api::schemes_using("levels").empty());
+}
+
+// Each row's declared range (the CLI help's and the OpenAPI document's) is the one its reader
+// enforces: both ends accepted, just outside them refused naming the row.
+TEST(ParamTable, EveryRangeIsTheOneItsReaderEnforces) {
+  api::RequestLimits limits;
+  limits.accept_threads = true;
+  limits.max_faces = (std::uint64_t{1} << 31) - 1;
+  const auto parse = [&](const ParamRow& row, double value) {
+    std::ostringstream text;
+    text << std::setprecision(17) << value;
+    const std::string name(row.name);
+    if (row.takes(RequestKind::Refine)) {
+      api::RawParams raw = {{name, text.str()}};
+      api::parse_refine_params(raw, limits);
+    } else if (row.takes(RequestKind::Slice)) {
+      api::parse_slice_params({{name, text.str()}}, limits);
+    } else {
+      api::parse_info_params({{name, text.str()}});
+    }
+  };
+  const auto refused = [&](const ParamRow& row, double value) {
+    try {
+      parse(row, value);
+      ADD_FAILURE() << row.name << " = " << value << " accepted, outside " << api::range_text(row);
+    } catch (const Error& e) {
+      EXPECT_EQ(e.field(), row.name) << row.name << " = " << value;
+      EXPECT_TRUE(e.reason() == "out_of_range" || e.reason() == "not_a_number" ||
+                  e.reason() == "above_server_cap")
+          << row.name << " " << e.reason();
+    }
+  };
+  int ranged = 0;
+  for (const ParamRow& row : api::param_table()) {
+    if (!row.minimum && !row.maximum) continue;
+    ++ranged;
+    const bool integer = row.type == api::ParamType::Integer;
+    const auto step = [&](double v) { return integer ? 1.0 : std::max(std::abs(v) * 1e-6, 1e-9); };
+    if (row.minimum) {
+      const double lo = *row.minimum;
+      if (row.exclusive_minimum) {
+        refused(row, lo);
+        EXPECT_NO_THROW(parse(row, lo + step(lo))) << row.name;
+      } else {
+        EXPECT_NO_THROW(parse(row, lo)) << row.name;
+        refused(row, lo - step(lo));
+      }
+    }
+    if (row.maximum) {
+      const double hi = *row.maximum;
+      EXPECT_NO_THROW(parse(row, hi)) << row.name;
+      refused(row, hi + step(hi));
+    }
+  }
+  EXPECT_GE(ranged, 12);
+}
+
+// A default given as its value is accepted, and is the value a request without it gets.
+TEST(ParamTable, EveryDefaultIsAcceptedAndIsTheDefault) {
+  api::RequestLimits cli;
+  cli.accept_threads = true;
+  const api::RefineRequest none = api::parse_refine_params({}, cli);
+  for (const ParamRow& row : api::param_table()) {
+    const std::string value = api::default_text(row);
+    if (value.empty()) continue;
+    api::RawParams raw = {{std::string(row.name), value}};
+    if (row.takes(RequestKind::Refine)) {
+      if (row.name == "slice_format") raw.emplace_back("slice", "0.5");  // it needs slice
+      api::RefineRequest given;
+      ASSERT_NO_THROW(given = api::parse_refine_params(raw, cli)) << row.name;
+      // The refinement is made the same way with and without it.
+      if (!row.scheme_option) {
+        EXPECT_EQ(given.refine.scheme, none.refine.scheme) << row.name;
+        EXPECT_EQ(given.refine.levels, none.refine.levels) << row.name;
+        EXPECT_EQ(given.refine.max_level, none.refine.max_level) << row.name;
+        EXPECT_EQ(given.refine.adaptive_tol, none.refine.adaptive_tol) << row.name;
+        EXPECT_EQ(given.refine.adaptive_angle, none.refine.adaptive_angle) << row.name;
+        EXPECT_EQ(given.refine.features.crease_mode, none.refine.features.crease_mode) << row.name;
+        EXPECT_EQ(given.weld_tolerance, none.weld_tolerance) << row.name;
+        EXPECT_EQ(given.primitives.enabled, none.primitives.enabled) << row.name;
+        EXPECT_EQ(given.primitives.tolerance, none.primitives.tolerance) << row.name;
+        EXPECT_EQ(given.primitives.max_deviation, none.primitives.max_deviation) << row.name;
+        EXPECT_EQ(given.primitives.measure, none.primitives.measure) << row.name;
+        EXPECT_EQ(given.refine.threads, none.refine.threads) << row.name;
+        EXPECT_EQ(given.units.units, none.units.units) << row.name;
+        EXPECT_EQ(given.units.scale, none.units.scale) << row.name;
+      }
+    }
+    if (row.takes(RequestKind::Slice)) {
+      const api::SliceRequest given = api::parse_slice_params(raw, cli);
+      const api::SliceRequest absent = api::parse_slice_params({}, cli);
+      EXPECT_EQ(given.slice.params.layer_height, absent.slice.params.layer_height) << row.name;
+      EXPECT_EQ(given.slice.params.max_layers, absent.slice.params.max_layers) << row.name;
+      EXPECT_EQ(given.slice.format, absent.slice.format) << row.name;
+      EXPECT_EQ(given.weld_tolerance, absent.weld_tolerance) << row.name;
+    }
+  }
+}
+
+// The OpenAPI document carries each row's range and default.
+TEST(ParamTable, TheOpenApiDocumentCarriesRangesAndDefaults) {
+  const nlohmann::json doc = nlohmann::json::parse(server::openapi_document());
+  const nlohmann::json& params = doc["paths"]["/v1/refine"]["post"]["parameters"];
+  const auto schema_of = [&](std::string_view name) {
+    for (const nlohmann::json& p : params)
+      if (p["name"] == name) return p["schema"];
+    return nlohmann::json();
+  };
+  EXPECT_EQ(schema_of("levels")["minimum"], 0);
+  EXPECT_EQ(schema_of("levels")["maximum"], 8);
+  EXPECT_EQ(schema_of("levels")["default"], 1);
+  EXPECT_EQ(schema_of("kappa")["minimum"], 0.0);
+  EXPECT_EQ(schema_of("kappa")["exclusiveMinimum"], true);
+  EXPECT_EQ(schema_of("kappa")["default"], 0.5);
+  EXPECT_EQ(schema_of("ramp_steps")["type"], "integer");
+  EXPECT_EQ(schema_of("scheme")["default"], "butterfly");
+  EXPECT_EQ(schema_of("max_deviation")["default"], "auto");
 }
 
 }  // namespace

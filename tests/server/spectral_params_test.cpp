@@ -40,11 +40,12 @@ TEST(SpectralParams, KappaAndRampParsedWithDefaults) {
   const api::RefineRequest r =
       api::parse_refine_params({{"scheme", "loop-g2"}, {"kappa", "0.25"}, {"ramp_steps", "6"}}, {});
   EXPECT_EQ(r.refine.scheme, "loop-g2");
-  EXPECT_DOUBLE_EQ(r.refine.kappa, 0.25);
-  EXPECT_EQ(r.refine.ramp_steps, 6);
+  EXPECT_EQ(r.refine.scheme_options.find("kappa"), 0.25);
+  EXPECT_EQ(r.refine.scheme_options.find("ramp_steps"), 6.0);
   const api::RefineRequest d = api::parse_refine_params({{"scheme", "butterfly-g1"}}, {});
-  EXPECT_EQ(d.refine.kappa, 0.5);
-  EXPECT_EQ(d.refine.ramp_steps, 0);
+  EXPECT_TRUE(d.refine.scheme_options.empty());
+  EXPECT_EQ(find_scheme_option("kappa")->default_value, 0.5);
+  EXPECT_EQ(find_scheme_option("ramp_steps")->default_value, 0);
   EXPECT_NO_THROW(api::parse_refine_params({{"kappa", "1"}}, {}));
 }
 

@@ -42,12 +42,13 @@ TEST(Sqrt3Params, AlphaParsedWithDefaults) {
   const api::RefineRequest r = api::parse_refine_params(
       {{"scheme", "sqrt3-unified"}, {"alpha", "0.25"}, {"alpha_features", "0.75"}}, {});
   EXPECT_EQ(r.refine.scheme, "sqrt3-unified");
-  EXPECT_DOUBLE_EQ(r.refine.alpha, 0.25);
-  EXPECT_DOUBLE_EQ(r.refine.alpha_features, 0.75);
+  EXPECT_EQ(r.refine.scheme_options.find("alpha"), 0.25);
+  EXPECT_EQ(r.refine.scheme_options.find("alpha_features"), 0.75);
   const api::RefineRequest d = api::parse_refine_params({{"scheme", "sqrt3"}}, {});
-  EXPECT_EQ(d.refine.alpha, RefineParams{}.alpha);
-  EXPECT_EQ(d.refine.alpha_features, RefineParams{}.alpha_features);
-  EXPECT_EQ(d.refine.alpha, 1.0);
+  // Absent options are not set: the scheme is made with its declared defaults.
+  EXPECT_TRUE(d.refine.scheme_options.empty());
+  EXPECT_EQ(find_scheme_option("alpha")->default_value, 1.0);
+  EXPECT_EQ(find_scheme_option("alpha_features")->default_value, 1.0);
   for (const char* scheme : {"sqrt3", "sqrt3-interp", "sqrt3-unified"})
     EXPECT_NO_THROW(api::parse_refine_params({{"scheme", scheme}}, {})) << scheme;
 }

@@ -63,8 +63,17 @@ TEST(Slice, UniformLayersFollowTheRangeAndTheMidLayerRule) {
   EXPECT_EQ(slicer::plan_layers(cube, p).heights, (std::vector<double>{3.5}));
   p.z_max = 3.5;  // a plane exactly at z_max is kept
   EXPECT_EQ(slicer::plan_layers(cube, p).heights, (std::vector<double>{3.5}));
+  // No plane in the range: an error naming the layer height, never an empty slice (issue 19).
   p.z_max = 3.4;
-  EXPECT_TRUE(slicer::plan_layers(cube, p).heights.empty());
+  try {
+    slicer::plan_layers(cube, p);
+    ADD_FAILURE() << "a plan without a layer";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::NothingToMake);
+    EXPECT_EQ(e.field(), "layer_height");
+    EXPECT_NE(std::string(e.what()).find("the z range is 1.4 mm tall"), std::string::npos)
+        << e.what();
+  }
   // Explicit heights come out sorted; planes outside the part give empty layers.
   const auto layers = slice_all(cube, at({20.0, 5.0, -1.0}));
   ASSERT_EQ(layers.size(), 3u);
