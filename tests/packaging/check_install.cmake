@@ -22,4 +22,18 @@ file(STRINGS ${PREFIX}/lib/systemd/system/stlrefined.service exec REGEX "^ExecSt
 if(NOT exec MATCHES "^ExecStart=${PREFIX}/bin/stlrefined ")
   message(FATAL_ERROR "the unit does not start the installed daemon: ${exec}")
 endif()
+# systemd's own check of the installed unit (syntax, the ExecStart binary, the man page
+# Documentation= names), where systemd is installed.
+find_program(SYSTEMD_ANALYZE systemd-analyze)
+if(SYSTEMD_ANALYZE)
+  execute_process(
+    COMMAND ${CMAKE_COMMAND} -E env MANPATH=${PREFIX}/share/man
+            ${SYSTEMD_ANALYZE} verify ${PREFIX}/lib/systemd/system/stlrefined.service
+    RESULT_VARIABLE result OUTPUT_VARIABLE output ERROR_VARIABLE output)
+  if(NOT result EQUAL 0)
+    message(FATAL_ERROR "systemd-analyze verify failed (${result}):\n${output}")
+  endif()
+else()
+  message(STATUS "no systemd-analyze: the unit's syntax is not verified")
+endif()
 file(REMOVE_RECURSE ${PREFIX})
