@@ -124,5 +124,37 @@ TEST(ComposeStack, NginxWaitsAtLeastTheDaemonsDeadline) {
   EXPECT_EQ(nginx_bytes(stack.nginx, "client_max_body_size"), mib * 1024 * 1024);
 }
 
+// docker stop sends SIGTERM, then SIGKILL after stop_grace_period: that must leave the
+// daemon its whole --shutdown-grace and some seconds to write answers.
+TEST(ComposeStack, StopGracePeriodOutlastsTheShutdownGrace) {
+  const Stack stack;
+  const int grace =
+      std::stoi(flag_value(stack.argv, "--shutdown-grace")
+                    .value_or(help_default(daemon_help(), "--shutdown-grace").value_or("")));
+  const auto stop = yaml_get(stack.compose, {"services", "stlrefined", "stop_grace_period"});
+  ASSERT_TRUE(stop);
+  std::smatch m;
+  ASSERT_TRUE(std::regex_match(stop->scalar, m, std::regex("([0-9]+)s"))) << stop->scalar;
+  EXPECT_GE(std::stoi(m[1]), grace + 10);
+  EXPECT_EQ(instruction(final_stage(stack.dockerfile), "STOPSIGNAL"), "SIGTERM");
+}
+
+// The legacy builder reads .dockerignore only at the root of the build context; BuildKit
+// prefers <Dockerfile>.dockerignore, so none may exist beside the Dockerfile to differ.
+TEST(ComposeStack, DockerignoreIsAtTheBuildContextRoot) {
+  const Stack stack;
+  const auto context = yaml_get(stack.compose, {"services", "stlrefined", "build", "context"});
+  const auto dockerfile =
+      yaml_get(stack.compose, {"services", "stlrefined", "build", "dockerfile"});
+  ASSERT_TRUE(context && dockerfile);
+  const fs::path root = fs::weakly_canonical(kDocker / context->scalar);
+  EXPECT_EQ(root, fs::weakly_canonical(fs::path(STLREFINE_SOURCE_DIR)));
+  EXPECT_TRUE(fs::exists(root / dockerfile->scalar));
+  const std::string ignore = read_text(root / ".dockerignore");
+  for (const char* pattern : {"\n.git\n", "\nbuild\n", "\nbuild-*\n"})
+    EXPECT_NE(ignore.find(pattern), std::string::npos) << pattern;
+  EXPECT_FALSE(fs::exists(root / (dockerfile->scalar + ".dockerignore")));
+}
+
 }  // namespace
 }  // namespace stlrefine::test
