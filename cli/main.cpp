@@ -20,6 +20,10 @@
 //                   [--z-min Z] [--z-max Z] [--heights a,b,c] [--max-layers N] [--threads N]
 //                   [--weld-tolerance T] [--report R.json]
 //
+// IN may be `-` for stdin and any output `-` for stdout (`stlrefine refine - -o - < a.stl >
+// b.stl`), one output at most: then stdout carries only it, every message goes to stderr.
+// A file is replaced atomically; stdout cannot be, so a failed run may leave part of it.
+//
 // Exit codes (kExit* below): 0 success; 2 bad usage or parameter; 3 the input file cannot
 // be read or is not a usable STL; 4 the face or layer budget would be exceeded; 1 anything else
 // (an internal error, or the output cannot be written).
@@ -110,7 +114,7 @@ Failure failure_from_error(const Error& e, const std::string& input) {
       !e.field().empty()) {
     message = option_name(e.field()) + ": " + e.what();
   } else if (e.code() == ErrorCode::MalformedStl || e.code() == ErrorCode::NotTriangleMesh) {
-    message = input;
+    message = input == "-" ? "stdin" : input;
     if (e.line()) message += ":" + std::to_string(*e.line());
     message += ": ";
     message += (e.code() == ErrorCode::MalformedStl ? "malformed STL" : "not a triangle mesh");
@@ -124,6 +128,15 @@ Failure failure_from_error(const Error& e, const std::string& input) {
 }
 
 std::vector<std::uint8_t> read_file(const std::string& path) {
+  if (path == "-") {
+    std::vector<std::uint8_t> bytes;
+    std::vector<std::uint8_t> buffer(1 << 16);
+    for (std::size_t n; (n = std::fread(buffer.data(), 1, buffer.size(), stdin)) > 0;)
+      bytes.insert(bytes.end(), buffer.begin(), buffer.begin() + static_cast<std::ptrdiff_t>(n));
+    if (std::ferror(stdin))
+      throw Failure{kExitBadInput, "cannot read stdin: " + std::string(std::strerror(errno))};
+    return bytes;
+  }
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec))
     throw Failure{kExitBadInput, path + " is a directory, not an STL file"};
@@ -136,9 +149,20 @@ std::vector<std::uint8_t> read_file(const std::string& path) {
 }
 
 // Written next to the target, synced and renamed over it (core/io/atomic_file.h): a failed
-// run never leaves half a file, nor a changed one.
+// run never leaves half a file, nor a changed one. "-" is stdout, written as it is made.
 void write_file(const std::string& path,
                 const std::function<void(const stlrefine::ByteSink&)>& produce) {
+  if (path == "-") {
+    const auto fail = [] {
+      throw Failure{kExitInternal, "cannot write to stdout: " + std::string(std::strerror(errno))};
+    };
+    std::cout.flush();
+    produce([&fail](std::string_view bytes) {
+      if (std::fwrite(bytes.data(), 1, bytes.size(), stdout) != bytes.size()) fail();
+    });
+    if (std::fflush(stdout) != 0) fail();
+    return;
+  }
   try {
     stlrefine::write_file_atomically(path, produce);
   } catch (const stlrefine::FileError& e) {
@@ -148,6 +172,21 @@ void write_file(const std::string& path,
 
 void write_file(const std::string& path, std::string_view bytes) {
   write_file(path, [bytes](const stlrefine::ByteSink& sink) { sink(bytes); });
+}
+
+// Outputs given as "-", by option name: at most one may be, else they would interleave on
+// stdout. `stdout_taken` names what already writes there (info's report), if anything.
+void check_stdout_outputs(
+    std::initializer_list<std::pair<std::string_view, const std::string*>> outputs,
+    std::string_view stdout_taken = {}) {
+  std::string_view first = stdout_taken;
+  for (const auto& [option, path] : outputs) {
+    if (*path != "-") continue;
+    if (!first.empty())
+      throw Failure{kExitUsage,
+                    std::string(option) + " -: stdout already carries " + std::string(first)};
+    first = option;
+  }
 }
 
 //! The progress line: only when stderr is a terminal, redrawn in place, at most once per
@@ -209,6 +248,7 @@ struct SliceCliOptions {
 
 // The part's name in the contour files: the input's file name without its extension.
 std::string label_of(const std::string& input) {
+  if (input == "-") return "part";
   std::string stem = std::filesystem::path(input).stem().string();
   if (stem.empty()) stem = "part";
   if (stem.size() > 256) stem.resize(256);
@@ -244,6 +284,7 @@ api::RawParams given_params(const CLI::App& cmd, api::RequestKind kind, const Pa
 
 int run_info(const CLI::App& cmd, const InfoOptions& o) {
   const api::RawParams raw = given_params(cmd, api::RequestKind::Info, o.params);
+  check_stdout_outputs({{"--curvature", &o.curvature}}, "the report");
   try {
     const api::InfoRequest request = api::parse_info_params(raw);
     const std::vector<std::uint8_t> bytes = read_file(o.input);
@@ -258,6 +299,7 @@ int run_info(const CLI::App& cmd, const InfoOptions& o) {
 
 int run_refine(const CLI::App& cmd, const RefineOptions& o) {
   const api::RawParams raw = given_params(cmd, api::RequestKind::Refine, o.params);
+  check_stdout_outputs({{"-o", &o.output}, {"--slice-out", &o.slice_out}, {"--report", &o.report}});
   const bool slicing = cmd.get_option("--slice")->count() > 0;
   if (slicing != (cmd.get_option("--slice-out")->count() > 0))
     throw Failure{kExitUsage, slicing ? "--slice needs --slice-out (the contour file)"
@@ -306,6 +348,7 @@ int run_refine(const CLI::App& cmd, const RefineOptions& o) {
 
 int run_slice(const CLI::App& cmd, const SliceCliOptions& o) {
   const api::RawParams raw = given_params(cmd, api::RequestKind::Slice, o.params);
+  check_stdout_outputs({{"-o", &o.output}, {"--report", &o.report}});
   api::RequestLimits limits;
   limits.accept_threads = true;
   try {
@@ -425,7 +468,8 @@ int main(int argc, char** argv) {
 
   InfoOptions info;
   CLI::App* info_cmd = app.add_subcommand("info", "Print a JSON report on an STL file");
-  info_cmd->add_option("input", info.input, "STL file (binary or ASCII)")->required();
+  info_cmd->add_option("input", info.input, "STL file (binary or ASCII); - reads stdin")
+      ->required();
   add_param_options(*info_cmd, api::RequestKind::Info, info.params);
   info_cmd->add_option("--curvature", info.curvature,
                        "Write per-vertex curvatures (vertex,x,y,z,kind,gaussian,mean,k1,k2,"
@@ -433,8 +477,10 @@ int main(int argc, char** argv) {
 
   RefineOptions refine;
   CLI::App* refine_cmd = app.add_subcommand("refine", "Refine an STL file");
-  refine_cmd->add_option("input", refine.input, "STL file (binary or ASCII)")->required();
-  refine_cmd->add_option("-o,--output", refine.output, "Output STL file")->required();
+  refine_cmd->add_option("input", refine.input, "STL file (binary or ASCII); - reads stdin")
+      ->required();
+  refine_cmd->add_option("-o,--output", refine.output, "Output STL file; - writes stdout")
+      ->required();
   add_param_options(*refine_cmd, api::RequestKind::Refine, refine.params);
   refine_cmd->add_flag("--ascii", refine.ascii, "Write ASCII STL instead of binary");
   refine_cmd->add_option("--report", refine.report, "Also write the JSON report to this file");
@@ -469,8 +515,9 @@ int main(int argc, char** argv) {
   SliceCliOptions slice;
   CLI::App* slice_cmd =
       app.add_subcommand("slice", "Slice an STL file into layers of closed, oriented contours");
-  slice_cmd->add_option("input", slice.input, "STL file (binary or ASCII)")->required();
-  slice_cmd->add_option("-o,--output", slice.output, "Contour file")->required();
+  slice_cmd->add_option("input", slice.input, "STL file (binary or ASCII); - reads stdin")
+      ->required();
+  slice_cmd->add_option("-o,--output", slice.output, "Contour file; - writes stdout")->required();
   add_param_options(*slice_cmd, api::RequestKind::Slice, slice.params);
   slice_cmd->add_option("--report", slice.report, "Also write the JSON report to this file");
 
