@@ -178,8 +178,17 @@ void LsfStencil::edge_points(const Level& coarse, std::span<Vec3> out) const {
           m.halfedge(v).valid())
         guard[i].normal = lsf::sector_normal(m, f, m.halfedge(v));
       guard[i].one_sector = kind <= VertexKind::Dart;
+      guard[i].batched_smooth = batched && kind == VertexKind::Smooth;
     }
     batches.flush();
+    // The batch kernel's normals are the face sums alone: where a plane rules a ring that is
+    // not all flat, its normal instead, as sector_normal gives for the others.
+    for (std::size_t i = begin; i < end; ++i) {
+      if (!guard[i].batched_smooth || guard[i].flat) continue;
+      Vec3 plane;
+      if (lsf::dominant_plane(m, VertexId(static_cast<std::uint32_t>(i)), plane))
+        guard[i].normal = plane;
+    }
   });
   const lsf::GuardNormals normal_of{m, f, guard.data()};
   // The guard reads, per edge, the corners of its two faces, their four positions and its ends'

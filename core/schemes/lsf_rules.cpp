@@ -89,7 +89,11 @@ Vec3 sector_normal(const Mesh& m, const Features& f, HalfedgeId h) {
   // Angle weights suit even rings (a hull's); on a fan or zipper (spokes of very different
   // lengths) the few short spokes' faces may belong to another surface piece (a fillet's end
   // touching a rounded corner): there the area-weighted normal, dominated by the long faces,
-  // is the better guess.
+  // is the better guess. Where a plane rules a smooth ring, its normal.
+  Vec3 plane;
+  if (f.kind(m.from(h)) <= VertexKind::Dart && !(sum.flat && dot(sum.first, sum.first) > 0) &&
+      dominant_plane(m, m.from(h), plane))
+    return plane;
   return sum.normal();
 }
 
@@ -269,6 +273,38 @@ Vec3 pull_back_folds(const Vec3& a, const Vec3& b, const std::array<Vec3, 2>& op
 }
 
 }  // namespace
+
+bool dominant_plane(const Mesh& m, VertexId v, Vec3& normal) {
+  const Vec3 p = m.position(v);
+  // The largest face first, then the shares against its plane.
+  Vec3 largest;
+  double largest2 = 0;
+  for_each_outgoing(m, v, [&](HalfedgeId s) {
+    const Vec3 n = cross(m.position(m.to(s)) - p, m.position(m.opposite(s)) - p);
+    const double n2 = dot(n, n);
+    if (n2 > largest2) largest2 = n2, largest = n;
+  });
+  if (!(largest2 > 0)) return false;
+  double planar = 0, total = 0, largest_other = 0;
+  int in_plane_faces = 0;
+  for_each_outgoing(m, v, [&](HalfedgeId s) {
+    const Vec3 q = m.position(m.to(s)), r = m.position(m.opposite(s));
+    const Vec3 n = cross(q - p, r - p);
+    const double area = norm(n);
+    total += area;
+    if (coplanar(largest, n) && in_plane(largest, p, q, r, n)) {
+      planar += area;
+      ++in_plane_faces;
+    } else {
+      largest_other = std::max(largest_other, area);
+    }
+  });
+  if (in_plane_faces < 2 || !(planar >= kPlaneAreaShare * total) ||
+      !(largest_other <= kPlaneDominance * std::sqrt(largest2)))
+    return false;
+  normal = normalized(largest);
+  return true;
+}
 
 Vec3 guarded_edge_point(const GuardNormals& normal_of, EdgeId e, const Vec3& lower_estimate,
                         const Vec3& upper_estimate) {

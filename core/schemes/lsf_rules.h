@@ -52,9 +52,20 @@ struct NormalSum {
   }
 };
 //! The guard's normal of from(h)'s faces within the crease-bounded sector that holds h (its
-//! whole ring at a smooth or dart vertex): NormalSum::normal of them. Unit, or zero when the
-//! sector has no direction.
+//! whole ring at a smooth or dart vertex): NormalSum::normal of them, or at a smooth or dart
+//! vertex whose faces are not all flat (NormalSum::flat) the normal of the plane that rules
+//! its ring (dominant_plane). Unit, or zero when the sector has no direction.
 Vec3 sector_normal(const Mesh& m, const Features& f, HalfedgeId h);
+
+//! Whether a plane rules v's ring (issue 17, the rounded box: a flat face meeting fillets
+//! tangentially, with no crease between them): at least two of v's faces lie in the plane of
+//! its largest face to the rounding of the coordinates (as the plane rule of the edge guard
+//! tells it), those faces hold at least half of the ring's face area, and no other face there
+//! is larger than 0.75 of the largest. Then the surface's normal at v is the plane's (the
+//! plane and a tangent fillet share it along their seam), set in `normal` (unit); the
+//! face-weighted normals lean towards the fillet's and the corner's faces by degrees, which a
+//! long edge's Hermite midpoint multiplies by its length.
+bool dominant_plane(const Mesh& m, VertexId v, Vec3& normal);
 
 // What the edge guard reads of a vertex, packed in one record (the edge pass reads two per
 // edge, at random): its guard normal when it has one sector (smooth or dart), and for a batched
@@ -64,6 +75,7 @@ struct alignas(32) GuardVertex {
   Vec3 normal;
   std::uint8_t one_sector = 0;
   std::uint8_t flat = 0;
+  std::uint8_t batched_smooth = 0;  // the normal came from the batch kernel (no dominant_plane)
 };
 
 //! The guard's normal source: `guard`'s record of from(h) when it has one sector, else
