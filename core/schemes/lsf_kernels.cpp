@@ -182,6 +182,7 @@ template <int K, class Terms>
   const V4d zero = {0, 0, 0, 0};
   const double inf = std::numeric_limits<double>::infinity();
   V4d ax = zero, ay = zero, az = zero, rx = zero, ry = zero, rz = zero;
+  V4d qx = zero, qy = zero, qz = zero;
   V4d fx = zero, fy = zero, fz = zero, shortest = {inf, inf, inf, inf}, longest = zero;
   V4i flat = {-1, -1, -1, -1};
   for (std::size_t i = 0; i < n; ++i) {
@@ -199,6 +200,8 @@ template <int K, class Terms>
     flat = (is_first & flat) | (~is_first & flat & still_flat);
     fx = select(is_first, nx, fx), fy = select(is_first, ny, fy), fz = select(is_first, nz, fz);
     rx += nx, ry += ny, rz += nz;
+    const V4d len = lsf_math::sqrt(nn);
+    qx += len * nx, qy += len * ny, qz += len * nz;
     const V4d l12 = l1 * l2;
     const V4i positive = l12 > 0;
     const V4d w = 1.0 / lsf_math::sqrt(l12);
@@ -210,6 +213,7 @@ template <int K, class Terms>
     if (b.normal[l] == nullptr) continue;
     NormalSum sum;
     sum.angle_sum = Vec3(ax[l], ay[l], az[l]), sum.area_sum = Vec3(rx[l], ry[l], rz[l]);
+    sum.area2_sum = Vec3(qx[l], qy[l], qz[l]), sum.square_areas = true;
     sum.first = Vec3(fx[l], fy[l], fz[l]);
     sum.shortest = shortest[l], sum.longest = longest[l], sum.flat = flat[l] != 0;
     *b.normal[l] = sum.normal();

@@ -65,6 +65,7 @@ Vec3 sector_normal(const Mesh& m, const Features& f, HalfedgeId h) {
   if (f.kind(m.from(h)) <= VertexKind::Dart) h = m.halfedge(m.from(h));
   const Vec3 p = m.position(m.from(h));
   NormalSum sum;
+  sum.square_areas = f.kind(m.from(h)) <= VertexKind::Dart;
   auto add = [&](HalfedgeId s) {
     sum.add(m.position(m.to(s)) - p, m.position(m.to(Mesh::next(s))) - p);
   };

@@ -23,12 +23,21 @@ namespace stlrefine::lsf {
 // faces' areas, blended by the ratio of the longest to the shortest spoke (kEvenSpokes to
 // kUnevenSpokes). e1, e2: the face's two spokes, counter-clockwise.
 inline constexpr double kEvenSpokes = 3.0, kUnevenSpokes = 12.0;
+// At a smooth or dart vertex (square_areas), the area-weighted part leans further towards the
+// largest faces as the ring gets more uneven: from the area-weighted sum at a spoke ratio of
+// kLargeFacesFrom to the sum weighted by the squared areas at kLargeFacesAt. A CAD exporter
+// makes a face large only where the surface under it is nearly flat across it, so on a fan or
+// zipper the largest faces' normals are the surface's (the rounded box: a flat face or a
+// fillet's long strips beside a corner's small fan, whose faces lean by tens of degrees).
+// Even rings (a hull's, below a ratio of 6) keep their normals bit for bit.
+inline constexpr double kLargeFacesFrom = 6.0, kLargeFacesAt = 16.0;
 // `flat`: every face so far within kFlatSine of the first one (see flat_ring below).
 inline constexpr double kFlatSine = 0.5e-3;
 struct NormalSum {
-  Vec3 angle_sum, area_sum, first;
+  Vec3 angle_sum, area_sum, area2_sum, first;
   double shortest = std::numeric_limits<double>::infinity(), longest = 0;
   bool flat = true;
+  bool square_areas = false;  // set for a smooth or dart vertex's ring (area2_sum summed)
 
   void add(const Vec3& e1, const Vec3& e2) {
     const Vec3 n = cross(e1, e2);
@@ -41,6 +50,7 @@ struct NormalSum {
              dot(first, n) > 0;
     }
     area_sum += n;
+    if (square_areas) area2_sum += std::sqrt(dot(n, n)) * n;
     if (l1 * l2 > 0) angle_sum += (1.0 / std::sqrt(l1 * l2)) * n;
     shortest = std::min(shortest, std::min(l1, l2));
     longest = std::max(longest, std::max(l1, l2));
@@ -48,7 +58,13 @@ struct NormalSum {
   Vec3 normal() const {
     const double ratio = longest > 0 && shortest > 0 ? std::sqrt(longest / shortest) : 1.0;
     const double w = std::clamp((ratio - kEvenSpokes) / (kUnevenSpokes - kEvenSpokes), 0.0, 1.0);
-    return normalized((1.0 - w) * normalized(angle_sum) + w * normalized(area_sum));
+    Vec3 area = normalized(area_sum);
+    if (square_areas) {
+      const double w2 =
+          std::clamp((ratio - kLargeFacesFrom) / (kLargeFacesAt - kLargeFacesFrom), 0.0, 1.0);
+      if (w2 > 0) area = normalized((1.0 - w2) * area + w2 * normalized(area2_sum));
+    }
+    return normalized((1.0 - w) * normalized(angle_sum) + w * area);
   }
 };
 //! The guard's normal of from(h)'s faces within the crease-bounded sector that holds h (its
