@@ -221,14 +221,21 @@ constexpr double kPatchWidthRatio = 2.0;
 constexpr double kHermiteSlack = 1.0;
 
 // The slack instead of kHermiteSlack when an end of the edge is a smooth or dart vertex whose
-// ring is a fan or zipper (uneven_ring): measured on the rounded box (issue 17), seeds
-// 1000-1005, L2 0.54 -> 0.47 of the input; the families with even rings are unaffected.
+// ring is a fan or zipper (uneven_ring), or any vertex with such a ring at an end of a sliver's
+// long edge: measured on issue 17's families, seeds 1000-1005, L2: rounded box 0.54 -> 0.47,
+// plate (with kSliverAspect) 0.61 -> 0.43 of the input; the other families unchanged.
 constexpr double kUnevenHermiteSlack = 0.5;
 
-// Whether v is a smooth or dart vertex whose longest spoke is at least kUnevenSpokes times its
-// shortest (where NormalSum's normal is the area-weighted one).
-bool uneven_ring(const Mesh& m, const Features& f, VertexId v) {
-  if (f.kind(v) > VertexKind::Dart) return false;
+// An edge at least this many times longer than the height across it of the narrower of its two
+// faces is a sliver's long edge. Measured: 15 also changes the zipped cylinder and tube walls
+// (worse); 30 and 60 only the plate's strips (aspect ~100).
+constexpr double kSliverAspect = 30.0;
+
+// Whether v's longest spoke is at least kUnevenSpokes times its shortest (where NormalSum's
+// normal is the area-weighted one), v being a smooth or dart vertex, or any vertex when
+// `sliver`.
+bool uneven_ring(const Mesh& m, const Features& f, VertexId v, bool sliver) {
+  if (!sliver && f.kind(v) > VertexKind::Dart) return false;
   const Vec3 p = m.position(v);
   double shortest = std::numeric_limits<double>::infinity(), longest = 0;
   for_each_outgoing(m, v, [&](HalfedgeId s) {
@@ -377,16 +384,22 @@ Vec3 guarded_edge_point(const GuardNormals& normal_of, EdgeId e, const Vec3& low
   const Vec3 hermite = hermite_offset(chord, length, na, nb);
   const Vec3 da = lower_estimate - mid - hermite, db = upper_estimate - mid - hermite;
   const double hermite_length = norm(hermite);
-  const double tolerance = kHermiteSlack * hermite_length + 1e-3 * length;
+  // The allowance besides the Hermite offset: 1e-3 of the chord, or of the narrower face's
+  // height across a sliver's long edge (kSliverAspect), whose chord says nothing of how far its
+  // surface bends (the plate's 305 mm strips round a few millimetres of arc).
+  const double narrow2 = std::min(w0, w1);
+  const bool sliver = length2 * length2 >= (kSliverAspect * kSliverAspect) * narrow2;
+  const double scale = sliver ? std::min(length, std::sqrt(narrow2 / length2)) : length;
+  const double tolerance = kHermiteSlack * hermite_length + 1e-3 * scale;
   const double tolerance2 = tolerance * tolerance;
   bool a_ok = dot(da, da) <= tolerance2, b_ok = dot(db, db) <= tolerance2;
   // Next to a fan or zipper the fits are the least reliable (their samples mix far points on one
   // side with near ones, or two surface pieces): an estimate there must lie within
   // kUnevenHermiteSlack of the Hermite offset. Only asked when it can change the outcome.
-  const double strict = kUnevenHermiteSlack * hermite_length + 1e-3 * length;
+  const double strict = kUnevenHermiteSlack * hermite_length + 1e-3 * scale;
   const double strict2 = strict * strict;
   if (((a_ok && dot(da, da) > strict2) || (b_ok && dot(db, db) > strict2)) &&
-      (uneven_ring(m, f, m.from(ha)) || uneven_ring(m, f, m.from(hb)))) {
+      (uneven_ring(m, f, m.from(ha), sliver) || uneven_ring(m, f, m.from(hb), sliver))) {
     a_ok = a_ok && dot(da, da) <= strict2;
     b_ok = b_ok && dot(db, db) <= strict2;
   }
