@@ -93,7 +93,7 @@ Vec3 sector_normal(const Mesh& m, const Features& f, HalfedgeId h) {
   // is the better guess. Where a plane rules a smooth ring, its normal.
   Vec3 plane;
   if (f.kind(m.from(h)) <= VertexKind::Dart && !(sum.flat && dot(sum.first, sum.first) > 0) &&
-      dominant_plane(m, m.from(h), plane))
+      (sum.spoke_flags() & GuardVertex::kNotEven) && dominant_plane(m, m.from(h), plane))
     return plane;
   return sum.normal();
 }
@@ -221,30 +221,15 @@ constexpr double kPatchWidthRatio = 2.0;
 constexpr double kHermiteSlack = 1.0;
 
 // The slack instead of kHermiteSlack when an end of the edge is a smooth or dart vertex whose
-// ring is a fan or zipper (uneven_ring), or any vertex with such a ring at an end of a sliver's
-// long edge: measured on issue 17's families, seeds 1000-1005, L2: rounded box 0.54 -> 0.47,
-// plate (with kSliverAspect) 0.61 -> 0.43 of the input; the other families unchanged.
+// ring is a fan or zipper (GuardNormals::uneven), or any vertex with such a ring at an end of a
+// sliver's long edge: measured on issue 17's families, seeds 1000-1005, L2: rounded box 0.54 ->
+// 0.47, plate (with kSliverAspect) 0.61 -> 0.43 of the input; the other families unchanged.
 constexpr double kUnevenHermiteSlack = 0.5;
 
 // An edge at least this many times longer than the height across it of the narrower of its two
 // faces is a sliver's long edge. Measured: 15 also changes the zipped cylinder and tube walls
 // (worse); 30 and 60 only the plate's strips (aspect ~100).
 constexpr double kSliverAspect = 30.0;
-
-// Whether v's longest spoke is at least kUnevenSpokes times its shortest (where NormalSum's
-// normal is the area-weighted one), v being a smooth or dart vertex, or any vertex when
-// `sliver`.
-bool uneven_ring(const Mesh& m, const Features& f, VertexId v, bool sliver) {
-  if (!sliver && f.kind(v) > VertexKind::Dart) return false;
-  const Vec3 p = m.position(v);
-  double shortest = std::numeric_limits<double>::infinity(), longest = 0;
-  for_each_outgoing(m, v, [&](HalfedgeId s) {
-    const Vec3 d = m.position(m.to(s)) - p;
-    const double l = dot(d, d);
-    shortest = std::min(shortest, l), longest = std::max(longest, l);
-  });
-  return longest >= (kUnevenSpokes * kUnevenSpokes) * shortest;
-}
 
 // The child-fold pass: how many halving rounds before the edges of a face still folding go to
 // their chords, and the cosine of the screening angle (45 degrees) against the parent face.
@@ -300,6 +285,17 @@ Vec3 pull_back_folds(const Vec3& a, const Vec3& b, const std::array<Vec3, 2>& op
 }
 
 }  // namespace
+
+std::uint8_t ring_spoke_flags(const Mesh& m, VertexId v) {
+  const Vec3 p = m.position(v);
+  NormalSum sum;  // only its spoke lengths
+  for_each_outgoing(m, v, [&](HalfedgeId s) {
+    const Vec3 d = m.position(m.to(s)) - p;
+    const double l = dot(d, d);
+    sum.shortest = std::min(sum.shortest, l), sum.longest = std::max(sum.longest, l);
+  });
+  return sum.spoke_flags();
+}
 
 bool dominant_plane(const Mesh& m, VertexId v, Vec3& normal) {
   const Vec3 p = m.position(v);
@@ -399,7 +395,7 @@ Vec3 guarded_edge_point(const GuardNormals& normal_of, EdgeId e, const Vec3& low
   const double strict = kUnevenHermiteSlack * hermite_length + 1e-3 * scale;
   const double strict2 = strict * strict;
   if (((a_ok && dot(da, da) > strict2) || (b_ok && dot(db, db) > strict2)) &&
-      (uneven_ring(m, f, m.from(ha), sliver) || uneven_ring(m, f, m.from(hb), sliver))) {
+      (normal_of.uneven(ha, sliver) || normal_of.uneven(hb, sliver))) {
     a_ok = a_ok && dot(da, da) <= strict2;
     b_ok = b_ok && dot(db, db) <= strict2;
   }

@@ -66,11 +66,14 @@ struct NormalSum {
     }
     return normalized((1.0 - w) * normalized(angle_sum) + w * area);
   }
+  //! GuardVertex::spokes of these faces' spokes.
+  std::uint8_t spoke_flags() const;
 };
 //! The guard's normal of from(h)'s faces within the crease-bounded sector that holds h (its
 //! whole ring at a smooth or dart vertex): NormalSum::normal of them, or at a smooth or dart
-//! vertex whose faces are not all flat (NormalSum::flat) the normal of the plane that rules
-//! its ring (dominant_plane). Unit, or zero when the sector has no direction.
+//! vertex whose faces are not all flat (NormalSum::flat) and whose spokes are not even
+//! (GuardVertex::kNotEven) the normal of the plane that rules its ring (dominant_plane). Unit, or
+//! zero when the sector has no direction.
 Vec3 sector_normal(const Mesh& m, const Features& f, HalfedgeId h);
 
 //! Whether a plane rules v's ring (issue 17, the rounded box: a flat face meeting fillets
@@ -88,11 +91,20 @@ bool dominant_plane(const Mesh& m, VertexId v, Vec3& normal);
 // smooth vertex whether all its faces are within kFlatSine of one another (then the plane rule
 // cannot fire at an edge between two such vertices, see guarded_edge_point).
 struct alignas(32) GuardVertex {
+  //! spokes: the longest spoke at least kEvenSpokes / kUnevenSpokes times the shortest.
+  static constexpr std::uint8_t kNotEven = 1, kUneven = 2;
   Vec3 normal;
   std::uint8_t one_sector = 0;
   std::uint8_t flat = 0;
   std::uint8_t batched_smooth = 0;  // the normal came from the batch kernel (no dominant_plane)
+  std::uint8_t spokes = 0;          // of a one-sector vertex
 };
+inline std::uint8_t NormalSum::spoke_flags() const {
+  return (longest >= (kEvenSpokes * kEvenSpokes) * shortest ? GuardVertex::kNotEven : 0) |
+         (longest >= (kUnevenSpokes * kUnevenSpokes) * shortest ? GuardVertex::kUneven : 0);
+}
+//! GuardVertex::spokes of v's ring (a walk).
+std::uint8_t ring_spoke_flags(const Mesh& m, VertexId v);
 
 //! The guard's normal source: `guard`'s record of from(h) when it has one sector, else
 //! sector_normal (walked). Without records (null) always walked.
@@ -106,6 +118,15 @@ struct GuardNormals {
       if (g.one_sector) return g.normal;
     }
     return sector_normal(mesh, features, h);
+  }
+  //! Whether from(h) is a smooth or dart vertex whose ring is a fan or zipper (its longest spoke
+  //! at least kUnevenSpokes times its shortest), or any vertex with such a ring when `sliver`.
+  bool uneven(HalfedgeId h, bool sliver) const {
+    const VertexId v = mesh.from(h);
+    if (!sliver && features.kind(v) > VertexKind::Dart) return false;
+    if (guard != nullptr && guard[v.idx].one_sector)
+      return (guard[v.idx].spokes & GuardVertex::kUneven) != 0;
+    return (ring_spoke_flags(mesh, v) & GuardVertex::kUneven) != 0;
   }
 };
 
