@@ -167,19 +167,31 @@ void LsfStencil::edge_points(const Level& coarse, std::span<Vec3> out) const {
       const bool batched =
           kind <= VertexKind::Dart
               ? lsf::batch_smooth_vertex(m, v, slots, batches,
-                                         kind == VertexKind::Smooth ? &guard[i].normal : nullptr,
-                                         &guard[i].flat)
+                                         kind == VertexKind::Smooth ? &guard[i] : nullptr)
           : kind == VertexKind::Crease ? lsf::batch_crease_vertex(m, f, v, slots, batches)
                                        : false;
       if (!batched) vertex_estimates(m, f, v, sink);
       // The guard's normal of a one-sector vertex, once (crease and corner vertices' sector
       // normals are found where they are needed).
       if (kind <= VertexKind::Dart && !(batched && kind == VertexKind::Smooth) &&
-          m.halfedge(v).valid())
+          m.halfedge(v).valid()) {
         guard[i].normal = lsf::sector_normal(m, f, m.halfedge(v));
+        guard[i].spokes = lsf::ring_spoke_flags(m, v);
+      }
       guard[i].one_sector = kind <= VertexKind::Dart;
+      guard[i].batched_smooth = batched && kind == VertexKind::Smooth;
     }
     batches.flush();
+    // The batch kernel's normals are the face sums alone: where a plane rules a ring that is
+    // not all flat, its normal instead, as sector_normal gives for the others.
+    for (std::size_t i = begin; i < end; ++i) {
+      if (!guard[i].batched_smooth || guard[i].flat ||
+          !(guard[i].spokes & lsf::GuardVertex::kNotEven))
+        continue;
+      Vec3 plane;
+      if (lsf::dominant_plane(m, VertexId(static_cast<std::uint32_t>(i)), plane))
+        guard[i].normal = plane;
+    }
   });
   const lsf::GuardNormals normal_of{m, f, guard.data()};
   // The guard reads, per edge, the corners of its two faces, their four positions and its ends'

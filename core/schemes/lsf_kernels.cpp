@@ -182,6 +182,7 @@ template <int K, class Terms>
   const V4d zero = {0, 0, 0, 0};
   const double inf = std::numeric_limits<double>::infinity();
   V4d ax = zero, ay = zero, az = zero, rx = zero, ry = zero, rz = zero;
+  V4d qx = zero, qy = zero, qz = zero;
   V4d fx = zero, fy = zero, fz = zero, shortest = {inf, inf, inf, inf}, longest = zero;
   V4i flat = {-1, -1, -1, -1};
   for (std::size_t i = 0; i < n; ++i) {
@@ -199,6 +200,8 @@ template <int K, class Terms>
     flat = (is_first & flat) | (~is_first & flat & still_flat);
     fx = select(is_first, nx, fx), fy = select(is_first, ny, fy), fz = select(is_first, nz, fz);
     rx += nx, ry += ny, rz += nz;
+    const V4d len = lsf_math::sqrt(nn);
+    qx += len * nx, qy += len * ny, qz += len * nz;
     const V4d l12 = l1 * l2;
     const V4i positive = l12 > 0;
     const V4d w = 1.0 / lsf_math::sqrt(l12);
@@ -207,13 +210,15 @@ template <int K, class Terms>
     shortest = min4(shortest, min4(l1, l2)), longest = max4(longest, max4(l1, l2));
   }
   for (int l = 0; l < b.lanes; ++l) {
-    if (b.normal[l] == nullptr) continue;
+    if (b.record[l] == nullptr) continue;
     NormalSum sum;
     sum.angle_sum = Vec3(ax[l], ay[l], az[l]), sum.area_sum = Vec3(rx[l], ry[l], rz[l]);
+    sum.area2_sum = Vec3(qx[l], qy[l], qz[l]), sum.square_areas = true;
     sum.first = Vec3(fx[l], fy[l], fz[l]);
     sum.shortest = shortest[l], sum.longest = longest[l], sum.flat = flat[l] != 0;
-    *b.normal[l] = sum.normal();
-    *b.flat[l] = sum.flat && dot(sum.first, sum.first) > 0;
+    b.record[l]->normal = sum.normal();
+    b.record[l]->flat = sum.flat && dot(sum.first, sum.first) > 0;
+    b.record[l]->spokes = sum.spoke_flags();
   }
 }
 
@@ -449,7 +454,7 @@ void Batches::flush() {
 // the batch when it is full; false, with nothing changed, for every other vertex. A dart's
 // sharp spoke gets an estimate too: harmless, the sharp edge's point is the curve rule's.
 bool batch_smooth_vertex(const Mesh& m, VertexId v, const EstimateSlots& slots, Batches& batches,
-                         Vec3* normal, std::uint8_t* flat) {
+                         GuardVertex* record) {
   const HalfedgeId start = m.halfedge(v);
   if (!start.valid()) return false;
   // The spokes first (a chain of dependent loads), then their far ends' positions (loads
@@ -479,7 +484,7 @@ bool batch_smooth_vertex(const Mesh& m, VertexId v, const EstimateSlots& slots, 
   }
   // The guard's normal of a smooth vertex, from these offsets, in sector_normal's order (from
   // m.halfedge(v), counter-clockwise), by the kernel (ring_normals).
-  b.normal[l] = normal, b.flat[l] = flat;
+  b.record[l] = record;
   if (b.lanes == kLanes) batches.fit(b, n, true);
   return true;
 }

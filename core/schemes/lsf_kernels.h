@@ -14,6 +14,8 @@
 
 namespace stlrefine::lsf {
 
+struct GuardVertex;  // lsf_rules.h
+
 //! Smooth and dart vertices whose closed ring has kMinBatchValence..kMaxBatchValence points
 //! are fitted four at a time, one vertex per lane of lsf_math::V4d (lsf_kernels.cpp). Every lane
 //! runs the operations of fit_sample and half_points in the same order (the even- and odd-indexed
@@ -33,10 +35,9 @@ struct FitBatch {
   alignas(32) double y[kMaxBatchValence][kLanes];
   alignas(32) double z[kMaxBatchValence][kLanes];
   Vec3* dest[kMaxBatchValence][kLanes];  // where P_i's estimate goes (EstimateSlots)
-  // Closed rings of smooth vertices: where the guard's normal (NormalSum::normal) and flat
-  // flag of the lane's vertex go; null for a dart (its normal is its sector's).
-  Vec3* normal[kLanes];
-  std::uint8_t* flat[kLanes];
+  // Closed rings of smooth vertices: the guard record (normal, flat flag, spoke flags) of the
+  // lane's vertex; null for a dart (its normal is its sector's).
+  GuardVertex* record[kLanes];
 };
 
 //! Where the estimates go (see LsfStencil::edge_points): the edge's slot of one array for the
@@ -74,7 +75,7 @@ struct Batches {
 //! the batch when it is full; false, with nothing changed, for every other vertex. A dart's
 //! sharp spoke gets an estimate too: harmless, the sharp edge's point is the curve rule's.
 bool batch_smooth_vertex(const Mesh& m, VertexId v, const EstimateSlots& slots, Batches& batches,
-                         Vec3* normal, std::uint8_t* flat);
+                         GuardVertex* record);
 
 //! A crease vertex's sectors, as for_each_sector_fit cuts them (the ring from its first
 //! sharp spoke, closed by a copy of that spoke's point; on a boundary the fan from its

@@ -65,6 +65,7 @@ Vec3 sector_normal(const Mesh& m, const Features& f, HalfedgeId h) {
   if (f.kind(m.from(h)) <= VertexKind::Dart) h = m.halfedge(m.from(h));
   const Vec3 p = m.position(m.from(h));
   NormalSum sum;
+  sum.square_areas = f.kind(m.from(h)) <= VertexKind::Dart;
   auto add = [&](HalfedgeId s) {
     sum.add(m.position(m.to(s)) - p, m.position(m.to(Mesh::next(s))) - p);
   };
@@ -89,7 +90,11 @@ Vec3 sector_normal(const Mesh& m, const Features& f, HalfedgeId h) {
   // Angle weights suit even rings (a hull's); on a fan or zipper (spokes of very different
   // lengths) the few short spokes' faces may belong to another surface piece (a fillet's end
   // touching a rounded corner): there the area-weighted normal, dominated by the long faces,
-  // is the better guess.
+  // is the better guess. Where a plane rules a smooth ring, its normal.
+  Vec3 plane;
+  if (f.kind(m.from(h)) <= VertexKind::Dart && !(sum.flat && dot(sum.first, sum.first) > 0) &&
+      (sum.spoke_flags() & GuardVertex::kNotEven) && dominant_plane(m, m.from(h), plane))
+    return plane;
   return sum.normal();
 }
 
@@ -215,6 +220,17 @@ constexpr double kPatchWidthRatio = 2.0;
 // of the Hermite midpoint's own offset from the chord (plus 1e-3 of the chord).
 constexpr double kHermiteSlack = 1.0;
 
+// The slack instead of kHermiteSlack when an end of the edge is a smooth or dart vertex whose
+// ring is a fan or zipper (GuardNormals::uneven), or any vertex with such a ring at an end of a
+// sliver's long edge: measured on issue 17's families, seeds 1000-1005, L2: rounded box 0.54 ->
+// 0.47, plate (with kSliverAspect) 0.61 -> 0.43 of the input; the other families unchanged.
+constexpr double kUnevenHermiteSlack = 0.5;
+
+// An edge at least this many times longer than the height across it of the narrower of its two
+// faces is a sliver's long edge. Measured: 15 also changes the zipped cylinder and tube walls
+// (worse); 30 and 60 only the plate's strips (aspect ~100).
+constexpr double kSliverAspect = 30.0;
+
 // The child-fold pass: how many halving rounds before the edges of a face still folding go to
 // their chords, and the cosine of the screening angle (45 degrees) against the parent face.
 constexpr int kFoldRounds = 6;
@@ -270,6 +286,49 @@ Vec3 pull_back_folds(const Vec3& a, const Vec3& b, const std::array<Vec3, 2>& op
 
 }  // namespace
 
+std::uint8_t ring_spoke_flags(const Mesh& m, VertexId v) {
+  const Vec3 p = m.position(v);
+  NormalSum sum;  // only its spoke lengths
+  for_each_outgoing(m, v, [&](HalfedgeId s) {
+    const Vec3 d = m.position(m.to(s)) - p;
+    const double l = dot(d, d);
+    sum.shortest = std::min(sum.shortest, l), sum.longest = std::max(sum.longest, l);
+  });
+  return sum.spoke_flags();
+}
+
+bool dominant_plane(const Mesh& m, VertexId v, Vec3& normal) {
+  const Vec3 p = m.position(v);
+  // The largest face first, then the shares against its plane.
+  Vec3 largest;
+  double largest2 = 0;
+  for_each_outgoing(m, v, [&](HalfedgeId s) {
+    const Vec3 n = cross(m.position(m.to(s)) - p, m.position(m.opposite(s)) - p);
+    const double n2 = dot(n, n);
+    if (n2 > largest2) largest2 = n2, largest = n;
+  });
+  if (!(largest2 > 0)) return false;
+  double planar = 0, total = 0, largest_other = 0;
+  int in_plane_faces = 0;
+  for_each_outgoing(m, v, [&](HalfedgeId s) {
+    const Vec3 q = m.position(m.to(s)), r = m.position(m.opposite(s));
+    const Vec3 n = cross(q - p, r - p);
+    const double area = norm(n);
+    total += area;
+    if (coplanar(largest, n) && in_plane(largest, p, q, r, n)) {
+      planar += area;
+      ++in_plane_faces;
+    } else {
+      largest_other = std::max(largest_other, area);
+    }
+  });
+  if (in_plane_faces < 2 || !(planar >= kPlaneAreaShare * total) ||
+      !(largest_other <= kPlaneDominance * std::sqrt(largest2)))
+    return false;
+  normal = normalized(largest);
+  return true;
+}
+
 Vec3 guarded_edge_point(const GuardNormals& normal_of, EdgeId e, const Vec3& lower_estimate,
                         const Vec3& upper_estimate) {
   const Mesh& m = normal_of.mesh;
@@ -320,9 +379,26 @@ Vec3 guarded_edge_point(const GuardNormals& normal_of, EdgeId e, const Vec3& low
   const double length = std::sqrt(length2);
   const Vec3 hermite = hermite_offset(chord, length, na, nb);
   const Vec3 da = lower_estimate - mid - hermite, db = upper_estimate - mid - hermite;
-  const double tolerance = kHermiteSlack * norm(hermite) + 1e-3 * length;
+  const double hermite_length = norm(hermite);
+  // The allowance besides the Hermite offset: 1e-3 of the chord, or of the narrower face's
+  // height across a sliver's long edge (kSliverAspect), whose chord says nothing of how far its
+  // surface bends (the plate's 305 mm strips round a few millimetres of arc).
+  const double narrow2 = std::min(w0, w1);
+  const bool sliver = length2 * length2 >= (kSliverAspect * kSliverAspect) * narrow2;
+  const double scale = sliver ? std::min(length, std::sqrt(narrow2 / length2)) : length;
+  const double tolerance = kHermiteSlack * hermite_length + 1e-3 * scale;
   const double tolerance2 = tolerance * tolerance;
-  const bool a_ok = dot(da, da) <= tolerance2, b_ok = dot(db, db) <= tolerance2;
+  bool a_ok = dot(da, da) <= tolerance2, b_ok = dot(db, db) <= tolerance2;
+  // Next to a fan or zipper the fits are the least reliable (their samples mix far points on one
+  // side with near ones, or two surface pieces): an estimate there must lie within
+  // kUnevenHermiteSlack of the Hermite offset. Only asked when it can change the outcome.
+  const double strict = kUnevenHermiteSlack * hermite_length + 1e-3 * scale;
+  const double strict2 = strict * strict;
+  if (((a_ok && dot(da, da) > strict2) || (b_ok && dot(db, db) > strict2)) &&
+      (normal_of.uneven(ha, sliver) || normal_of.uneven(hb, sliver))) {
+    a_ok = a_ok && dot(da, da) <= strict2;
+    b_ok = b_ok && dot(db, db) <= strict2;
+  }
   Vec3 point = a_ok && b_ok ? average
                : a_ok       ? lower_estimate
                : b_ok       ? upper_estimate

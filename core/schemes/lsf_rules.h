@@ -23,12 +23,21 @@ namespace stlrefine::lsf {
 // faces' areas, blended by the ratio of the longest to the shortest spoke (kEvenSpokes to
 // kUnevenSpokes). e1, e2: the face's two spokes, counter-clockwise.
 inline constexpr double kEvenSpokes = 3.0, kUnevenSpokes = 12.0;
+// At a smooth or dart vertex (square_areas), the area-weighted part leans further towards the
+// largest faces as the ring gets more uneven: from the area-weighted sum at a spoke ratio of
+// kLargeFacesFrom to the sum weighted by the squared areas at kLargeFacesAt. A CAD exporter
+// makes a face large only where the surface under it is nearly flat across it, so on a fan or
+// zipper the largest faces' normals are the surface's (the rounded box: a flat face or a
+// fillet's long strips beside a corner's small fan, whose faces lean by tens of degrees).
+// Even rings (a hull's, below a ratio of 6) keep their normals bit for bit.
+inline constexpr double kLargeFacesFrom = 6.0, kLargeFacesAt = 16.0;
 // `flat`: every face so far within kFlatSine of the first one (see flat_ring below).
 inline constexpr double kFlatSine = 0.5e-3;
 struct NormalSum {
-  Vec3 angle_sum, area_sum, first;
+  Vec3 angle_sum, area_sum, area2_sum, first;
   double shortest = std::numeric_limits<double>::infinity(), longest = 0;
   bool flat = true;
+  bool square_areas = false;  // set for a smooth or dart vertex's ring (area2_sum summed)
 
   void add(const Vec3& e1, const Vec3& e2) {
     const Vec3 n = cross(e1, e2);
@@ -41,6 +50,7 @@ struct NormalSum {
              dot(first, n) > 0;
     }
     area_sum += n;
+    if (square_areas) area2_sum += std::sqrt(dot(n, n)) * n;
     if (l1 * l2 > 0) angle_sum += (1.0 / std::sqrt(l1 * l2)) * n;
     shortest = std::min(shortest, std::min(l1, l2));
     longest = std::max(longest, std::max(l1, l2));
@@ -48,23 +58,53 @@ struct NormalSum {
   Vec3 normal() const {
     const double ratio = longest > 0 && shortest > 0 ? std::sqrt(longest / shortest) : 1.0;
     const double w = std::clamp((ratio - kEvenSpokes) / (kUnevenSpokes - kEvenSpokes), 0.0, 1.0);
-    return normalized((1.0 - w) * normalized(angle_sum) + w * normalized(area_sum));
+    Vec3 area = normalized(area_sum);
+    if (square_areas) {
+      const double w2 =
+          std::clamp((ratio - kLargeFacesFrom) / (kLargeFacesAt - kLargeFacesFrom), 0.0, 1.0);
+      if (w2 > 0) area = normalized((1.0 - w2) * area + w2 * normalized(area2_sum));
+    }
+    return normalized((1.0 - w) * normalized(angle_sum) + w * area);
   }
+  //! GuardVertex::spokes of these faces' spokes.
+  std::uint8_t spoke_flags() const;
 };
 //! The guard's normal of from(h)'s faces within the crease-bounded sector that holds h (its
-//! whole ring at a smooth or dart vertex): NormalSum::normal of them. Unit, or zero when the
-//! sector has no direction.
+//! whole ring at a smooth or dart vertex): NormalSum::normal of them, or at a smooth or dart
+//! vertex whose faces are not all flat (NormalSum::flat) and whose spokes are not even
+//! (GuardVertex::kNotEven) the normal of the plane that rules its ring (dominant_plane). Unit, or
+//! zero when the sector has no direction.
 Vec3 sector_normal(const Mesh& m, const Features& f, HalfedgeId h);
+
+//! Whether a plane rules v's ring (issue 17, the rounded box: a flat face meeting fillets
+//! tangentially, with no crease between them): at least two of v's faces lie in the plane of
+//! its largest face to the rounding of the coordinates (as the plane rule of the edge guard
+//! tells it), those faces hold at least half of the ring's face area, and no other face there
+//! is larger than 0.75 of the largest. Then the surface's normal at v is the plane's (the
+//! plane and a tangent fillet share it along their seam), set in `normal` (unit); the
+//! face-weighted normals lean towards the fillet's and the corner's faces by degrees, which a
+//! long edge's Hermite midpoint multiplies by its length.
+bool dominant_plane(const Mesh& m, VertexId v, Vec3& normal);
 
 // What the edge guard reads of a vertex, packed in one record (the edge pass reads two per
 // edge, at random): its guard normal when it has one sector (smooth or dart), and for a batched
 // smooth vertex whether all its faces are within kFlatSine of one another (then the plane rule
 // cannot fire at an edge between two such vertices, see guarded_edge_point).
 struct alignas(32) GuardVertex {
+  //! spokes: the longest spoke at least kEvenSpokes / kUnevenSpokes times the shortest.
+  static constexpr std::uint8_t kNotEven = 1, kUneven = 2;
   Vec3 normal;
   std::uint8_t one_sector = 0;
   std::uint8_t flat = 0;
+  std::uint8_t batched_smooth = 0;  // the normal came from the batch kernel (no dominant_plane)
+  std::uint8_t spokes = 0;          // of a one-sector vertex
 };
+inline std::uint8_t NormalSum::spoke_flags() const {
+  return (longest >= (kEvenSpokes * kEvenSpokes) * shortest ? GuardVertex::kNotEven : 0) |
+         (longest >= (kUnevenSpokes * kUnevenSpokes) * shortest ? GuardVertex::kUneven : 0);
+}
+//! GuardVertex::spokes of v's ring (a walk).
+std::uint8_t ring_spoke_flags(const Mesh& m, VertexId v);
 
 //! The guard's normal source: `guard`'s record of from(h) when it has one sector, else
 //! sector_normal (walked). Without records (null) always walked.
@@ -78,6 +118,15 @@ struct GuardNormals {
       if (g.one_sector) return g.normal;
     }
     return sector_normal(mesh, features, h);
+  }
+  //! Whether from(h) is a smooth or dart vertex whose ring is a fan or zipper (its longest spoke
+  //! at least kUnevenSpokes times its shortest), or any vertex with such a ring when `sliver`.
+  bool uneven(HalfedgeId h, bool sliver) const {
+    const VertexId v = mesh.from(h);
+    if (!sliver && features.kind(v) > VertexKind::Dart) return false;
+    if (guard != nullptr && guard[v.idx].one_sector)
+      return (guard[v.idx].spokes & GuardVertex::kUneven) != 0;
+    return (ring_spoke_flags(mesh, v) & GuardVertex::kUneven) != 0;
   }
 };
 
