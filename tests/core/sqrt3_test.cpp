@@ -39,6 +39,15 @@ Level run(const Scheme& scheme, Level level, int steps) {
   return level;
 }
 
+//! run() with the scheme's stencil and no fold guard (test_util.h's UnguardedSqrt3).
+Level run_unguarded(const Scheme& scheme, Level level, int steps) {
+  const auto& host = dynamic_cast<const HostScheme<Sqrt3Stencil>&>(scheme);
+  const UnguardedSqrt3 stencil(host.stencil());
+  StepStats stats;
+  for (int i = 0; i < steps; ++i) level = sqrt3_refine(level, stencil, stats);
+  return level;
+}
+
 //! The vertex within `tol` of p (linear scan), or invalid.
 VertexId vertex_near(const Mesh& m, const Vec3& p, double tol = 1e-9) {
   for (std::uint32_t v = 0; v < m.num_vertices(); ++v)
@@ -304,8 +313,10 @@ TEST(Sqrt3Unified, AlphaOneCurvesAreLabsikGreiners) {
   // crease heights, so every weight shows.
   for (Level coarse :
        {tagged_polyline_level(false), make_level(to_mesh(bumpy_grid_soup(7, 0.3)), 180)}) {
-    const Level lg = run(*make_scheme("sqrt3-interp"), coarse, 2);
-    const Level ll = run(*unified(1.0, 1.0), coarse, 2);
+    // The curve rules alone: the fold guard, which moves trisection points where a child
+    // turns too far, sees each scheme's own face points.
+    const Level lg = run_unguarded(*make_scheme("sqrt3-interp"), coarse, 2);
+    const Level ll = run_unguarded(*unified(1.0, 1.0), coarse, 2);
     std::size_t curve_points = 0;
     for (std::uint32_t v = coarse.mesh.num_vertices(); v < lg.mesh.num_vertices(); ++v) {
       if (lg.features.kind(VertexId(v)) == VertexKind::Smooth) continue;
@@ -664,10 +675,10 @@ class Sqrt3Curve : public ::testing::Test {
   VertexId V(int i, int j) const {
     return find_vertex(base_.mesh, soup_.positions[grid_index(n, i, j)]);
   }
-  //! `steps` steps of `scheme` with vertex (i, j) lifted to z = 1.
-  Level lift(const Scheme& scheme, int i, int j, int steps = 2) const {
+  //! `steps` steps of `scheme` with vertex (i, j) lifted to z = height.
+  Level lift(const Scheme& scheme, int i, int j, int steps = 2, double height = 1.0) const {
     Level coarse = base_;
-    coarse.mesh.mutable_positions()[V(i, j).idx].z = 1.0;
+    coarse.mesh.mutable_positions()[V(i, j).idx].z = height;
     return run(scheme, coarse, steps);
   }
   //! z of the fine vertex at (x, y); the curve points of a straight boundary lie at the
@@ -681,9 +692,16 @@ class Sqrt3Curve : public ::testing::Test {
   Level base_;
 };
 
+// The weight tests below lift by kLow: a lift of 1 on this unit grid tilts children past
+// the sqrt3 fold guard's 30 degrees, which then pulls the trisection points towards their
+// chord (sqrt3_host.h). The rules are linear: z / kLow is what a lift of 1 would give
+// without the guard, exactly (a power of two).
+constexpr double kLow = 1.0 / 16;
+
 TEST_F(Sqrt3Curve, LabsikGreinerTrisection) {
   for (const auto& scheme : {make_scheme("sqrt3-interp"), unified(1.0, 1.0)}) {
-    const Level fine = lift(*scheme, 4, 0);
+    const Level fine = lift(*scheme, 4, 0, 2, kLow);
+    auto z_at = [](const Level& l, double x, double y) { return Sqrt3Curve::z_at(l, x, y) / kLow; };
     EXPECT_NEAR(z_at(fine, 4, 0), 1.0, kExact);
     EXPECT_NEAR(z_at(fine, 3 + 1.0 / 3, 0), 10.0 / 27, kExact);
     EXPECT_NEAR(z_at(fine, 3 + 2.0 / 3, 0), 20.0 / 27, kExact);
@@ -700,9 +718,10 @@ TEST_F(Sqrt3Curve, LabsikGreinerTrisection) {
 
 TEST_F(Sqrt3Curve, KobbeltBoundaryRules) {
   const auto kobbelt = make_scheme("sqrt3");
+  auto z_at = [](const Level& l, double x, double y) { return Sqrt3Curve::z_at(l, x, y) / kLow; };
   // Odd steps leave sharp vertices alone.
-  EXPECT_NEAR(lift(*kobbelt, 4, 0, 1).mesh.position(V(4, 0)).z, 1.0, kExact);
-  const Level fine = lift(*kobbelt, 4, 0);
+  EXPECT_NEAR(lift(*kobbelt, 4, 0, 1, kLow).mesh.position(V(4, 0)).z, kLow, kExact);
+  const Level fine = lift(*kobbelt, 4, 0, 2, kLow);
   EXPECT_NEAR(z_at(fine, 4, 0), 19.0 / 27, kExact);
   EXPECT_NEAR(z_at(fine, 3, 0), 4.0 / 27, kExact);
   EXPECT_NEAR(z_at(fine, 5, 0), 4.0 / 27, kExact);
@@ -717,9 +736,9 @@ TEST_F(Sqrt3Curve, KobbeltBoundaryRules) {
 
 TEST_F(Sqrt3Curve, UnifiedCurveBlendsTheTwo) {
   // Constant alpha: the curve rule is linear in alpha between Kobbelt (0) and LG (1).
-  const Level lg = lift(*make_scheme("sqrt3-interp"), 4, 0);
-  const Level kb = lift(*make_scheme("sqrt3"), 4, 0);
-  const Level mix = lift(*unified(0.25, 0.25), 4, 0);
+  const Level lg = lift(*make_scheme("sqrt3-interp"), 4, 0, 2, kLow);
+  const Level kb = lift(*make_scheme("sqrt3"), 4, 0, 2, kLow);
+  const Level mix = lift(*unified(0.25, 0.25), 4, 0, 2, kLow);
   for (double x : {3.0, 3 + 1.0 / 3, 3 + 2.0 / 3, 4.0, 4 + 1.0 / 3, 2 + 2.0 / 3, 2 + 1.0 / 3})
     EXPECT_NEAR(z_at(mix, x, 0), 0.25 * z_at(lg, x, 0) + 0.75 * z_at(kb, x, 0), kExact) << x;
 }
