@@ -96,13 +96,15 @@ class Sqrt3Stencil {
 //! level not made by this host with the step parity it claims).
 Level sqrt3_refine(const Level& coarse, const Sqrt3Stencil& stencil, StepStats& stats);
 
-//! The sqrt3 fold guard's limit (degrees) against the coarse level's smooth normals. Tighter
-//! than split4's kFoldAngleDeg (60): the smooth normals of each level are the sector normals
-//! of the level before, which drift from the true surface's (up to ~30 degrees on the rounded
-//! box's fans and zipped fillets), so a 60 degree guard let faces through that are 60-80
-//! degrees from the truth; at 30 no face of the generated CAD-like families turns past 60
-//! degrees from the truth in 2 steps, and the RMS is unchanged or better
-//! (bench/results-issue17-sqrt3.md).
+//! The sqrt3 fold guard's limit (degrees) against the coarse level's smooth normals, tighter
+//! than split4's kFoldAngleDeg (60): each level's smooth normals are the sector normals of
+//! the level before, which drift from the true surface's (by 30-37 degrees after 3 steps
+//! next to the rounded box's fanned corners), so a guard at 60 let faces 60-80 degrees off
+//! the truth through. Tuned on seeds 1000-1003 of the CAD-like families: 30 against 60 gives
+//! far fewer faces past 60 degrees from the truth and the same or a lower RMS
+//! (bench/results-issue17-sqrt3.md). 20 was better still, but then the guard changes the
+//! spectral analysis's probe steps (core/analysis/local_matrix.cpp refines its nets with the
+//! guarded host, outer values of order 1), which would need an unguarded sqrt3 refiner there.
 inline constexpr double kSqrt3FoldAngleDeg = 30.0;
 
 //! Heap bytes sqrt3_refine(coarse, ...) allocates at most, the fine level included, for the
