@@ -32,7 +32,7 @@ struct FineFace {
 // coarse mesh by index arithmetic. Fine face h belongs to coarse half-edge h (a -> b in
 // coarse face f, apex c); its half-edges are 3h+0, 3h+1, 3h+2.
 //
-//   flipped h (non-sharp):      kept h (sharp, odd step):    kept h (sharp, even step):
+//   flipped h (non-sharp):      kept h (sharp or unflipped):  cut h (sharp, even step):
 //          p                            p                            c
 //         / \   fine face h            / \   fine face h           / \   fine face h
 //        a---r  = (a, r, p)           a---b  = (a, b, p)          m1--m2 = (m1, m2, c)
@@ -41,23 +41,32 @@ struct FineFace {
 //
 // apex(h) is the face point of face(h), or, when face(h) has no face point (it lies on a
 // sharp edge s in an even step), the trisection point of s that h's sub-triangle touches.
-// Fine edges: coarse edge e -> e (the flipped diagonal, or the kept / middle piece); the
-// edge of fine half-edge 3h+2 -> E + h; in even steps the edge (m2, c) of a sharp face ->
-// E + s, and the first third of a boundary edge -> E + 3F + rank among boundary edges.
+// A non-sharp edge is kept (left unflipped) when the fold guard says its flip would fold
+// (unflipped_). Fine edges: coarse edge e -> e (the flipped diagonal, or the kept / middle
+// piece); the edge of fine half-edge 3h+2 (apex(h) -> from(h), in every form) -> E + h; in
+// even steps the edge (m2, c) of a sharp face -> E + s, and the first third of a boundary
+// edge -> E + 3F + rank among boundary edges.
 class Sqrt3Layout {
  public:
   Sqrt3Layout(const Mesh& m, const Features& features, bool trisects,
-              std::span<const std::uint8_t> sharp_corner, std::span<const std::uint32_t> rank)
+              std::span<const std::uint8_t> sharp_corner, std::span<const std::uint32_t> rank,
+              std::span<const std::uint8_t> unflipped)
       : m_(m),
         features_(features),
         trisects_(trisects),
         sharp_corner_(sharp_corner),
         boundary_rank_(rank),
+        unflipped_(unflipped),
         nv_(static_cast<std::uint32_t>(m.num_vertices())),
         nf_(static_cast<std::uint32_t>(m.num_faces())),
         ne_(static_cast<std::uint32_t>(m.num_edges())) {}
 
   bool sharp(HalfedgeId h) const { return features_.is_sharp(m_.edge(h)); }
+  //! The edge of h is not flipped: sharp (in an even step: cut, see sharp_of), on the
+  //! boundary, or left unflipped by the fold guard.
+  bool kept(HalfedgeId h) const {
+    return sharp(h) || !m_.twin(h).valid() || unflipped_[m_.edge(h).idx] != 0;
+  }
   //! The sharp half-edge of face f in an even step, or invalid.
   HalfedgeId sharp_of(std::uint32_t f) const {
     if (!trisects_ || sharp_corner_[f] == kNoSharpCorner) return HalfedgeId();
@@ -85,61 +94,43 @@ class Sqrt3Layout {
     return h == Mesh::next(s) ? near_to(s) : near_from(s);  // h == prev(s): near a = from(s)
   }
 
+  //! The fine half-edge to(x) -> apex(x), x not cut: half-edge 1 of x's own fine face
+  //! when x is kept, else half-edge 0 of its twin's (flipped) fine face.
+  HalfedgeId to_apex(HalfedgeId x) const { return kept(x) ? fine(x, 1) : fine(m_.twin(x), 0); }
+
+  //! The corners of fine face h.
+  std::array<VertexId, 3> corners(HalfedgeId h) const {
+    const HalfedgeId s = sharp_of(h.idx / 3);
+    if (h == s) return {near_from(s), near_to(s), m_.opposite(s)};
+    if (kept(h)) return {m_.from(h), m_.to(h), apex(h)};
+    return {m_.from(h), apex(m_.twin(h)), apex(h)};
+  }
+
   FineFace fine_face(HalfedgeId h) const {
-    return trisects_ ? fine_face_trisecting(h) : fine_face_plain(h);
-  }
-
- private:
-  // Odd steps: every face has its face point; sharp edges are kept whole.
-  FineFace fine_face_plain(HalfedgeId h) const {
-    const HalfedgeId t = m_.twin(h), p = Mesh::prev(h), n = Mesh::next(h);
-    const bool prev_flipped = m_.twin(p).valid() && !sharp(p);
-    // Spoke p -> a: paired with the spoke a -> p of the flipped triangle of twin(prev(h)),
-    // or with the kept triangle of prev(h).
-    const HalfedgeId spoke_twin = prev_flipped ? fine(m_.twin(p), 0) : fine(p, 1);
-    const VertexId a = m_.from(h), p_h = face_point(h.idx / 3);
-    if (t.valid() && !sharp(h)) {
-      return {{a, face_point(t.idx / 3), p_h},
-              {fine(Mesh::next(t), 2), fine(t, 1), spoke_twin},
-              {spoke(Mesh::next(t)), m_.edge(h), spoke(h)}};
-    }
-    return {{a, m_.to(h), p_h},
-            {t.valid() ? fine(t, 0) : HalfedgeId(), fine(n, 2), spoke_twin},
-            {m_.edge(h), spoke(n), spoke(h)}};
-  }
-
-  // Even steps: faces along a sharp edge s have no face point; s is cut in three.
-  FineFace fine_face_trisecting(HalfedgeId h) const {
     const HalfedgeId t = m_.twin(h);
     const HalfedgeId s = sharp_of(h.idx / 3);
-    if (h == s) {
-      return {{near_from(s), near_to(s), m_.opposite(s)},
-              {t.valid() ? fine(t, 0) : HalfedgeId(), fine(m_.twin(Mesh::next(s)), 0),
-               fine(Mesh::prev(s), 2)},
-              {m_.edge(s), spoke(s), spoke(Mesh::prev(s))}};
+    if (h == s) {  // the middle child of a cut face (even steps)
+      return {
+          corners(h),
+          {t.valid() ? fine(t, 0) : HalfedgeId(), to_apex(Mesh::next(s)), fine(Mesh::prev(s), 2)},
+          {m_.edge(s), spoke(s), spoke(Mesh::prev(s))}};
     }
-    FineFace out{{m_.from(h), apex(t), apex(h)}, {}, {}};
-    // Half-edge a -> apex(t), seen from the twin's face g.
-    const HalfedgeId sg = sharp_of(t.idx / 3);
-    if (!sg.valid()) {
-      out.twin[0] = fine(Mesh::next(t), 2);
-      out.edge[0] = spoke(Mesh::next(t));
-    } else if (t == Mesh::next(sg)) {
-      out.twin[0] = fine(sg, 1);  // the edge (m2, c) of g's middle child
-      out.edge[0] = spoke(sg);
-    } else {  // t == prev(sg): a -> m1 is the first third of the sharp edge sg
-      const HalfedgeId across = m_.twin(sg);
-      out.twin[0] = across.valid() ? fine(Mesh::next(across), 2) : HalfedgeId();
-      out.edge[0] = across.valid() ? spoke(Mesh::next(across)) : first_third_of_boundary(sg);
+    FineFace out{corners(h), {}, {}};
+    if (kept(h)) {  // (a, b, apex(h))
+      out.twin[0] = t.valid() ? fine(t, 0) : HalfedgeId();
+      out.edge[0] = m_.edge(h);
+      set_to_apex_side(h, out.twin[1], out.edge[1]);
+    } else {  // (a, apex(t), apex(h))
+      set_to_apex_side(t, out.twin[0], out.edge[0]);
+      out.twin[1] = fine(t, 1);
+      out.edge[1] = m_.edge(h);
     }
-    out.twin[1] = fine(t, 1);
-    out.edge[1] = m_.edge(h);
     // Half-edge apex(h) -> a.
     if (!s.valid()) {
-      out.twin[2] = fine(m_.twin(Mesh::prev(h)), 0);
+      out.twin[2] = to_apex(Mesh::prev(h));
     } else if (h == Mesh::next(s)) {  // m2 -> b: the last third of the sharp edge s
       const HalfedgeId across = m_.twin(s);
-      out.twin[2] = across.valid() ? fine(m_.twin(Mesh::prev(across)), 0) : HalfedgeId();
+      out.twin[2] = across.valid() ? to_apex(Mesh::prev(across)) : HalfedgeId();
     } else {  // h == prev(s): m1 -> c, shared with s's middle child
       out.twin[2] = fine(s, 2);
     }
@@ -147,11 +138,29 @@ class Sqrt3Layout {
     return out;
   }
 
+ private:
+  // The twin and edge of the fine half-edge to(x) -> apex(x) inside face(x) (x not cut).
+  void set_to_apex_side(HalfedgeId x, HalfedgeId& twin, EdgeId& edge) const {
+    const HalfedgeId sx = sharp_of(x.idx / 3);
+    if (!sx.valid()) {
+      twin = fine(Mesh::next(x), 2);
+      edge = spoke(Mesh::next(x));
+    } else if (x == Mesh::next(sx)) {
+      twin = fine(sx, 1);  // the edge (m2, c) of the middle child
+      edge = spoke(sx);
+    } else {  // x == prev(sx): to(x) -> m1 is the first third of the sharp edge sx
+      const HalfedgeId across = m_.twin(sx);
+      twin = across.valid() ? fine(Mesh::next(across), 2) : HalfedgeId();
+      edge = across.valid() ? spoke(Mesh::next(across)) : first_third_of_boundary(sx);
+    }
+  }
+
   const Mesh& m_;
   const Features& features_;
   bool trisects_;
   std::span<const std::uint8_t> sharp_corner_;
   std::span<const std::uint32_t> boundary_rank_;
+  std::span<const std::uint8_t> unflipped_;
   std::uint32_t nv_, nf_, ne_;
 };
 
@@ -186,104 +195,216 @@ std::uint32_t rank_boundary_edges(const Mesh& m, const Features& features,
   return count;
 }
 
-// Fold guard of the sqrt3 host (issue 17 item 2), the counterpart of split4's guard_folds.
-// The smooth surface's normals come from the coarse level's sector normals (split4_host.h):
-// at an old vertex the one of its corner in the coarse face the fine face belongs to, at a
-// face point the mean of its face's three corner normals, at a trisection point the mean of
-// its edge's two corners weighted by nearness. A fine face folds when its normal is more than
-// kFoldAngleDeg from the mean of its corners' smooth normals. Its face points are then pulled
-// towards the centroid of their face's (new) corner points in steps (1/2, 1/4, then the
-// centroid itself: the linear 1-to-3 split). Old vertices and trisection points (on their
-// crease curve) never move, so an interpolating stencil stays interpolating and creases
-// exact. Returns how many face points moved.
-std::size_t guard_sqrt3_folds(const Mesh& m, const Features& features, const Sqrt3Layout& layout,
-                              bool trisects, std::span<const VertexId> corner_vertex,
+// The smooth surface's normals at the fine faces of one step (issue 17 item 2), from the
+// coarse level's sector normals (split4_host.h): at an old vertex the one of its corner in
+// the coarse face the fine face belongs to, at a face point the mean of its face's three
+// corner normals, at a trisection point the mean of its edge's two corners weighted by
+// nearness. A fine face folds when its normal is more than kFoldAngleDeg from the mean of
+// its corners' smooth normals.
+class Sqrt3FoldTest {
+ public:
+  Sqrt3FoldTest(const Mesh& m, const Sqrt3Layout& layout, std::span<const Vec3> corner,
+                std::span<const Vec3> pos)
+      : m_(m),
+        layout_(layout),
+        corner_(corner),
+        pos_(pos),
+        cos_fold_(std::cos(kSqrt3FoldAngleDeg * std::numbers::pi / 180.0)) {}
+
+  //! Fine face h, with the current flips (layout.kept) and positions.
+  bool folds(HalfedgeId h) const { return folds(layout_.corners(h), smooth_normal(h)); }
+
+  //! Whether flipping the (non-sharp, interior) edge of h, a -> b, would fold: one of the
+  //! two flipped children (a, q_g, q_f), (b, q_f, q_g) turns more than kFoldAngleDeg from
+  //! its smooth normals, or the quad (a, q_g, b, q_f) is not convex seen along the edge's
+  //! smooth normal (a child reversed in the tangent plane). q_f = apex(h), q_g = apex(t).
+  bool flip_folds(HalfedgeId h) const {
+    const HalfedgeId t = m_.twin(h);
+    const VertexId a = m_.from(h), b = m_.to(h), qf = layout_.apex(h), qg = layout_.apex(t);
+    const Vec3 nf = apex_normal(h), ng = apex_normal(t);
+    if (folds({a, qg, qf}, corner_[h.idx] + ng + nf)) return true;
+    if (folds({b, qf, qg}, corner_[t.idx] + nf + ng)) return true;
+    const Vec3 edge_normal =
+        corner_[h.idx] + corner_[Mesh::next(h).idx] + corner_[t.idx] + corner_[Mesh::next(t).idx];
+    const Vec3 &pa = pos_[a.idx], &pb = pos_[b.idx], &pf = pos_[qf.idx], &pg = pos_[qg.idx];
+    return dot(cross(pg - pa, pf - pa), edge_normal) <= 0 ||
+           dot(cross(pf - pb, pg - pb), edge_normal) <= 0;
+  }
+
+ private:
+  Vec3 face_normal_of(std::uint32_t f) const {
+    return normalized(corner_[3 * f] + corner_[3 * f + 1] + corner_[3 * f + 2]);
+  }
+  // The smooth normal at apex(h) (see Sqrt3Layout::apex).
+  Vec3 apex_normal(HalfedgeId h) const {
+    const HalfedgeId s = layout_.sharp_of(h.idx / 3);
+    if (!s.valid()) return face_normal_of(h.idx / 3);
+    const Vec3 &na = corner_[s.idx], &nb = corner_[Mesh::next(s).idx];
+    return h == Mesh::next(s) ? normalized(na + 2.0 * nb) : normalized(2.0 * na + nb);
+  }
+  // The mean smooth normal of fine face h (unnormalised sum of its corners').
+  Vec3 smooth_normal(HalfedgeId h) const {
+    const HalfedgeId s = layout_.sharp_of(h.idx / 3);
+    if (h == s) {
+      const Vec3 &na = corner_[s.idx], &nb = corner_[Mesh::next(s).idx];
+      return normalized(2.0 * na + nb) + normalized(na + 2.0 * nb) + corner_[Mesh::prev(s).idx];
+    }
+    if (layout_.kept(h)) return corner_[h.idx] + corner_[Mesh::next(h).idx] + apex_normal(h);
+    return corner_[h.idx] + apex_normal(m_.twin(h)) + apex_normal(h);
+  }
+  bool folds(const std::array<VertexId, 3>& c, const Vec3& smooth) const {
+    const Vec3 n = triangle_normal(pos_[c[0].idx], pos_[c[1].idx], pos_[c[2].idx]);
+    const double len = norm(n) * norm(smooth);
+    return len > 0 && dot(n, smooth) < cos_fold_ * len;
+  }
+
+  const Mesh& m_;
+  const Sqrt3Layout& layout_;
+  std::span<const Vec3> corner_;
+  std::span<const Vec3> pos_;
+  double cos_fold_;
+};
+
+// The topological half of the fold guard: marks in `unflipped` every non-sharp interior
+// edge whose flip folds (Sqrt3FoldTest::flip_folds) with the points of the moment, among
+// the edges with candidate[e] (all when empty). Such an edge stays, like a sharp edge in an
+// odd step: the face points of its two faces join both of its ends. Returns how many edges
+// it marked.
+std::size_t keep_folding_flips(const Mesh& m, const Sqrt3Layout& layout, const Sqrt3FoldTest& test,
+                               std::span<std::uint8_t> unflipped) {
+  std::atomic<std::size_t> marked{0};
+  parallel_for_each_index(m.num_edges(), [&](std::size_t e) {
+    const EdgeId edge(static_cast<std::uint32_t>(e));
+    const HalfedgeId h = m.halfedge(edge);
+    if (unflipped[e] || layout.kept(h)) return;  // sharp, boundary or already kept
+    if (!test.flip_folds(h)) return;
+    unflipped[e] = 1;
+    marked.fetch_add(1, std::memory_order_relaxed);
+  });
+  return marked.load();
+}
+
+// The geometric half of the fold guard, the counterpart of split4's guard_folds. Where a
+// fine face folds (Sqrt3FoldTest), its face points are pulled towards the centroid of their
+// face's (new) corner points in steps (1/2, 1/4, then the centroid itself: the linear 1-to-3
+// split), then towards the face's largest-angle corner. A folding face with no face point
+// left to move but trisection points (a child of a face cut along a sharp edge) has the two
+// trisection points of that edge pulled towards the thirds of its chord in steps (1/2, 1/4,
+// then the thirds: the linear rule), the same points on both sides of the crease, so the
+// crease stays a curve of the mesh through its old vertices. Old vertices never move, so an
+// interpolating stencil stays interpolating. Returns how many face points and sharp edges'
+// trisection pairs moved.
+std::size_t guard_sqrt3_folds(const Mesh& m, const Sqrt3Layout& layout, const Sqrt3FoldTest& test,
                               BigVector<Vec3>& pos) {
   const std::uint32_t nv = static_cast<std::uint32_t>(m.num_vertices());
   const std::uint32_t nf = static_cast<std::uint32_t>(m.num_faces());
   const std::uint32_t nh = 3 * nf;
-  // Stages: the stencil's point, 1/2 and 1/4 of the way from the centroid, the centroid,
-  // then towards the face's largest-angle corner (see target()).
+  // Face point stages: the stencil's point, 1/2 and 1/4 of the way from the centroid, the
+  // centroid, then towards the face's largest-angle corner. Trisection pair stages: the
+  // stencil's points, 1/2 and 1/4 of the way from the chord's thirds, the thirds.
   constexpr std::array<double, 6> kScale = {1.0, 0.5, 0.25, 0.0, 0.0, 0.0};
-  const double cos_fold = std::cos(kFoldAngleDeg * std::numbers::pi / 180.0);
-  const BigVector<Vec3> corner = sector_normals(m, features);
-  auto face_normal_of = [&](std::uint32_t f) {
-    return normalized(corner[3 * f] + corner[3 * f + 1] + corner[3 * f + 2]);
-  };
-  // The smooth normal at apex(h) (see Sqrt3Layout::apex).
-  auto apex_normal = [&](HalfedgeId h) {
-    const HalfedgeId s = layout.sharp_of(h.idx / 3);
-    if (!s.valid()) return face_normal_of(h.idx / 3);
-    const Vec3 &na = corner[s.idx], &nb = corner[Mesh::next(s).idx];
-    return h == Mesh::next(s) ? normalized(na + 2.0 * nb) : normalized(2.0 * na + nb);
-  };
-  // The mean smooth normal of fine face h (unnormalised sum of its corners').
-  auto smooth_normal = [&](HalfedgeId h) -> Vec3 {
-    const HalfedgeId t = m.twin(h);
-    if (!trisects) {
-      if (t.valid() && !layout.sharp(h))
-        return corner[h.idx] + face_normal_of(t.idx / 3) + face_normal_of(h.idx / 3);
-      return corner[h.idx] + corner[Mesh::next(h).idx] + face_normal_of(h.idx / 3);
-    }
-    const HalfedgeId s = layout.sharp_of(h.idx / 3);
-    if (h == s) {
-      const Vec3 &na = corner[s.idx], &nb = corner[Mesh::next(s).idx];
-      return normalized(2.0 * na + nb) + normalized(na + 2.0 * nb) + corner[Mesh::prev(s).idx];
-    }
-    return corner[h.idx] + apex_normal(t) + apex_normal(h);
-  };
-  auto folds = [&](std::uint32_t h) {
-    const Vec3 n = triangle_normal(pos[corner_vertex[3 * h].idx], pos[corner_vertex[3 * h + 1].idx],
-                                   pos[corner_vertex[3 * h + 2].idx]);
-    const Vec3 smooth = smooth_normal(HalfedgeId(h));
-    const double len = norm(n) * norm(smooth);
-    return len > 0 && dot(n, smooth) < cos_fold * len;
-  };
+  constexpr std::array<double, 4> kCreaseScale = {1.0, 0.5, 0.25, 0.0};
+  auto folds = [&](std::uint32_t h) { return test.folds(HalfedgeId(h)); };
   std::vector<std::uint8_t> folding(nh, 0);
   parallel_for_each_index(
       nh, [&](std::size_t h) { folding[h] = folds(static_cast<std::uint32_t>(h)); });
   if (std::find(folding.begin(), folding.end(), 1) == folding.end()) return 0;
-  std::vector<std::uint8_t> stage(nf, 0);
-  std::vector<Vec3> original(nf);
+  // Items that move: face point of face f (item f), or the trisection pair of the sharp edge
+  // whose canonical half-edge lies in face f (item nf + f).
+  std::vector<std::uint8_t> stage(2 * std::size_t(nf), 0);
+  std::vector<std::array<Vec3, 2>> original(2 * std::size_t(nf));
+  // The sharp half-edge of a boundary edge's extra trisection slot (v - nv - nf).
+  std::vector<HalfedgeId> extra_slot;
+  for (std::uint32_t f = 0; f < nf; ++f) {
+    const HalfedgeId s = layout.sharp_of(f);
+    if (!s.valid() || m.twin(s).valid()) continue;
+    const std::uint32_t slot = layout.near_to(s).idx - nv - nf;
+    if (extra_slot.size() <= slot) extra_slot.resize(slot + 1);
+    extra_slot[slot] = s;
+  }
   std::vector<std::uint32_t> todo, touched;
   for (std::uint32_t h = 0; h < nh; ++h)
     if (folding[h]) todo.push_back(h);
   std::fill(folding.begin(), folding.end(), 0);  // from now on: "in touched"
-  // The face points of fine face h: those of the coarse faces whose apexes it uses.
-  auto face_points_of = [&](std::uint32_t h, std::array<std::uint32_t, 2>& out) {
-    int n = 0;
-    for (int j = 0; j < 3; ++j) {
-      const std::uint32_t v = corner_vertex[3 * h + j].idx;
-      if (v < nv || v >= nv + nf) continue;
-      const std::uint32_t f = v - nv;
-      if (layout.sharp_of(f).valid()) continue;  // a trisection point in f's slot
-      out[n++] = f;
+  auto last_stage = [&](std::uint32_t item) {
+    return item < nf ? kScale.size() - 1 : kCreaseScale.size() - 1;
+  };
+  // The items of fine face h that can still move: its face points, or when none can, the
+  // trisection pairs of its trisection points.
+  auto items_of = [&](std::uint32_t h, std::array<std::uint32_t, 3>& out) {
+    int n = 0, crease = 0;
+    std::array<std::uint32_t, 3> pairs{};
+    for (const VertexId c : layout.corners(HalfedgeId(h))) {
+      const std::uint32_t v = c.idx;
+      if (v < nv) continue;
+      HalfedgeId s;
+      if (v < nv + nf) {
+        const std::uint32_t f = v - nv;
+        s = layout.sharp_of(f);
+        if (!s.valid()) {
+          if (stage[f] < last_stage(f)) out[n++] = f;
+          continue;
+        }
+      } else {
+        s = extra_slot[v - nv - nf];
+      }
+      const std::uint32_t item = nf + m.halfedge(m.edge(s)).idx / 3;
+      if (stage[item] < last_stage(item) &&
+          std::find(pairs.begin(), pairs.begin() + crease, item) == pairs.begin() + crease)
+        pairs[crease++] = item;
     }
-    return n;
+    if (n > 0) return n;
+    std::copy(pairs.begin(), pairs.begin() + crease, out.begin());
+    return crease;
   };
   auto touch = [&](std::uint32_t h) {
     if (folding[h]) return;
     folding[h] = 1;
     touched.push_back(h);
   };
+  // Fine faces using a point of face f: those of f's half-edges and of their twins.
+  auto touch_around = [&](std::uint32_t f) {
+    for (std::uint32_t k = 0; k < 3; ++k) {
+      const HalfedgeId g(3 * f + k);
+      touch(g.idx);
+      if (m.twin(g).valid()) touch(m.twin(g).idx);
+    }
+  };
   std::size_t moved = 0;
   while (!todo.empty()) {
     touched.clear();
     for (const std::uint32_t h : todo) {
-      std::array<std::uint32_t, 2> fps{};
-      const int n = face_points_of(h, fps);
+      std::array<std::uint32_t, 3> items{};
+      const int n = items_of(h, items);
       for (int i = 0; i < n; ++i) {
-        const std::uint32_t f = fps[i];
-        if (stage[f] + 1u >= kScale.size()) continue;
+        const std::uint32_t item = items[i];
+        if (stage[item] >= last_stage(item)) continue;  // moved already by an earlier face
+        if (item >= nf) {
+          const HalfedgeId s = layout.sharp_of(item - nf);
+          const VertexId m1 = layout.near_from(s), m2 = layout.near_to(s);
+          if (stage[item] == 0) {
+            original[item] = {pos[m1.idx], pos[m2.idx]};
+            ++moved;
+          }
+          const double scale = kCreaseScale[++stage[item]];
+          const Vec3 &a = pos[m.from(s).idx], &b = pos[m.to(s).idx];
+          const Vec3 t1 = a + (1.0 / 3.0) * (b - a), t2 = a + (2.0 / 3.0) * (b - a);
+          pos[m1.idx] = t1 + scale * (original[item][0] - t1);
+          pos[m2.idx] = t2 + scale * (original[item][1] - t2);
+          touch_around(s.idx / 3);
+          if (m.twin(s).valid()) touch_around(m.twin(s).idx / 3);
+          continue;
+        }
+        const std::uint32_t f = item;
         const VertexId q = layout.face_point(f);
         if (stage[f] == 0) {
-          original[f] = pos[q.idx];
+          original[f][0] = pos[q.idx];
           ++moved;
         }
         ++stage[f];
         const auto [a, b, c] = m.face_vertices(FaceId(f));
         const Vec3 centroid = (pos[a.idx] + pos[b.idx] + pos[c.idx]) * (1.0 / 3.0);
-        pos[q.idx] = centroid + kScale[stage[f]] * (original[f] - centroid);
+        pos[q.idx] = centroid + kScale[stage[f]] * (original[f][0] - centroid);
         if (stage[f] >= 4) {
           // Even the linear split folds where the flipped edge's quad (a, q_g, b, q_f) is not
           // convex: beside an obtuse face the centroids' segment misses the edge. Points
@@ -299,12 +420,7 @@ std::size_t guard_sqrt3_folds(const Mesh& m, const Features& features, const Sqr
           const double t = stage[f] == 4 ? 1.0 / 3.0 : 2.0 / 3.0;
           pos[q.idx] = centroid + t * (p[obtuse] - centroid);
         }
-        // Fine faces using q: those of f's half-edges and of their twins.
-        for (std::uint32_t k = 0; k < 3; ++k) {
-          const HalfedgeId g(3 * f + k);
-          touch(g.idx);
-          if (m.twin(g).valid()) touch(m.twin(g).idx);
-        }
+        touch_around(f);
       }
     }
     std::sort(touched.begin(), touched.end());
@@ -312,11 +428,43 @@ std::size_t guard_sqrt3_folds(const Mesh& m, const Features& features, const Sqr
     todo.clear();
     for (const std::uint32_t h : touched) {
       if (!folds(h)) continue;
-      std::array<std::uint32_t, 2> fps{};
-      const int n = face_points_of(h, fps);
-      bool movable = false;
-      for (int i = 0; i < n; ++i) movable |= stage[fps[i]] + 1u < kScale.size();
-      if (movable) todo.push_back(h);
+      std::array<std::uint32_t, 3> items{};
+      if (items_of(h, items) > 0) todo.push_back(h);
+    }
+  }
+  return moved;
+}
+
+// The whole fold guard of one step. First the flips that fold with the stencil's points are
+// not made; then face points move where a fine face still folds (guard_sqrt3_folds); a flip
+// that folds after that is not made either, the face points beside it go back to the
+// stencil's and the face points move again, up to kRounds times. Returns the face points
+// moved; adds the edges left unflipped to `kept`.
+std::size_t guard_sqrt3_step(const Mesh& m, const Features& features, const Sqrt3Layout& layout,
+                             std::span<std::uint8_t> unflipped, BigVector<Vec3>& pos,
+                             std::size_t& kept) {
+  constexpr int kRounds = 4;
+  const std::uint32_t nv = static_cast<std::uint32_t>(m.num_vertices());
+  const std::uint32_t nf = static_cast<std::uint32_t>(m.num_faces());
+  const BigVector<Vec3> corner = sector_normals(m, features);
+  const Sqrt3FoldTest test(m, layout, corner, pos);
+  kept += keep_folding_flips(m, layout, test, unflipped);
+  std::vector<Vec3> stencil_points(pos.begin() + nv, pos.begin() + nv + nf);
+  std::size_t moved = 0;
+  for (int round = 0;; ++round) {
+    moved += guard_sqrt3_folds(m, layout, test, pos);
+    if (round + 1 == kRounds) break;
+    std::vector<std::uint8_t> before(unflipped.begin(), unflipped.end());
+    const std::size_t more = keep_folding_flips(m, layout, test, unflipped);
+    if (more == 0) break;
+    kept += more;
+    for (std::uint32_t e = 0; e < m.num_edges(); ++e) {
+      if (before[e] == unflipped[e]) continue;
+      const HalfedgeId h = m.halfedge(EdgeId(e));
+      for (const HalfedgeId g : {h, m.twin(h)}) {
+        const std::uint32_t f = g.idx / 3;
+        if (!layout.sharp_of(f).valid()) pos[nv + f] = stencil_points[f];
+      }
     }
   }
   return moved;
@@ -342,9 +490,10 @@ std::uint64_t sqrt3_step_bytes(const Level& coarse) {
       big_vector_bytes<double>(fine_vertices) + big_vector_bytes<double>(nv) +
       32 * std::uint64_t(nv) +  // stencil scratch
       // fold guard: sector normals, a flag per fine face, a stage and an original point
-      // per coarse face, two lists of fine faces
-      big_vector_bytes<Vec3>(3 * nf) + 3 * nf + nf + sizeof(Vec3) * nf +
-      2 * sizeof(std::uint32_t) * 3 * std::uint64_t(nf);
+      // per coarse face, two lists of fine faces, the stencil's face points; the edges
+      // left unflipped (and their copy)
+      big_vector_bytes<Vec3>(3 * nf) + 3 * nf + nf + 2 * sizeof(Vec3) * nf +
+      2 * sizeof(std::uint32_t) * 3 * std::uint64_t(nf) + big_vector_bytes<std::uint8_t>(ne) + ne;
   if (trisects) bytes += big_vector_bytes<std::uint8_t>(nf) + big_vector_bytes<std::uint32_t>(ne);
   return bytes;
 }
@@ -372,13 +521,30 @@ Level sqrt3_refine(const Level& coarse, const Sqrt3Stencil& stencil, StepStats& 
     alpha = initial_alpha;
   }
   const Sqrt3Step step{m, features, trisects, alpha, sharp_corner};
-  const Sqrt3Layout layout(m, features, trisects, sharp_corner, boundary_rank);
+  BigVector<std::uint8_t> unflipped(ne, 0);
+  const Sqrt3Layout layout(m, features, trisects, sharp_corner, boundary_rank, unflipped);
 
   const std::size_t fine_vertices = std::size_t(nv) + nf + boundary_edges;
   const std::size_t fine_edges = std::size_t(ne) + 3 * std::size_t(nf) + boundary_edges;
   BigVector<Vec3> positions(fine_vertices);
   stencil.points(
       step, {std::span<Vec3>(positions.data(), nv), std::span<Vec3>(positions.data() + nv, nf)});
+  // Trisection points, each once (from the canonical side of its sharp edge).
+  if (trisects) {
+    parallel_for_each_index(nf, [&](std::size_t fi) {
+      const HalfedgeId s = layout.sharp_of(static_cast<std::uint32_t>(fi));
+      if (!s.valid() || m.halfedge(m.edge(s)) != s) return;
+      const std::array<Vec3, 2> points = stencil.curve_points(step, s);
+      positions[layout.near_from(s).idx] = points[0];
+      positions[layout.near_to(s).idx] = points[1];
+    });
+  }
+  // The fold guard decides which edges are flipped, so it runs before the topology is made.
+  if (stencil.guards_folds()) {
+    std::size_t kept = 0;
+    stats.fold_fallbacks += guard_sqrt3_step(m, features, layout, unflipped, positions, kept);
+    stats.fold_fallbacks += kept;
+  }
 
   BigVector<VertexId> corner_vertex(9 * std::size_t(nf));
   BigVector<HalfedgeId> twin(9 * std::size_t(nf));
@@ -402,8 +568,8 @@ Level sqrt3_refine(const Level& coarse, const Sqrt3Stencil& stencil, StepStats& 
         edge_of[3 * h.idx + j] = face.edge[j];
       }
       const bool sharp_h = layout.sharp(h);
-      const bool kept_whole = !trisects && (sharp_h || !m.twin(h).valid());
       const bool cut = trisects && sharp_h;
+      const bool kept_whole = !cut && layout.kept(h);
       const EdgeId e = m.edge(h);
       if (m.halfedge(e) == h) {
         edge_halfedge[e.idx] = Sqrt3Layout::fine(h, kept_whole || cut ? 0 : 1);
@@ -429,26 +595,20 @@ Level sqrt3_refine(const Level& coarse, const Sqrt3Stencil& stencil, StepStats& 
       return;
     }
     // A face along a sharp edge: its slot holds the trisection point nearest from(s); the
-    // canonical side also writes the point nearest to(s) (the twin's slot, or the extra
-    // boundary slot), so every point is computed once.
+    // point nearest to(s) is in the twin's slot, or in an extra boundary slot.
     const VertexId a = m.from(s), b = m.to(s);
     const VertexId m1 = layout.near_from(s), m2 = layout.near_to(s);
     vertex_halfedge[m1.idx] = Sqrt3Layout::fine(s, 0);
     kind[m1.idx] = VertexKind::Crease;
     curve[m1.idx] = {a, m2};
     if (!alpha.empty()) fine_alpha[m1.idx] = (2.0 * alpha[a.idx] + alpha[b.idx]) / 3.0;
-    if (m.halfedge(m.edge(s)) == s) {
-      const std::array<Vec3, 2> points = stencil.curve_points(step, s);
-      positions[m1.idx] = points[0];
-      positions[m2.idx] = points[1];
-    }
     if (!m.twin(s).valid()) {
       vertex_halfedge[m2.idx] = Sqrt3Layout::fine(Mesh::next(s), 2);
       kind[m2.idx] = VertexKind::Crease;
       curve[m2.idx] = {m1, b};
       if (!alpha.empty()) fine_alpha[m2.idx] = (alpha[a.idx] + 2.0 * alpha[b.idx]) / 3.0;
       const EdgeId first_third = layout.first_third_of_boundary(s);
-      edge_halfedge[first_third.idx] = Sqrt3Layout::fine(m.twin(Mesh::prev(s)), 0);
+      edge_halfedge[first_third.idx] = layout.to_apex(Mesh::prev(s));
       sharp[first_third.idx] = 1;
     }
   });
@@ -467,18 +627,14 @@ Level sqrt3_refine(const Level& coarse, const Sqrt3Stencil& stencil, StepStats& 
     }
     // Fine half-edge 3h+0 leaves from(h) unless h is cut; then the first third v -> m1,
     // which is on the boundary exactly when h is.
-    vertex_halfedge[i] = trisects && layout.sharp(h) ? Sqrt3Layout::fine(m.twin(Mesh::prev(h)), 0)
-                                                     : Sqrt3Layout::fine(h, 0);
+    vertex_halfedge[i] =
+        trisects && layout.sharp(h) ? layout.to_apex(Mesh::prev(h)) : Sqrt3Layout::fine(h, 0);
     if (!trisects || kind[i] != VertexKind::Crease) return;
     for (VertexId& w : curve[i]) {
       const HalfedgeId out = halfedge_to(m, v, w);
       w = out.valid() ? layout.near_from(out) : layout.near_to(halfedge_to(m, w, v));
     }
   });
-
-  if (stencil.guards_folds())
-    stats.fold_fallbacks +=
-        guard_sqrt3_folds(m, features, layout, trisects, corner_vertex, positions);
 
   Level fine;
   fine.mesh = Mesh::from_parts_with_edges(std::move(positions), std::move(corner_vertex),

@@ -66,24 +66,46 @@ class Sqrt3Stencil {
 };
 
 //! One sqrt3 step (spec 3.1). Odd steps (coarse.step even): a face point in every face,
-//! 1-to-3 split, every non-sharp old edge flipped. Even steps: sharp edges trisected, the
-//! faces along them split by joining their apex to the trisection points, face points in
-//! the others, every non-sharp old edge flipped. F x3 per step, sharp edges x3 per even
-//! step; no old edge that is sharp is ever flipped.
+//! 1-to-3 split, every non-sharp old edge flipped unless the fold guard keeps it. Even
+//! steps: sharp edges trisected, the faces along them split by joining their apex to the
+//! trisection points, face points in the others, every non-sharp old edge flipped unless the
+//! fold guard keeps it. F x3 per step in every case (a kept edge leaves the two 1-to-3
+//! children beside it instead of the two flipped ones), sharp edges x3 per even step; no
+//! old edge that is sharp is ever flipped.
 //!
 //! Layout of the fine level (derived arithmetically, no maps):
 //! - vertices: old ids kept; V + f is the face point of coarse face f or, when f has no
 //!   face point, the trisection point of its sharp edge nearest the edge's start; the
 //!   second trisection point of a boundary edge gets V + F + (rank among boundary edges).
 //! - faces: fine face h belongs to coarse half-edge h: the flipped triangle
-//!   (from(h), apex across, apex of h), or for a sharp h the triangle it keeps.
-//! Fold guard (issue 17 item 2, when stencil.guards_folds()): no fine face more than
-//! kFoldAngleDeg from the coarse level's sector normals (split4_host.h) where moving face
-//! points can prevent it; old vertices and trisection points never move. Counted in
-//! stats.fold_fallbacks (face points moved).
+//!   (from(h), apex across, apex of h), or for a sharp or kept h the triangle it keeps.
+//! Fold guard (issue 17 item 2, when stencil.guards_folds()), against the coarse level's
+//! sector normals (split4_host.h) with the limit kSqrt3FoldAngleDeg:
+//! - topological: a non-sharp edge whose flip would fold (a flipped child past the limit,
+//!   or the quad (a, q_g, b, q_f) not convex seen along the edge's smooth normal) is not
+//!   flipped; the face points of its two faces join both of its ends. Decided with the
+//!   stencil's points, and again after the face points moved (then the face points beside a
+//!   newly kept edge go back to the stencil's), a few rounds;
+//! - geometric: where a fine face still folds, its face points move towards their face's
+//!   centroid (then towards its largest-angle corner); a child of a cut face with no face
+//!   point has its sharp edge's two trisection points moved towards the chord's thirds.
+//! Old vertices never move (interpolating stencils stay interpolating); trisection points
+//! stay on their sharp edge's curve rule or move towards its chord, both sides alike.
+//! Counted in stats.fold_fallbacks (face points and trisection pairs moved, edges kept).
 //! \throw Error(Internal) when a trisecting step meets a face with two sharp edges (a
 //! level not made by this host with the step parity it claims).
 Level sqrt3_refine(const Level& coarse, const Sqrt3Stencil& stencil, StepStats& stats);
+
+//! The sqrt3 fold guard's limit (degrees) against the coarse level's smooth normals, tighter
+//! than split4's kFoldAngleDeg (60): each level's smooth normals are the sector normals of
+//! the level before, which drift from the true surface's (by 30-37 degrees after 3 steps
+//! next to the rounded box's fanned corners), so a guard at 60 let faces 60-80 degrees off
+//! the truth through. Tuned on seeds 1000-1003 of the CAD-like families: 30 against 60 gives
+//! far fewer faces past 60 degrees from the truth and the same or a lower RMS
+//! (bench/results-issue17-sqrt3.md). 20 was better still, but then the guard changes the
+//! spectral analysis's probe steps (core/analysis/local_matrix.cpp refines its nets with the
+//! guarded host, outer values of order 1), which would need an unguarded sqrt3 refiner there.
+inline constexpr double kSqrt3FoldAngleDeg = 30.0;
 
 //! Heap bytes sqrt3_refine(coarse, ...) allocates at most, the fine level included, for the
 //! built-in stencils (their scratch: at most 32 B per coarse vertex).

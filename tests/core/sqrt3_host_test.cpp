@@ -272,5 +272,60 @@ TEST(Sqrt3Host, PredictsThreeTimesTheFacesPerStep) {
   EXPECT_EQ(scheme.predict_faces(UINT64_MAX / 2, 1), UINT64_MAX);
 }
 
+// The linear stencil with the host's fold guard on.
+class GuardedLinearSqrt3Stencil final : public Sqrt3Stencil {
+ public:
+  bool interpolating() const override { return true; }
+  void points(const Sqrt3Step& step, Sqrt3Points out) const override { linear_.points(step, out); }
+  Vec3 face_point(const Sqrt3Step& step, FaceId f) const override {
+    return linear_.face_point(step, f);
+  }
+  Vec3 vertex_point(const Sqrt3Step& step, VertexId v) const override {
+    return linear_.vertex_point(step, v);
+  }
+  std::array<Vec3, 2> curve_points(const Sqrt3Step& step, HalfedgeId h) const override {
+    return linear_.curve_points(step, h);
+  }
+
+ private:
+  LinearSqrt3Stencil linear_;
+};
+
+// Issue 17 item 2: beside a long obtuse face the flipped quad (a, q_g, b, q_f) is not convex
+// even with centroids, so the flip reverses a child; no face point can fix that. The guard
+// keeps such an edge: the fine level has it, with the two 1-to-3 children beside it, and the
+// face count is still 3F. Flat patch, a = (0,0), b = (1,0), c = (3,0.1) (f = abc), d =
+// (0.5,-1) (g = bad): q_f = (4/3, 1/30), q_g = (1/2, -1/3), and (b, q_f, q_g) is clockwise.
+TEST(Sqrt3Host, KeepsAnEdgeWhoseFlipWouldFold) {
+  const IndexedSoup soup{{{0, 0, 0}, {1, 0, 0}, {3, 0.1, 0}, {0.5, -1, 0}}, {{0, 1, 2}, {1, 0, 3}}};
+  const Level coarse = make_level(to_mesh(soup));
+  const VertexId a = find_vertex(coarse.mesh, {0, 0, 0}), b = find_vertex(coarse.mesh, {1, 0, 0});
+  ASSERT_FALSE(coarse.features.is_sharp(find_edge(coarse.mesh, a, b)));
+  auto reversed_faces = [](const Mesh& m) {
+    std::size_t n = 0;
+    for (std::uint32_t f = 0; f < m.num_faces(); ++f) n += m.face_normal(FaceId(f)).z <= 0;
+    return n;
+  };
+  // Without the guard the edge is flipped and a child is reversed: the case is real.
+  StepStats stats;
+  const Level unguarded = sqrt3_refine(coarse, LinearSqrt3Stencil(), stats);
+  EXPECT_FALSE(find_edge(unguarded.mesh, a, b).valid());
+  EXPECT_GT(reversed_faces(unguarded.mesh), 0u);
+  const GuardedLinearSqrt3Stencil guarded;
+  Level fine = sqrt3_refine(coarse, guarded, stats);
+  ASSERT_EQ(fine.mesh.check_invariants(), "");
+  EXPECT_TRUE(find_edge(fine.mesh, a, b).valid());
+  EXPECT_EQ(fine.mesh.num_faces(), 3 * coarse.mesh.num_faces());
+  EXPECT_EQ(reversed_faces(fine.mesh), 0u);
+  EXPECT_GE(stats.fold_fallbacks, 1u);  // the kept edge
+  expect_features_consistent(fine);
+  // The next (trisecting) step refines the level with the kept edge like any other.
+  const Level next = sqrt3_refine(fine, guarded, stats);
+  ASSERT_EQ(next.mesh.check_invariants(), "");
+  EXPECT_EQ(next.mesh.num_faces(), 9 * coarse.mesh.num_faces());
+  EXPECT_EQ(reversed_faces(next.mesh), 0u);
+  expect_features_consistent(next);
+}
+
 }  // namespace
 }  // namespace stlrefine::test
