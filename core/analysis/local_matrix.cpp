@@ -33,9 +33,12 @@ Refiner Refiner::of(const Scheme& scheme) {
   if (const auto* s = dynamic_cast<const HostScheme<Sqrt3Stencil>*>(&scheme)) {
     Refiner r;
     r.scale_ = 3;
+    // Without the fold guard: the stencil's linear rules alone (as split4 below).
     r.step_ = [s](const Level& coarse) {
       StepStats stats;
-      return s->refine_once(s->refine_once(coarse, stats), stats);
+      const Sqrt3Stencil& stencil = s->stencil();
+      return sqrt3_refine(sqrt3_refine(coarse, stencil, stats, FoldGuard::Off), stencil, stats,
+                          FoldGuard::Off);
     };
     return r;
   }

@@ -14,6 +14,10 @@
 
 namespace stlrefine {
 
+//! Whether a host runs the fold guard: as the stencil asks (production), or never (the
+//! spectral analysis, core/analysis, which must see the stencil's linear rules alone).
+enum class FoldGuard { AsStencil, Off };
+
 //! The interior vertices of a mesh whose valence is not 6, each with its valence: the only
 //! places the spectral stencils (loop-g2, butterfly-g1) change anything. A 1-to-4 step keeps
 //! this set (old vertices keep their ids and valences, new interior vertices have valence

@@ -43,10 +43,6 @@ class Split4Stencil {
 //! vertices).
 IrregularVertices irregular_vertices(const Level& level);
 
-//! Whether split4 runs the fold guard: as the stencil asks (production), or never (the
-//! spectral analysis, which must see the stencil's linear rules alone).
-enum class FoldGuard { AsStencil, Off };
-
 //! The fold guard's limit (degrees): no child face turns further than this from the smooth
 //! normals of the surface the coarse mesh stands for (issue 17 item 2).
 inline constexpr double kFoldAngleDeg = 60.0;

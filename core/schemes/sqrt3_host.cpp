@@ -498,7 +498,8 @@ std::uint64_t sqrt3_step_bytes(const Level& coarse) {
   return bytes;
 }
 
-Level sqrt3_refine(const Level& coarse, const Sqrt3Stencil& stencil, StepStats& stats) {
+Level sqrt3_refine(const Level& coarse, const Sqrt3Stencil& stencil, StepStats& stats,
+                   FoldGuard guard) {
   const Mesh& m = coarse.mesh;
   const Features& features = coarse.features;
   const std::uint32_t nv = static_cast<std::uint32_t>(m.num_vertices());
@@ -540,7 +541,7 @@ Level sqrt3_refine(const Level& coarse, const Sqrt3Stencil& stencil, StepStats& 
     });
   }
   // The fold guard decides which edges are flipped, so it runs before the topology is made.
-  if (stencil.guards_folds()) {
+  if (guard == FoldGuard::AsStencil && stencil.guards_folds()) {
     std::size_t kept = 0;
     stats.fold_fallbacks += guard_sqrt3_step(m, features, layout, unflipped, positions, kept);
     stats.fold_fallbacks += kept;

@@ -94,7 +94,9 @@ class Sqrt3Stencil {
 //! Counted in stats.fold_fallbacks (face points and trisection pairs moved, edges kept).
 //! \throw Error(Internal) when a trisecting step meets a face with two sharp edges (a
 //! level not made by this host with the step parity it claims).
-Level sqrt3_refine(const Level& coarse, const Sqrt3Stencil& stencil, StepStats& stats);
+//! `guard` Off: the stencil's rules alone (the spectral analysis).
+Level sqrt3_refine(const Level& coarse, const Sqrt3Stencil& stencil, StepStats& stats,
+                   FoldGuard guard = FoldGuard::AsStencil);
 
 //! The sqrt3 fold guard's limit (degrees) against the coarse level's smooth normals, tighter
 //! than split4's kFoldAngleDeg (60): each level's smooth normals are the sector normals of
@@ -103,8 +105,8 @@ Level sqrt3_refine(const Level& coarse, const Sqrt3Stencil& stencil, StepStats& 
 //! the truth through. Tuned on seeds 1000-1003 of the CAD-like families: 30 against 60 gives
 //! far fewer faces past 60 degrees from the truth and the same or a lower RMS
 //! (bench/results-issue17-sqrt3.md). 20 was better still, but then the guard changes the
-//! spectral analysis's probe steps (core/analysis/local_matrix.cpp refines its nets with the
-//! guarded host, outer values of order 1), which would need an unguarded sqrt3 refiner there.
+//! spectral analysis's probe steps, had it refined with the guard (it runs sqrt3_refine with
+//! FoldGuard::Off, as split4).
 inline constexpr double kSqrt3FoldAngleDeg = 30.0;
 
 //! Heap bytes sqrt3_refine(coarse, ...) allocates at most, the fine level included, for the
