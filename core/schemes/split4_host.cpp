@@ -147,23 +147,30 @@ std::uint64_t guard_folds_normal_bytes(const Mesh& m) {
   return sizeof(Vec3) * 3 * std::uint64_t(m.num_faces());
 }
 
+namespace {
+
+// Where a counter-clockwise walk around v's crease sectors starts: its most clockwise
+// half-edge on a boundary, else at a sharp edge if there is one (so that sectors do not wrap
+// around). Invalid for an isolated vertex.
+HalfedgeId sector_walk_start(const Mesh& m, const Features& features, VertexId v) {
+  const HalfedgeId start = m.halfedge(v);
+  if (!start.valid() || m.is_boundary(v)) return start;
+  HalfedgeId h = start;
+  do {
+    if (features.is_sharp(m.edge(h))) return h;
+    h = m.ccw_rotated(h);
+  } while (h != start);
+  return start;
+}
+
+}  // namespace
+
 BigVector<Vec3> sector_normals(const Mesh& m, const Features& features) {
   BigVector<Vec3> corner(3 * std::size_t(m.num_faces()));
   parallel_for_each_index(m.num_vertices(), [&](std::size_t i) {
     const VertexId v(static_cast<std::uint32_t>(i));
-    HalfedgeId start = m.halfedge(v);
+    const HalfedgeId start = sector_walk_start(m, features, v);
     if (!start.valid()) return;
-    if (!m.is_boundary(v)) {
-      // Start the walk at a sharp edge, so that sectors do not wrap around.
-      HalfedgeId h = start;
-      do {
-        if (features.is_sharp(m.edge(h))) {
-          start = h;
-          break;
-        }
-        h = m.ccw_rotated(h);
-      } while (h != start);
-    }
     HalfedgeId sector_begin = start, h = start;
     Vec3 sum{};
     while (true) {
@@ -274,18 +281,8 @@ std::size_t keep_dominant_planes(const Mesh& m, const Features& features, BigVec
   std::vector<std::uint8_t> dominant(3 * nf, 0);
   parallel_for_each_index(nv, [&](std::size_t i) {
     const VertexId v(static_cast<std::uint32_t>(i));
-    HalfedgeId start = m.halfedge(v);
+    const HalfedgeId start = sector_walk_start(m, features, v);
     if (!start.valid()) return;
-    if (!m.is_boundary(v)) {
-      HalfedgeId h = start;
-      do {
-        if (features.is_sharp(m.edge(h))) {
-          start = h;
-          break;
-        }
-        h = m.ccw_rotated(h);
-      } while (h != start);
-    }
     std::vector<HalfedgeId> sector;
     HalfedgeId h = start;
     while (true) {

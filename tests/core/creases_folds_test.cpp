@@ -198,6 +198,13 @@ double rms_to_truth(const Mesh& m, const TrueSurface& surface) {
   return std::sqrt(sum / weight);
 }
 
+RefineResult refine_with(const Mesh& input, const char* scheme, int levels) {
+  RefineParams p;
+  p.scheme = scheme;
+  p.levels = levels;
+  return refine(input, p);
+}
+
 // Issue 17 item 2, the guard's own cause: it holds children to the input's sector normals,
 // carried from level to level (not to those of the level it refines, which follow the faces
 // the stencil bent), 45 degrees from them (they are estimates). On the rounded box and the
@@ -212,10 +219,7 @@ TEST(FoldGuard, ButterflyAndG1NoFacePast60DegreesOnTheRoundedBoxAndSphere) {
         const Mesh input = mesh_of(s);
         for (int levels = 1; levels <= 2; ++levels) {
           SCOPED_TRACE(label(s, seed) + " " + scheme + " L" + std::to_string(levels));
-          RefineParams p;
-          p.scheme = scheme;
-          p.levels = levels;
-          const RefineResult r = refine(input, p);
+          const RefineResult r = refine_with(input, scheme, levels);
           EXPECT_EQ(faces_off(r.mesh, *s.surface, kFoldAngleDeg), 0u);
         }
       }
@@ -256,10 +260,7 @@ TEST(PlaneRule, RoundedBoxStaysFlatAndGetsCloserToTheTruth) {
       const double before = rms_to_truth(input, *s.surface);
       for (int levels = 1; levels <= 2; ++levels) {
         SCOPED_TRACE(label(s, seed) + " " + scheme + " L" + std::to_string(levels));
-        RefineParams p;
-        p.scheme = scheme;
-        p.levels = levels;
-        const RefineResult r = refine(input, p);
+        const RefineResult r = refine_with(input, scheme, levels);
         const double after = rms_to_truth(r.mesh, *s.surface);
         EXPECT_LT(after, 0.9 * before) << after << " vs the input's " << before;
         if (levels != 1) continue;
