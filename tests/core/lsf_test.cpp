@@ -71,9 +71,9 @@ TEST(LsfScheme, TetrahedronWithDampingGivesTwoThirdsOfTheEdgeSum) {
     const Vec3 a = m.position(m.from(h)), b = m.position(m.to(h));
     const Vec3 expected = (2.0 / 3.0) * (a + b);
     EXPECT_VEC_NEAR(0.5 * (estimate[h.idx] + estimate[m.twin(h).idx]), expected, 1e-6);
-    // The edge point itself: MB's point, and any point between it and the chord, turns
-    // children of the tetrahedron's faces more than kGuardAngleDeg (45) from the vertex
-    // normals, so the fold guard (issue 17) ends at the chord midpoint (a + b) / 2.
+    // The edge point itself: MB's point, and the guard's steps towards the chord (1/2 and
+    // 1/4 of its offset), turn children of the tetrahedron's faces more than kGuardAngleDeg
+    // (45) from the vertex normals, so the fold guard (issue 17) ends at the chord midpoint.
     EXPECT_VEC_NEAR(fine.mesh.position(edge_vertex(m, EdgeId(e))), 0.5 * (a + b), 1e-6);
   }
 }
