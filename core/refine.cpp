@@ -169,7 +169,8 @@ std::uint64_t features_bytes(const Mesh& m) {
 
 std::uint64_t level_bytes(const Level& level) {
   std::uint64_t bytes = mesh_bytes(level.mesh) + features_bytes(level.mesh) +
-                        big_vector_bytes<double>(level.alpha.size());
+                        big_vector_bytes<double>(level.alpha.size()) +
+                        big_vector_bytes<Vec3>(level.smooth_normals.size());
   if (level.irregular.list) bytes += level.irregular.list->capacity() * 8;
   return bytes;
 }

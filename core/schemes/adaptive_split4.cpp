@@ -19,8 +19,11 @@ namespace stlrefine {
 
 namespace {
 
-// Coarse vertices then one candidate point per edge (V + e), fold-guarded like the uniform
-// host, so an adaptive step places exactly the points a uniform step would. `guard_reserve`
+// Coarse vertices then one candidate point per edge (V + e), through the plane rule and the
+// fold guard like the uniform host, so an adaptive step places the points a uniform step
+// would. (The guard's smooth normals are the sector normals of this level here; the uniform
+// host carries the input's from level to level, so from level 2 on the two can differ
+// where the guard acts.) `guard_reserve`
 // gets the fold guard's work bytes when it needs them.
 BigVector<Vec3> candidate_points(const Level& level, const Split4Stencil& stencil, StepStats& stats,
                                  const std::function<void(std::uint64_t)>& guard_reserve) {
@@ -29,17 +32,18 @@ BigVector<Vec3> candidate_points(const Level& level, const Split4Stencil& stenci
   BigVector<Vec3> pos(nv + m.num_edges());
   stencil.vertex_points(level, std::span<Vec3>(pos.data(), nv));
   stencil.edge_points(level, std::span<Vec3>(pos.data() + nv, m.num_edges()));
+  keep_dominant_planes(m, level.features, pos);
   stats.fold_fallbacks += guard_folds(m, level.features, pos, guard_reserve);
   return pos;
 }
 
 // What the marking allocates besides the level at most: the candidate points, the stencil's
-// scratch, the fold guard's flags and the marks (the guard's work arrays are reserved by the
-// guard itself, see candidate_points).
+// scratch, the plane rule's and the fold guard's flags and the marks (the guard's work arrays are
+// reserved by the guard itself, see candidate_points).
 std::uint64_t marking_bytes(const Level& level, const Split4Stencil& stencil) {
   const Mesh& m = level.mesh;
   return big_vector_bytes<Vec3>(m.num_vertices() + m.num_edges()) + stencil.scratch_bytes(level) +
-         2 * std::uint64_t(m.num_edges()) + m.num_faces();
+         2 * std::uint64_t(m.num_edges()) + m.num_faces() + keep_dominant_planes_bytes(m);
 }
 
 std::vector<std::uint8_t> over_tolerance(const Level& level, const BigVector<Vec3>& pos,
@@ -232,6 +236,7 @@ void AdaptiveSplit4::evaluate_uniform(UniformLevel& u, const Split4Stencil& sten
   stencil.vertex_points(u.level, std::span<Vec3>(u.points.data(), nv));
   stencil.edge_points(u.level, std::span<Vec3>(u.points.data() + nv, ne));
   const std::vector<Vec3> raw(u.points.begin() + static_cast<std::ptrdiff_t>(nv), u.points.end());
+  keep_dominant_planes(m, u.level.features, u.points);
   guard_folds(m, u.level.features, u.points, guard_reserve);
   u.edge_guarded.resize(ne);
   for (std::size_t e = 0; e < ne; ++e) u.edge_guarded[e] = !(u.points[nv + e] == raw[e]);

@@ -46,6 +46,11 @@ struct Level {
   BigVector<double> alpha{};
   //! Set by the split4 host when its stencil asked for it (split4_host.h); empty otherwise.
   IrregularVertices irregular{};
+  //! Per face corner (3f + k, the corner at from(half-edge 3f + k)): the unit normal of the
+  //! smooth surface the input stands for, which the split4 fold guard holds children to.
+  //! Estimated once on the input (sector_normals) and carried to every later level by the
+  //! split4 host (split4_host.h); empty otherwise (the guard then estimates it on the level).
+  BigVector<Vec3> smooth_normals{};
 };
 
 //! Counters a step adds to, reported to the user.

@@ -147,23 +147,30 @@ std::uint64_t guard_folds_normal_bytes(const Mesh& m) {
   return sizeof(Vec3) * 3 * std::uint64_t(m.num_faces());
 }
 
+namespace {
+
+// Where a counter-clockwise walk around v's crease sectors starts: its most clockwise
+// half-edge on a boundary, else at a sharp edge if there is one (so that sectors do not wrap
+// around). Invalid for an isolated vertex.
+HalfedgeId sector_walk_start(const Mesh& m, const Features& features, VertexId v) {
+  const HalfedgeId start = m.halfedge(v);
+  if (!start.valid() || m.is_boundary(v)) return start;
+  HalfedgeId h = start;
+  do {
+    if (features.is_sharp(m.edge(h))) return h;
+    h = m.ccw_rotated(h);
+  } while (h != start);
+  return start;
+}
+
+}  // namespace
+
 BigVector<Vec3> sector_normals(const Mesh& m, const Features& features) {
   BigVector<Vec3> corner(3 * std::size_t(m.num_faces()));
   parallel_for_each_index(m.num_vertices(), [&](std::size_t i) {
     const VertexId v(static_cast<std::uint32_t>(i));
-    HalfedgeId start = m.halfedge(v);
+    const HalfedgeId start = sector_walk_start(m, features, v);
     if (!start.valid()) return;
-    if (!m.is_boundary(v)) {
-      // Start the walk at a sharp edge, so that sectors do not wrap around.
-      HalfedgeId h = start;
-      do {
-        if (features.is_sharp(m.edge(h))) {
-          start = h;
-          break;
-        }
-        h = m.ccw_rotated(h);
-      } while (h != start);
-    }
     HalfedgeId sector_begin = start, h = start;
     Vec3 sum{};
     while (true) {
@@ -191,13 +198,149 @@ BigVector<Vec3> sector_normals(const Mesh& m, const Features& features) {
   return corner;
 }
 
+BigVector<Vec3> split4_smooth_normals(const Mesh& m, const BigVector<Vec3>& corner) {
+  const std::size_t nf = m.num_faces();
+  BigVector<Vec3> fine(12 * nf);
+  parallel_for_each_index(nf, [&](std::size_t f) {
+    const Vec3* c = &corner[3 * f];
+    // The normal at edge point k (on half-edge k: corner k -> corner k + 1).
+    const std::array<Vec3, 3> n = {normalized(c[0] + c[1]), normalized(c[1] + c[2]),
+                                   normalized(c[2] + c[0])};
+    for (std::size_t k = 0; k < 3; ++k) {
+      const std::size_t km1 = (k + 2) % 3;
+      // Corner child 4f + k = (v_k, m_k, m_k-1), middle child 4f + 3 = (m0, m1, m2): the
+      // corner order of split4_topology.
+      fine[12 * f + 3 * k] = c[k];
+      fine[12 * f + 3 * k + 1] = n[k];
+      fine[12 * f + 3 * k + 2] = n[km1];
+      fine[12 * f + 9 + k] = n[k];
+    }
+  });
+  return fine;
+}
+
+namespace {
+
+// Whether every corner of face g lies on face f's plane (unit normal n through p), to the
+// rounding of their coordinates: 1e-6 of the larger face's longest edge plus about four
+// float32 ulps of the coordinates' magnitude (an STL's vertices are floats).
+struct FacePlane {
+  Vec3 n, p;
+  double size = 0;  // longest edge
+  double area = 0;
+};
+
+FacePlane face_plane(const Mesh& m, std::uint32_t f) {
+  const auto [a, b, c] = m.face_vertices(FaceId(f));
+  const Vec3 &pa = m.position(a), &pb = m.position(b), &pc = m.position(c);
+  const Vec3 t = cross(pb - pa, pc - pa);
+  return {normalized(t), pa, std::max({norm(pb - pa), norm(pc - pb), norm(pa - pc)}),
+          0.5 * norm(t)};
+}
+
+double max_abs(const Vec3& v) {
+  return std::max({std::abs(v.x), std::abs(v.y), std::abs(v.z)});
+}
+
+double plane_tolerance(const FacePlane& f, double size, double magnitude) {
+  return 1e-6 * std::max(f.size, size) + 4.8e-7 * magnitude;
+}
+
+bool on_plane(const FacePlane& f, const Vec3& q, double size) {
+  return std::abs(dot(q - f.p, f.n)) <=
+         plane_tolerance(f, size, std::max(max_abs(q), max_abs(f.p)));
+}
+
+}  // namespace
+
+std::uint64_t keep_dominant_planes_bytes(const Mesh& m) {
+  return (sizeof(FacePlane) + 3) * std::uint64_t(m.num_faces()) + m.num_edges();
+}
+
+std::size_t keep_dominant_planes(const Mesh& m, const Features& features, BigVector<Vec3>& pos) {
+  // The plane's largest face at an endpoint is at least this many times as large as any
+  // face there off the plane: a flat face of a part beside the thin strips of a fillet, not
+  // a flat net with one vertex lifted (the stencil tests read weights that way) nor the
+  // equal, pairwise coplanar halves of a ruled height field's quads.
+  constexpr double kDominance = 2.0;
+  const std::uint32_t nv = static_cast<std::uint32_t>(m.num_vertices());
+  const std::size_t nf = m.num_faces();
+  std::vector<FacePlane> plane(nf);
+  parallel_for_each_index(
+      nf, [&](std::size_t f) { plane[f] = face_plane(m, static_cast<std::uint32_t>(f)); });
+  auto coplanar = [&](std::uint32_t f, std::uint32_t g) {
+    if (f == g) return true;
+    const auto [a, b, c] = m.face_vertices(FaceId(g));
+    const FacePlane& pf = plane[f];
+    const double size = plane[g].size;
+    return on_plane(pf, m.position(a), size) && on_plane(pf, m.position(b), size) &&
+           on_plane(pf, m.position(c), size);
+  };
+  // Per corner (half-edge leaving the corner's vertex): whether the corner's face's plane
+  // holds at least half of the face area of the vertex's crease sector.
+  std::vector<std::uint8_t> dominant(3 * nf, 0);
+  parallel_for_each_index(nv, [&](std::size_t i) {
+    const VertexId v(static_cast<std::uint32_t>(i));
+    const HalfedgeId start = sector_walk_start(m, features, v);
+    if (!start.valid()) return;
+    std::vector<HalfedgeId> sector;
+    HalfedgeId h = start;
+    while (true) {
+      sector.push_back(h);
+      const HalfedgeId next = m.ccw_rotated(h);
+      const bool end = !next.valid() || next == start;
+      if (end || features.is_sharp(m.edge(next))) {
+        double total = 0;
+        for (HalfedgeId g : sector) total += plane[g.idx / 3].area;
+        for (HalfedgeId g : sector) {
+          const std::uint32_t f = g.idx / 3;
+          if (plane[f].area == 0) continue;
+          double held = 0, largest_on = 0, largest_off = 0;
+          for (HalfedgeId o : sector) {
+            const double a = plane[o.idx / 3].area;
+            if (coplanar(f, o.idx / 3)) {
+              held += a;
+              largest_on = std::max(largest_on, a);
+            } else {
+              largest_off = std::max(largest_off, a);
+            }
+          }
+          dominant[g.idx] = 2 * held >= total && largest_on >= kDominance * largest_off;
+        }
+        sector.clear();
+      }
+      if (end) break;
+      h = next;
+    }
+  });
+  std::vector<std::uint8_t> moved(m.num_edges(), 0);
+  parallel_for_each_index(m.num_edges(), [&](std::size_t e) {
+    const EdgeId edge(static_cast<std::uint32_t>(e));
+    if (features.is_sharp(edge) || m.is_boundary(edge)) return;
+    const HalfedgeId h = m.halfedge(edge), t = m.twin(h);
+    const bool f_holds = dominant[h.idx] && dominant[Mesh::next(h).idx];
+    const bool g_holds = dominant[t.idx] && dominant[Mesh::next(t).idx];
+    const std::uint32_t f = h.idx / 3, g = t.idx / 3;
+    if (f_holds && g_holds && !coplanar(f, g)) return;  // two planes: leave it to the stencil
+    if (!f_holds && !g_holds) return;
+    const FacePlane& pl = plane[f_holds ? f : g];
+    Vec3& q = pos[nv + e];
+    if (on_plane(pl, q, pl.size)) return;
+    q -= dot(q - pl.p, pl.n) * pl.n;
+    moved[e] = 1;
+  });
+  return static_cast<std::size_t>(std::count(moved.begin(), moved.end(), 1));
+}
+
 // Fold guard. An interpolating stencil can push an edge point so far that a child turns
 // over (the butterfly does on long thin CAD triangles) or turns far from the surface the
 // coarse mesh stands for. That surface's normals are estimated per corner of a coarse face:
-// the angle-weighted mean of the face normals around the corner's vertex within its crease
-// sector (sector_normals); an edge point's is the mean of its edge's two corner normals.
-// A child folds when its normal is more than kFoldAngleDeg from the mean of its three
-// vertices' normals, or more than 90 degrees from its parent's. Folding children's edge
+// on the input, the angle-weighted mean of the face normals around the corner's vertex
+// within its crease sector (sector_normals); an edge point's is the mean of its edge's two
+// corner normals; split4 carries them to later levels (split4_smooth_normals) instead of
+// estimating them again on faces the stencil made. A child folds when its normal is more
+// than kGuardAngleDeg from the mean of its three vertices' normals, or more than 90 degrees
+// from its parent's. Folding children's edge
 // points are pulled towards their chord midpoints in steps (1/2, 1/4, then the midpoint
 // itself). With all three edge points at their midpoints the children are parallel to the
 // parent, so the loop ends.
@@ -206,13 +349,17 @@ BigVector<Vec3> sector_normals(const Mesh& m, const Features& features) {
 // would make a dent in the crease that later levels amplify.
 std::size_t guard_folds(const Mesh& m, const Features& features, BigVector<Vec3>& pos,
                         const std::function<void(std::uint64_t)>& reserve) {
+  return guard_folds(m, features, sector_normals(m, features), pos, reserve);
+}
+
+std::size_t guard_folds(const Mesh& m, const Features& features, const BigVector<Vec3>& corner,
+                        BigVector<Vec3>& pos, const std::function<void(std::uint64_t)>& reserve) {
   const std::uint32_t nv = static_cast<std::uint32_t>(m.num_vertices());
   const std::uint32_t nf = static_cast<std::uint32_t>(m.num_faces());
   constexpr std::array<double, 4> kScale = {1.0, 0.5, 0.25, 0.0};
-  const double cos_fold = std::cos(kFoldAngleDeg * std::numbers::pi / 180.0);
+  const double cos_fold = std::cos(kGuardAngleDeg * std::numbers::pi / 180.0);
   std::vector<std::uint8_t> stage(m.num_edges(), 0);
   std::vector<Vec3> original;  // filled lazily: most meshes never fold
-  const BigVector<Vec3> corner = sector_normals(m, features);
 
   auto edge_point = [&](std::uint32_t f, std::uint32_t k) -> const Vec3& {
     return pos[nv + m.edge(HalfedgeId(3 * f + k)).idx];
@@ -341,8 +488,12 @@ std::uint64_t split4_step_bytes(const Level& coarse, const Split4Stencil& stenci
       big_vector_bytes<std::array<VertexId, 2>>(fine_vertices) + stencil.scratch_bytes(coarse);
   // irregular_vertices(): a valence per vertex and the list of the irregular ones.
   if (stencil.uses_irregular()) bytes += (sizeof(int) + 8) * std::uint64_t(nv);
+  // The guard: its stage and face flags, the smooth normals when the coarse level carries
+  // none, its work arrays, the plane rule's, and the fine level's smooth normals (12 per
+  // coarse face).
   if (stencil.guards_folds())
-    bytes += ne + nf + guard_folds_normal_bytes(m) + guard_folds_work_bytes(m);
+    bytes += ne + nf + guard_folds_normal_bytes(m) + guard_folds_work_bytes(m) +
+             keep_dominant_planes_bytes(m) + big_vector_bytes<Vec3>(12 * nf);
   return bytes;
 }
 
@@ -354,8 +505,19 @@ Level split4(const Level& coarse, const Split4Stencil& stencil, StepStats& stats
       stencil.uses_irregular() ? irregular_vertices(coarse) : IrregularVertices{};
   stencil.points(coarse, irregular, std::span<Vec3>(positions.data(), nv),
                  std::span<Vec3>(positions.data() + nv, m.num_edges()));
-  if (guard == FoldGuard::AsStencil && stencil.guards_folds())
-    stats.fold_fallbacks += guard_folds(m, coarse.features, positions);
+  BigVector<Vec3> fine_normals;
+  if (guard == FoldGuard::AsStencil && stencil.guards_folds()) {
+    // The smooth normals: the input's sector normals, carried from level to level, not
+    // the sector normals of this level (after a level or two those follow the faces the
+    // stencil bent, and the guard would hold children to its own mistakes).
+    BigVector<Vec3> estimated;
+    const bool carried = coarse.smooth_normals.size() == 3 * std::size_t(m.num_faces());
+    if (!carried) estimated = sector_normals(m, coarse.features);
+    const BigVector<Vec3>& corner = carried ? coarse.smooth_normals : estimated;
+    keep_dominant_planes(m, coarse.features, positions);
+    stats.fold_fallbacks += guard_folds(m, coarse.features, corner, positions);
+    fine_normals = split4_smooth_normals(m, corner);
+  }
 
   Split4Topology t = split4_topology(m, coarse.features);
   Level fine;
@@ -364,6 +526,7 @@ Level split4(const Level& coarse, const Split4Stencil& stencil, StepStats& stats
                                           std::move(t.edge_halfedge), std::move(t.vertex_halfedge));
   fine.features = split4_features(m, coarse.features, std::move(t.sharp));
   fine.step = coarse.step + 1;
+  fine.smooth_normals = std::move(fine_normals);
   // Old vertices keep their ids and valences and new interior vertices have valence 6:
   // the fine level's irregular vertices are the coarse level's.
   const IrregularVertices& carried = irregular.list ? irregular : coarse.irregular;

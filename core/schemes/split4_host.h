@@ -47,12 +47,20 @@ IrregularVertices irregular_vertices(const Level& level);
 //! normals of the surface the coarse mesh stands for (issue 17 item 2).
 inline constexpr double kFoldAngleDeg = 60.0;
 
+//! The angle (degrees) the guard holds each child to, from the smooth normals it has: those
+//! are estimates (the input's sector normals, carried), up to about 15 degrees from the true
+//! normals on the generated CAD-like families, so the guard keeps that margin below
+//! kFoldAngleDeg.
+inline constexpr double kGuardAngleDeg = kFoldAngleDeg - 15.0;
+
 //! 1-to-4 split (Loop / butterfly / LSF topology). New vertex ids: old vertices keep
 //! theirs, then one per coarse edge (V + e). Face 4f+k is the corner triangle at corner
 //! k of coarse face f, 4f+3 the middle one. Halves of sharp edges stay sharp.
 //! For interpolating stencils the fold guard runs: an edge point whose child faces would
-//! turn more than kFoldAngleDeg from the smooth normals (see guard_folds) or more than 90
-//! degrees from their parent is moved back towards its chord midpoint.
+//! turn more than kGuardAngleDeg from the smooth normals (coarse.smooth_normals when it
+//! holds them, else sector_normals; see guard_folds) or more than 90 degrees from their
+//! parent is moved back towards its chord midpoint; the fine level carries the smooth
+//! normals on (split4_smooth_normals).
 Level split4(const Level& coarse, const Split4Stencil& stencil, StepStats& stats,
              FoldGuard guard = FoldGuard::AsStencil);
 
@@ -64,13 +72,38 @@ BigVector<Vec3> sector_normals(const Mesh& coarse, const Features& features);
 
 //! The fold guard on its own: `positions` holds the coarse vertices then one edge point
 //! per coarse edge (V + e). Pulls edge points whose 1-to-4 children would turn more than
-//! kFoldAngleDeg from the smooth normals (the sector normals at the child's old vertices,
+//! kGuardAngleDeg from the smooth normals (the sector normals at the child's old vertices,
 //! their edge means at its new ones) or more than 90 degrees from their parent towards the
 //! chord midpoint, smooth edges before sharp ones; returns how many moved. It allocates a
 //! byte per edge and per face and guard_folds_normal_bytes; only when some child folds,
 //! guard_folds_work_bytes more, and calls `reserve` with that first.
 std::size_t guard_folds(const Mesh& coarse, const Features& features, BigVector<Vec3>& positions,
                         const std::function<void(std::uint64_t)>& reserve = {});
+
+//! guard_folds with the smooth normals given per corner of a coarse face (as
+//! sector_normals gives them, or as carried by Level::smooth_normals).
+std::size_t guard_folds(const Mesh& coarse, const Features& features,
+                        const BigVector<Vec3>& corner_normals, BigVector<Vec3>& positions,
+                        const std::function<void(std::uint64_t)>& reserve = {});
+
+//! The smooth normals of the fine level's face corners (Level::smooth_normals) from the
+//! coarse level's: an old vertex keeps its corner's normal, an edge point gets the unit mean
+//! of its edge's two corner normals in the face (the guard's estimate there).
+BigVector<Vec3> split4_smooth_normals(const Mesh& coarse, const BigVector<Vec3>& corner_normals);
+
+//! Plane rule (issue 17 items 2 and 6), run before the fold guard: an edge point of a
+//! smooth interior edge goes onto the plane of one of its faces when that plane dominates
+//! both endpoints: its faces (coplanar to the rounding of their coordinates) hold at least
+//! half of the face area of the endpoint's crease sector, and its largest face there is at
+//! least twice as large as any face off it. A CAD part's flat face, two big triangles or a
+//! fan beside the thin strips of a tangent fillet, then stays flat instead of taking the
+//! stencil's bulge from the fillet's vertices. Where every stencil point lies on the plane
+//! the stencil's point is on it already and nothing moves. Returns how many moved.
+std::size_t keep_dominant_planes(const Mesh& coarse, const Features& features,
+                                 BigVector<Vec3>& positions);
+
+//! What keep_dominant_planes allocates (a plane per face, a flag per corner and per edge).
+std::uint64_t keep_dominant_planes_bytes(const Mesh& coarse);
 
 //! The fold guard's smooth normals (three per face), always allocated.
 std::uint64_t guard_folds_normal_bytes(const Mesh& coarse);

@@ -21,6 +21,7 @@
 #include "core/refine.h"
 #include "core/schemes/split4_host.h"
 #include "tests/support/cad_like.h"
+#include "tests/support/mesh_queries.h"
 #include "tests/support/true_surface.h"
 
 namespace stlrefine::test {
@@ -197,6 +198,33 @@ double rms_to_truth(const Mesh& m, const TrueSurface& surface) {
   return std::sqrt(sum / weight);
 }
 
+RefineResult refine_with(const Mesh& input, const char* scheme, int levels) {
+  RefineParams p;
+  p.scheme = scheme;
+  p.levels = levels;
+  return refine(input, p);
+}
+
+// Issue 17 item 2, the guard's own cause: it holds children to the input's sector normals,
+// carried from level to level (not to those of the level it refines, which follow the faces
+// the stencil bent), 45 degrees from them (they are estimates). On the rounded box and the
+// hull sphere, tuned on seeds 1000-1005 (bench/results-issue17-butterfly.md): no face more
+// than 60 degrees from the true normal at 1 and 2 levels (main had up to 1% of the box's
+// faces there).
+TEST(FoldGuard, ButterflyAndG1NoFacePast60DegreesOnTheRoundedBoxAndSphere) {
+  for (const char* scheme : {"butterfly", "butterfly-g1"})
+    for (const CadFamily family : {CadFamily::RoundedBox, CadFamily::Sphere})
+      for (const std::uint64_t seed : {1, 2, 3}) {
+        const CadShape s = make_cad_shape(family, {seed, 1.0});
+        const Mesh input = mesh_of(s);
+        for (int levels = 1; levels <= 2; ++levels) {
+          SCOPED_TRACE(label(s, seed) + " " + scheme + " L" + std::to_string(levels));
+          const RefineResult r = refine_with(input, scheme, levels);
+          EXPECT_EQ(faces_off(r.mesh, *s.surface, kFoldAngleDeg), 0u);
+        }
+      }
+}
+
 // Issue 17 items 2 and 5 on the plate: with its shallow (6-12 degree) creases found, butterfly
 // (2 levels) and sqrt3-interp (4 steps) come closer to the true plate than its input (main's
 // baseline, which smoothed those creases into the fillets: 2.2-2.9x and 47-52x worse; this
@@ -216,6 +244,59 @@ TEST(AutoCreases, PlateRefinesCloserToTheTruthThanItsInput) {
       EXPECT_LT(after, 0.9 * before) << after << " vs the input's " << before;
     }
   }
+}
+
+// Issue 17 item 2, never worse than the input, on the rounded box: its error was on the flat
+// faces (exact in the input), bent by the stencil's reach into the fillets' vertices (main:
+// butterfly 1.05x its input at L2, 4 of seeds 1000-1005 worse). The plane rule of the split4
+// host (keep_dominant_planes) keeps a face that dominates its corners flat: most edge points
+// made inside a flat face of the box stay on its plane, and the output is closer to the
+// truth than the input.
+TEST(PlaneRule, RoundedBoxStaysFlatAndGetsCloserToTheTruth) {
+  for (const char* scheme : {"butterfly", "butterfly-g1"})
+    for (const std::uint64_t seed : {1, 2, 3}) {
+      const CadShape s = make_cad_shape(CadFamily::RoundedBox, {seed, 1.0});
+      const Mesh input = mesh_of(s);
+      const double before = rms_to_truth(input, *s.surface);
+      for (int levels = 1; levels <= 2; ++levels) {
+        SCOPED_TRACE(label(s, seed) + " " + scheme + " L" + std::to_string(levels));
+        const RefineResult r = refine_with(input, scheme, levels);
+        const double after = rms_to_truth(r.mesh, *s.surface);
+        EXPECT_LT(after, 0.9 * before) << after << " vs the input's " << before;
+        if (levels != 1) continue;
+        // Every edge point of an input edge whose two faces lie on one flat face of the box
+        // (their corners' true normal the same axis) is on that face's plane.
+        auto flat_normal = [&](FaceId f, Vec3& n) {
+          const auto corners = input.face_vertices(f);
+          const Vec3 first = s.surface->closest_point(input.position(corners[0])).normal;
+          for (const VertexId v : corners) {
+            const Vec3 nv = s.surface->closest_point(input.position(v)).normal;
+            if (nv != first ||
+                std::abs(std::abs(nv.x) + std::abs(nv.y) + std::abs(nv.z) - 1) > 1e-12)
+              return false;
+          }
+          n = first;
+          return true;
+        };
+        std::size_t inside = 0, off_plane = 0;
+        for (std::uint32_t e = 0; e < input.num_edges(); ++e) {
+          const HalfedgeId h = input.halfedge(EdgeId(e));
+          Vec3 n0, n1;
+          if (!flat_normal(FaceId(h.idx / 3), n0) ||
+              !flat_normal(FaceId(input.twin(h).idx / 3), n1) || n0 != n1)
+            continue;
+          ++inside;
+          const Vec3 a = input.position(input.from(h));
+          const Vec3 q = r.mesh.position(edge_vertex(input, EdgeId(e)));
+          off_plane += std::abs(dot(q - a, n0)) > 1e-9 * norm(a);
+        }
+        // Not every one: 1-3 of the 12-18 per mesh here stay off the plane, edges with an
+        // end where the plane does not dominate by the rule's measure (half the sector's
+        // area, its largest face twice any other there), e.g. a fan's spokes at its apex.
+        EXPECT_GT(inside, 0u);
+        EXPECT_LE(4 * off_plane, inside) << "of " << inside << " edges inside the box's flat faces";
+      }
+    }
 }
 
 // Issue 17 item 2 for the sqrt3 host: its fold guard pulls face points back (to the centroid,

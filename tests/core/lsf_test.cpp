@@ -71,10 +71,10 @@ TEST(LsfScheme, TetrahedronWithDampingGivesTwoThirdsOfTheEdgeSum) {
     const Vec3 a = m.position(m.from(h)), b = m.position(m.to(h));
     const Vec3 expected = (2.0 / 3.0) * (a + b);
     EXPECT_VEC_NEAR(0.5 * (estimate[h.idx] + estimate[m.twin(h).idx]), expected, 1e-6);
-    // The edge point itself: MB's point would turn the children of the tetrahedron's faces
-    // more than 60 degrees from the vertex normals, so the fold guard (issue 17) halves its
-    // offset from the chord once: (a + b) / 2 + (2/3 - 1/2)(a + b) / 2.
-    EXPECT_VEC_NEAR(fine.mesh.position(edge_vertex(m, EdgeId(e))), (7.0 / 12.0) * (a + b), 1e-6);
+    // The edge point itself: MB's point, and the guard's steps towards the chord (1/2 and
+    // 1/4 of its offset), turn children of the tetrahedron's faces more than kGuardAngleDeg
+    // (45) from the vertex normals, so the fold guard (issue 17) ends at the chord midpoint.
+    EXPECT_VEC_NEAR(fine.mesh.position(edge_vertex(m, EdgeId(e))), 0.5 * (a + b), 1e-6);
   }
 }
 

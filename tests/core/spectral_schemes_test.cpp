@@ -379,14 +379,16 @@ TEST(SpectralSchemes, CarriedIrregularVerticesChangeNothing) {
                                                    fresh.mesh.num_edges()));
         Level a = scheme->refine_once(carried, stats);
         const Level b = scheme->refine_once(fresh, stats);
-        ASSERT_EQ(stats.fold_fallbacks, 0u) << name << " " << i;
         EXPECT_TRUE(std::equal(a.mesh.positions().begin(), a.mesh.positions().end(),
                                b.mesh.positions().begin(), b.mesh.positions().end()))
             << name << " " << i << " " << step;
-        // No fold guard moved anything on these shapes, so the host's points are the
-        // stencil's.
-        EXPECT_TRUE(std::equal(separate.begin(), separate.end(), b.mesh.positions().begin(),
-                               b.mesh.positions().end()))
+        // Without the fold guard (which moves some edge points of the spiky bipyramids
+        // since its 45 degree limit, split4_host.h) the host's points are the stencil's.
+        StepStats unguarded_stats;
+        const Level unguarded = split4(fresh, stencil, unguarded_stats, FoldGuard::Off);
+        EXPECT_EQ(unguarded_stats.fold_fallbacks, 0u);
+        EXPECT_TRUE(std::equal(separate.begin(), separate.end(), unguarded.mesh.positions().begin(),
+                               unguarded.mesh.positions().end()))
             << name << " " << i << " " << step;
         // A copy has its own corner array: its list is found again, not trusted.
         const Level copy = a;
