@@ -321,6 +321,7 @@ RefineResult run_levels(Mesh mesh, const RefineParams& params, const Scheme& sch
     if (progress)
       progress(total ? double(done) / double(total) : 0.0,
                "level " + std::to_string(i) + "/" + std::to_string(params.levels));
+    level.pass_smooth_normals = i < uniform_levels;  // the output needs none
     if (meter.on()) {
       // The coarse level next to everything the step makes (exact counts).
       meter.set_level(i);

@@ -51,6 +51,10 @@ struct Level {
   //! Estimated once on the input (sector_normals) and carried to every later level by the
   //! split4 host (split4_host.h); empty otherwise (the guard then estimates it on the level).
   BigVector<Vec3> smooth_normals{};
+  //! Whether the step that refines this level makes the fine level's smooth_normals: off
+  //! for the last step of a refinement (refine() knows it; the output needs none, and they
+  //! are 72 bytes per output face).
+  bool pass_smooth_normals = true;
 };
 
 //! Counters a step adds to, reported to the user.

@@ -490,10 +490,11 @@ std::uint64_t split4_step_bytes(const Level& coarse, const Split4Stencil& stenci
   if (stencil.uses_irregular()) bytes += (sizeof(int) + 8) * std::uint64_t(nv);
   // The guard: its stage and face flags, the smooth normals when the coarse level carries
   // none, its work arrays, the plane rule's, and the fine level's smooth normals (12 per
-  // coarse face).
+  // coarse face) unless this is the last step.
   if (stencil.guards_folds())
     bytes += ne + nf + guard_folds_normal_bytes(m) + guard_folds_work_bytes(m) +
-             keep_dominant_planes_bytes(m) + big_vector_bytes<Vec3>(12 * nf);
+             keep_dominant_planes_bytes(m) +
+             (coarse.pass_smooth_normals ? big_vector_bytes<Vec3>(12 * nf) : 0);
   return bytes;
 }
 
@@ -516,7 +517,7 @@ Level split4(const Level& coarse, const Split4Stencil& stencil, StepStats& stats
     const BigVector<Vec3>& corner = carried ? coarse.smooth_normals : estimated;
     keep_dominant_planes(m, coarse.features, positions);
     stats.fold_fallbacks += guard_folds(m, coarse.features, corner, positions);
-    fine_normals = split4_smooth_normals(m, corner);
+    if (coarse.pass_smooth_normals) fine_normals = split4_smooth_normals(m, corner);
   }
 
   Split4Topology t = split4_topology(m, coarse.features);
