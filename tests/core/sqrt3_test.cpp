@@ -917,19 +917,6 @@ TEST(Sqrt3Params, RefineRunsTheSqrt3SchemesWithTheirAlpha) {
 
 // --- issue 17 item 2 on CAD-like meshes: no face turns more than 60 degrees from the truth
 
-// Faces of m more than `limit` degrees from the true normal at their centroid's closest point.
-std::size_t faces_off_truth(const Mesh& m, const TrueSurface& surface, double limit) {
-  std::size_t off = 0;
-  for (std::uint32_t f = 0; f < m.num_faces(); ++f) {
-    const Vec3 n = normalized(m.face_normal(FaceId(f)));
-    if (n == Vec3{}) continue;
-    const auto [a, b, c] = m.face_vertices(FaceId(f));
-    const Vec3 centroid = (m.position(a) + m.position(b) + m.position(c)) * (1.0 / 3.0);
-    off += normal_angle_deg(surface.closest_point(centroid), n) > limit;
-  }
-  return off;
-}
-
 // The rounded box (fanned corners, fillets zipped between differently sampled arcs, faces of
 // two big triangles) and the plate (305 mm slivers, shallow creases): before the guard kept
 // folding flips and checked against 30 degrees, 4 steps of sqrt3-interp left 1,086 faces

@@ -11,7 +11,6 @@
 #include <csignal>
 #include <filesystem>
 #include <nlohmann/json.hpp>
-#include <regex>
 #include <string>
 
 #include "subprocess.h"
@@ -30,17 +29,15 @@ TEST(ExampleClient, SubmitsFollowsAndDownloads) {
   fs::create_directories(dir / "data");
   fs::copy_file(fs::path(STLREFINE_EXAMPLES_DIR) / "fandisk.stl", dir / "fandisk.stl");
   Child daemon({STLREFINED, "--port", "0", "--data-dir", (dir / "data").string()});
-  const std::string line = daemon.read_line(10s);
-  std::smatch m;
-  ASSERT_TRUE(std::regex_match(line, m, std::regex(R"(^listening on (http://[0-9.]+:[0-9]+)$)")))
-      << line << daemon.stderr_text();
+  const int port = listening_port(daemon);
+  ASSERT_GT(port, 0) << daemon.stderr_text();
+  const std::string url = "http://127.0.0.1:" + std::to_string(port);
   const std::string client = (fs::path(STLREFINE_EXAMPLES_DIR) / "stlrefine_client.py").string();
 
-  ProcessResult r =
-      run_process({"/usr/bin/python3", client, (dir / "fandisk.stl").string(), "--url", m[1].str(),
-                   "--poll", "0.1", "--param", "scheme=loop", "--param", "levels=1", "--param",
-                   "slice=0.5", "--param", "slice_format=svg"},
-                  120s);
+  ProcessResult r = run_process({"/usr/bin/python3", client, (dir / "fandisk.stl").string(),
+                                 "--url", url, "--poll", "0.1", "--param", "scheme=loop", "--param",
+                                 "levels=1", "--param", "slice=0.5", "--param", "slice_format=svg"},
+                                120s);
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
   EXPECT_NE(r.err.find("done"), std::string::npos) << r.err;
   const std::vector<Triangle> input = read_binary_stl(read_file(dir / "fandisk.stl"));
@@ -55,7 +52,7 @@ TEST(ExampleClient, SubmitsFollowsAndDownloads) {
   EXPECT_EQ(printed, 3u) << r.out;
 
   // A refused submission: exit 2, the problem quoting the parameter.
-  r = run_process({"/usr/bin/python3", client, (dir / "fandisk.stl").string(), "--url", m[1].str(),
+  r = run_process({"/usr/bin/python3", client, (dir / "fandisk.stl").string(), "--url", url,
                    "--param", "levels=99"},
                   60s);
   EXPECT_EQ(r.exit_code, 2) << r.out << r.err;

@@ -751,6 +751,18 @@ double normal_angle_deg(const SurfacePoint& s, const Vec3& n) {
   return std::min(angle_between_deg(n, s.normal), angle_between_deg(n, s.other_normal));
 }
 
+std::size_t faces_off_truth(const Mesh& m, const TrueSurface& surface, double limit) {
+  std::size_t off = 0;
+  for (std::uint32_t f = 0; f < m.num_faces(); ++f) {
+    const Vec3 n = normalized(m.face_normal(FaceId(f)));
+    if (n == Vec3{}) continue;
+    const auto [a, b, c] = m.face_vertices(FaceId(f));
+    const Vec3 centroid = (m.position(a) + m.position(b) + m.position(c)) * (1.0 / 3.0);
+    off += normal_angle_deg(surface.closest_point(centroid), n) > limit;
+  }
+  return off;
+}
+
 std::optional<SurfacePoint> TrueSurface::closest_crease_point(const Vec3&) const {
   return std::nullopt;
 }

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "core/geometry/vec3.h"
+#include "core/mesh/mesh.h"
 
 namespace stlrefine::test {
 
@@ -129,5 +130,9 @@ double blob_harmonic(std::size_t k, const Vec3& d, Vec3* gradient = nullptr);
 //! extent): planes, quarter-cylinder fillets and sphere-octant corners, tangent-continuous
 //! (no crease). The boundary of the inner box grown by r.
 std::shared_ptr<const TrueSurface> rounded_box_surface(Vec3 half_extent, double radius);
+
+//! Faces of m more than `limit` degrees from the true normal at their centroid's closest
+//! point (at a crease, from the arc of normals there); degenerate faces are not counted.
+std::size_t faces_off_truth(const Mesh& m, const TrueSurface& surface, double limit);
 
 }  // namespace stlrefine::test
