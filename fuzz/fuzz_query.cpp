@@ -59,8 +59,12 @@ void plan(slicer::SliceParams params) {
     fuzz::check(p.heights.size() <= params.max_layers, "plan over max_layers");
   } catch (const Error& e) {
     fuzz::check_refusal(e);
-    fuzz::check(e.code() == ErrorCode::BudgetExceeded || e.code() == ErrorCode::InvalidParameter,
+    // NothingToMake: a uniform layer height taller than the part (a 422 naming the field).
+    fuzz::check(e.code() == ErrorCode::BudgetExceeded || e.code() == ErrorCode::InvalidParameter ||
+                    e.code() == ErrorCode::NothingToMake,
                 "plan_layers threw an unexpected error:", e.what());
+    if (e.code() == ErrorCode::NothingToMake)
+      fuzz::check(!e.field().empty(), "a nothing-to-make error without a field:", e.what());
   }
 }
 
