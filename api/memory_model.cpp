@@ -183,7 +183,7 @@ MemoryEstimate estimate_refine_memory(std::span<const std::uint8_t> bytes, const
   }
   e.peak_bytes = std::uint64_t(peak);
   if (request.slice && kC.contour_growth * contours > 0.5 * peak)
-    e.field = "slice";
+    e.field = request.slice->layer_height_name;
   else if (p.adaptive())
     e.field = "max_level";
   else if (p.levels > 0)
@@ -252,7 +252,8 @@ Problem memory_budget_problem(const MemoryEstimate& estimate, std::uint64_t capa
   std::string advice = ".";
   if (estimate.field == "levels") advice = "; use fewer levels or a smaller part.";
   if (estimate.field == "max_level") advice = "; lower max_level or max_faces.";
-  if (estimate.field == "slice") advice = "; slice with thicker layers or refine less.";
+  if (estimate.field == "slice" || estimate.field == "layer_height")
+    advice = "; slice with thicker layers or refine less.";
   if (estimate.field == "layer_height" || estimate.field == "heights")
     advice = "; slice with fewer layers.";
   Problem p = make_problem(422, "budget-exceeded",

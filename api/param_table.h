@@ -63,6 +63,11 @@ struct ParamRow {
 //! the name lists, the OpenAPI document and the CLI's help show them in).
 std::span<const ParamRow> param_table();
 
+//! The name that replaces `name` on routes of `kind` when `name` is an old name kept for
+//! scripts written before every route took the same names (`slice` on /v1/refine is
+//! `layer_height`, `format` on /v1/slice is `slice_format`); empty otherwise.
+std::string_view replaced_by(RequestKind kind, std::string_view name);
+
 //! The row of `name`, or null.
 const ParamRow* find_param(std::string_view name);
 

@@ -237,15 +237,71 @@ void refine_max_deviation(RefineRequest& r, const std::string& value, const Requ
   }
 }
 
-void refine_slice(RefineRequest& r, const std::string& value, const RequestLimits&) {
+// Slicing the refined mesh (/v1/refine, /v1/jobs) takes the names /v1/slice takes.
+slicer::SliceParams& refine_slicing(RefineRequest& r) {
   if (!r.slice) r.slice.emplace();
-  r.slice->params.layer_height = parse_number("slice", value);
+  return r.slice->params;
+}
+
+void refine_slice(RefineRequest& r, const std::string& value, const RequestLimits&) {
+  refine_slicing(r).layer_height = parse_number("slice", value);
+  r.slice->layer_height_name = "slice";
 }
 
 void refine_slice_format(RefineRequest& r, const std::string& value, const RequestLimits&) {
   if (!r.slice) r.slice.emplace();
   try {
     r.slice->format = slicer::parse_slice_format(value);
+  } catch (const Error& e) {
+    throw renamed(e, "format", "slice_format");
+  }
+}
+
+// Names kept for the scripts written before every route took the same names: on their
+// route each means its replacement, and both at once is a conflict.
+struct OldName {
+  RequestKind kind;
+  std::string_view name, replaced_by;
+};
+constexpr OldName kOldNames[] = {{RequestKind::Refine, "slice", "layer_height"},
+                                 {RequestKind::Slice, "format", "slice_format"}};
+
+// The old name the caller used on this route, if any (at most one per route today).
+// \throw Error(InvalidParameter) naming the old name when its replacement is given too.
+std::optional<std::string_view> check_aliases(const RawParams& params, RequestKind kind) {
+  std::optional<std::string_view> used;
+  const auto given = [&](std::string_view n) {
+    return std::any_of(params.begin(), params.end(), [&](const auto& kv) { return kv.first == n; });
+  };
+  for (const OldName& old : kOldNames) {
+    if (old.kind != kind || !given(old.name)) continue;
+    if (given(old.replaced_by))
+      throw invalid(old.name, "conflicting_parameters",
+                    std::string(old.name) + " is the old name of " + std::string(old.replaced_by) +
+                        ": give one of them");
+    used = old.name;
+  }
+  return used;
+}
+
+// An error about a parameter named as the caller named it: the replacement's name becomes
+// the old one when the caller used the old one.
+Error in_callers_words(const Error& e, RequestKind kind, std::optional<std::string_view> old_name) {
+  if (!old_name) return e;
+  for (const OldName& old : kOldNames)
+    if (old.kind == kind && old.name == *old_name) return renamed(e, old.replaced_by, old.name);
+  return e;
+}
+
+// A request may only lower the default cap.
+std::size_t max_layers_value(const std::string& v) {
+  return static_cast<std::size_t>(
+      parse_unsigned("max_layers", v, 1, slicer::SliceParams{}.max_layers));
+}
+
+void slice_slice_format(SliceRequest& r, const std::string& value) {
+  try {
+    r.slice.format = slicer::parse_slice_format(value);
   } catch (const Error& e) {
     throw renamed(e, "format", "slice_format");
   }
@@ -262,14 +318,18 @@ const ParamRow kParams[] = {
      .default_value = "0.1",
      .minimum = 1e-4,
      .maximum = 1e4,
+     .refine =
+         [](RefineRequest& r, const std::string& v, const RequestLimits&) {
+           refine_slicing(r).layer_height = parse_number("layer_height", v);
+         },
      .slice =
          [](SliceRequest& r, const std::string& v) {
            r.slice.params.layer_height = parse_number("layer_height", v);
          }},
     {.name = "format",
      .type = ParamType::String,
-     .description = "Contour format: json, svg, cli, cli-binary.",
-     .help = "json, svg, cli, cli-binary",
+     .description = "Deprecated on /v1/slice: the same as slice_format.",
+     .help = "Deprecated: use --slice-format",
      .example = "svg",
      .default_value = "json",
      .slice = [](SliceRequest& r,
@@ -279,6 +339,8 @@ const ParamRow kParams[] = {
      .description = "Lowest height to slice (mm); default the part's bottom.",
      .help = "Bottom of the uniform layers (mesh bottom)",
      .example = "0",
+     .refine = [](RefineRequest& r, const std::string& v,
+                  const RequestLimits&) { refine_slicing(r).z_min = parse_number("z_min", v); },
      .slice = [](SliceRequest& r,
                  const std::string& v) { r.slice.params.z_min = parse_number("z_min", v); }},
     {.name = "z_max",
@@ -286,6 +348,8 @@ const ParamRow kParams[] = {
      .description = "Highest height to slice (mm); default the part's top.",
      .help = "Top of the uniform layers (mesh top)",
      .example = "1",
+     .refine = [](RefineRequest& r, const std::string& v,
+                  const RequestLimits&) { refine_slicing(r).z_max = parse_number("z_max", v); },
      .slice = [](SliceRequest& r,
                  const std::string& v) { r.slice.params.z_max = parse_number("z_max", v); }},
     {.name = "heights",
@@ -293,6 +357,10 @@ const ParamRow kParams[] = {
      .description = "Explicit comma-separated slice heights in mm.",
      .help = "Explicit plane heights a,b,c (replace the uniform layers)",
      .example = "0.5,1",
+     .refine =
+         [](RefineRequest& r, const std::string& v, const RequestLimits&) {
+           refine_slicing(r).heights = parse_heights("heights", v);
+         },
      .slice = [](SliceRequest& r,
                  const std::string& v) { r.slice.params.heights = parse_heights("heights", v); }},
     {.name = "max_layers",
@@ -303,12 +371,10 @@ const ParamRow kParams[] = {
      .default_value = "1000000",
      .minimum = 1,
      .maximum = 1e6,
-     .slice =
-         [](SliceRequest& r, const std::string& v) {
-           // A request may only lower the default cap.
-           r.slice.params.max_layers = static_cast<std::size_t>(
-               parse_unsigned("max_layers", v, 1, slicer::SliceParams{}.max_layers));
-         }},
+     .refine = [](RefineRequest& r, const std::string& v,
+                  const RequestLimits&) { refine_slicing(r).max_layers = max_layers_value(v); },
+     .slice = [](SliceRequest& r,
+                 const std::string& v) { r.slice.params.max_layers = max_layers_value(v); }},
     {.name = "scheme",
      .type = ParamType::String,
      .description = "Subdivision scheme.",
@@ -417,8 +483,8 @@ const ParamRow kParams[] = {
                   const RequestLimits&) { r.refine.max_level = parse_int("max_level", v); }},
     {.name = "slice",
      .type = ParamType::Number,
-     .description = "Also slice the refined mesh at this layer height (mm).",
-     .help = "Also slice the refined mesh with this layer height (mm)",
+     .description = "Deprecated: the same as layer_height.",
+     .help = "Deprecated: use --layer-height",
      .example = "0.5",
      .minimum = 1e-4,
      .maximum = 1e4,
@@ -429,7 +495,8 @@ const ParamRow kParams[] = {
      .help = "Contour format: json, svg, cli, cli-binary",
      .example = "svg",
      .default_value = "json",
-     .refine = refine_slice_format},
+     .refine = refine_slice_format,
+     .slice = slice_slice_format},
     {.name = "adaptive_angle",
      .type = ParamType::Number,
      .description =
@@ -580,6 +647,12 @@ std::span<const ParamRow> param_table() {
   return all_rows();
 }
 
+std::string_view replaced_by(RequestKind kind, std::string_view name) {
+  for (const OldName& old : kOldNames)
+    if (old.kind == kind && old.name == name) return old.replaced_by;
+  return {};
+}
+
 const ParamRow* find_param(std::string_view name) {
   for (const ParamRow& row : all_rows())
     if (row.name == name) return &row;
@@ -645,14 +718,19 @@ std::vector<std::string_view> slice_param_names(const RequestLimits& limits) {
 
 SliceRequest parse_slice_params(const RawParams& params, const RequestLimits& limits) {
   check_names(params, slice_param_names(limits));
+  const std::optional<std::string_view> old_name = check_aliases(params, RequestKind::Slice);
   SliceRequest request;
   slicer::SliceParams& p = request.slice.params;
   p.max_points = limits.max_slice_points;
-  for (const auto& [name, value] : params) find_param(name)->slice(request, value);
-  // Every layer is written, empty or not: its record counts against the point budget.
-  p.points_per_layer = slicer::empty_layer_points(request.slice.format);
-  // The ranges live in the slicer (SliceParams::validate), which names the same fields.
-  p.validate();
+  try {
+    for (const auto& [name, value] : params) find_param(name)->slice(request, value);
+    // Every layer is written, empty or not: its record counts against the point budget.
+    p.points_per_layer = slicer::empty_layer_points(request.slice.format);
+    // The ranges live in the slicer (SliceParams::validate), which names the same fields.
+    p.validate();
+  } catch (const Error& e) {
+    throw in_callers_words(e, RequestKind::Slice, old_name);
+  }
   return request;
 }
 
@@ -664,6 +742,10 @@ InfoRequest parse_info_params(const RawParams& params) {
   return request;
 }
 
+namespace {
+RefineRequest read_refine_fields(const RawParams& params, const RequestLimits& limits);
+}  // namespace
+
 RefineRequest parse_refine_params(const RawParams& params, const RequestLimits& limits) {
   RefineRequest request = parse_refine_fields(params, limits);
   // The ranges live in core (RefineParams::validate); this names the same fields.
@@ -673,6 +755,17 @@ RefineRequest parse_refine_params(const RawParams& params, const RequestLimits& 
 
 RefineRequest parse_refine_fields(const RawParams& params, const RequestLimits& limits) {
   check_names(params, refine_param_names(limits));
+  const std::optional<std::string_view> old_name = check_aliases(params, RequestKind::Refine);
+  try {
+    return read_refine_fields(params, limits);
+  } catch (const Error& e) {
+    throw in_callers_words(e, RequestKind::Refine, old_name);
+  }
+}
+
+namespace {
+
+RefineRequest read_refine_fields(const RawParams& params, const RequestLimits& limits) {
   RefineRequest request;
   RefineParams& p = request.refine;
   p.max_faces = limits.default_max_faces != 0 ? std::min(limits.default_max_faces, limits.max_faces)
@@ -685,21 +778,31 @@ RefineRequest parse_refine_fields(const RawParams& params, const RequestLimits& 
       row.refine(request, value, limits);
   }
   if (request.slice) {
-    const bool has_height = std::any_of(params.begin(), params.end(),
-                                        [](const auto& kv) { return kv.first == "slice"; });
-    if (!has_height)
-      throw invalid("slice_format", "missing_parameter",
-                    "slice_format needs slice (the layer height in mm)");
+    // Slicing is asked for by a layer height or by explicit heights; the other slicing
+    // names only modify it.
+    const auto given = [&](std::string_view n) {
+      return std::any_of(params.begin(), params.end(),
+                         [&](const auto& kv) { return kv.first == n; });
+    };
+    if (!given("slice") && !given("layer_height") && !given("heights")) {
+      std::string_view modifier = "slice_format";
+      for (std::string_view n : {"slice_format", "z_min", "z_max", "max_layers"})
+        if (given(n)) {
+          modifier = n;
+          break;
+        }
+      throw invalid(modifier, "missing_parameter",
+                    std::string(modifier) +
+                        " slices the refined mesh and needs layer_height (mm) or heights");
+    }
     request.slice->params.threads = p.threads;
     request.slice->params.max_points = limits.max_slice_points;
     request.slice->params.points_per_layer = slicer::empty_layer_points(request.slice->format);
-    try {
-      request.slice->params.validate();
-    } catch (const Error& e) {
-      throw renamed(e, "layer_height", "slice");
-    }
+    request.slice->params.validate();
   }
   return request;
 }
+
+}  // namespace
 
 }  // namespace stlrefine::api

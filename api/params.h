@@ -46,11 +46,14 @@ struct InfoRequest {
 
 //! Planes and output format of a slice, alone (`slice`) or after a refinement.
 struct SliceOptions {
-  //! `layer_height` (`slice` after a refinement), `z_min`, `z_max`, `heights` (comma
-  //! list), `max_layers` (may only lower the default cap), `threads` (CLI only).
+  //! `layer_height` (also `slice`, its old name, after a refinement), `z_min`, `z_max`, `heights`
+  //! (comma list), `max_layers` (may only lower the default cap), `threads` (CLI only).
   slicer::SliceParams params;
   slicer::SliceFormat format = slicer::SliceFormat::Json;  //!< `format` / `slice_format`
   slicer::WriterOptions writer;  //!< not a parameter: the CLI sets the label
+  //! The name the caller gave the layer height: errors found later (no layer fits the
+  //! part, too many layers) name the field as the caller knows it.
+  std::string_view layer_height_name = "layer_height";
 };
 
 //! What `slice` needs besides the STL bytes.

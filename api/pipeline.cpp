@@ -90,7 +90,8 @@ RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRe
     try {
       slicer::plan_layers(in.result.mesh, request.slice->params);
     } catch (Error& e) {
-      if (e.field() == "layer_height") e.with_field("slice");  // the name this request used
+      // The name this request used.
+      if (e.field() == "layer_height") e.with_field(std::string(request.slice->layer_height_name));
       throw;
     }
   }

@@ -20,10 +20,12 @@ struct StatusText {
 constexpr StatusText kStatusTexts[] = {
     {http::kOk, "OK", nullptr},
     {http::kAccepted, "Accepted", nullptr},
+    {http::kNoContent, "No Content", nullptr},
     {http::kPartialContent, "Partial Content", nullptr},
     {http::kNotModified, "Not Modified", nullptr},
     {http::kBadRequest, "Bad Request", "Bad request"},
     {http::kUnauthorized, "Unauthorized", nullptr},
+    {http::kForbidden, "Forbidden", "Forbidden"},
     {http::kNotFound, "Not Found", "Not found"},
     {http::kMethodNotAllowed, "Method Not Allowed", "Method not allowed"},
     {http::kRequestTimeout, "Request Timeout", "Request timeout"},
@@ -140,6 +142,7 @@ const char* reason_phrase(int status) {
   }
 STLREFINE_NAMED_PROBLEM(bad_request, http::kBadRequest)
 STLREFINE_NAMED_PROBLEM(unauthorized, http::kUnauthorized)
+STLREFINE_NAMED_PROBLEM(forbidden, http::kForbidden)
 STLREFINE_NAMED_PROBLEM(not_found, http::kNotFound)
 STLREFINE_NAMED_PROBLEM(method_not_allowed, http::kMethodNotAllowed)
 STLREFINE_NAMED_PROBLEM(request_timeout, http::kRequestTimeout)

@@ -22,10 +22,12 @@ inline constexpr std::string_view kProblemTypePrefix = "urn:stlrefine:problem:";
 namespace http {
 inline constexpr int kOk = 200;
 inline constexpr int kAccepted = 202;
+inline constexpr int kNoContent = 204;
 inline constexpr int kPartialContent = 206;
 inline constexpr int kNotModified = 304;
 inline constexpr int kBadRequest = 400;
 inline constexpr int kUnauthorized = 401;
+inline constexpr int kForbidden = 403;
 inline constexpr int kNotFound = 404;
 inline constexpr int kMethodNotAllowed = 405;
 inline constexpr int kRequestTimeout = 408;
@@ -93,6 +95,7 @@ Problem make_problem(int status, std::string slug, std::string detail);
 //! answers with instead of a number.
 Problem bad_request(std::string slug, std::string detail);
 Problem unauthorized(std::string slug, std::string detail);
+Problem forbidden(std::string slug, std::string detail);
 Problem not_found(std::string slug, std::string detail);
 Problem method_not_allowed(std::string slug, std::string detail);
 Problem request_timeout(std::string slug, std::string detail);

@@ -12,7 +12,7 @@
 //                    [--alpha A] [--alpha-features A]
 //                    [--kappa K] [--ramp-steps N]
 //                    [--report R.json]
-//                    [--slice H --slice-out CONTOURS [--slice-format json|svg|cli|cli-binary]]
+//                    [--layer-height H --slice-out CONTOURS [--slice-format json|svg|cli|cli-binary]]
 //   stlrefine spectrum --scheme S --valence N|A..B [--format lines|table] [--count K]
 //                      [--kappa K] [--alpha A] [--alpha-features A] [--unmodified] [--curve]
 //                      [--markdown] [-o OUT]
@@ -300,10 +300,16 @@ int run_info(const CLI::App& cmd, const InfoOptions& o) {
 int run_refine(const CLI::App& cmd, const RefineOptions& o) {
   const api::RawParams raw = given_params(cmd, api::RequestKind::Refine, o.params);
   check_stdout_outputs({{"-o", &o.output}, {"--slice-out", &o.slice_out}, {"--report", &o.report}});
-  const bool slicing = cmd.get_option("--slice")->count() > 0;
+  // Slicing is asked for by a layer height (--layer-height, or --slice, its old name) or
+  // explicit --heights; the contours need a file.
+  const bool slicing = cmd.get_option("--layer-height")->count() > 0 ||
+                       cmd.get_option("--slice")->count() > 0 ||
+                       cmd.get_option("--heights")->count() > 0;
   if (slicing != (cmd.get_option("--slice-out")->count() > 0))
-    throw Failure{kExitUsage, slicing ? "--slice needs --slice-out (the contour file)"
-                                      : "--slice-out needs --slice (the layer height in mm)"};
+    throw Failure{kExitUsage,
+                  slicing ? "slicing (--layer-height or --heights) needs --slice-out (the contour "
+                            "file)"
+                          : "--slice-out needs --layer-height (mm) or --heights"};
   api::RequestLimits limits;
   limits.max_faces = (std::uint64_t{1} << 31) - 1;  // the core's maximum
   limits.default_max_faces = stlrefine::RefineParams{}.max_faces;
@@ -484,7 +490,7 @@ int main(int argc, char** argv) {
   add_param_options(*refine_cmd, api::RequestKind::Refine, refine.params);
   refine_cmd->add_flag("--ascii", refine.ascii, "Write ASCII STL instead of binary");
   refine_cmd->add_option("--report", refine.report, "Also write the JSON report to this file");
-  refine_cmd->add_option("--slice-out", refine.slice_out, "Contour file (with --slice)");
+  refine_cmd->add_option("--slice-out", refine.slice_out, "Contour file (with --layer-height or --heights)");
 
   SpectrumOptions spectrum;
   CLI::App* spectrum_cmd = app.add_subcommand(

@@ -7,7 +7,7 @@ Submits an STL to /v1/jobs, polls the job until its `state` says it ended (`stat
 only word that says done), and downloads every result next to the input:
 
     python3 examples/stlrefine_client.py part.stl --url http://localhost:8080 \
-        --param scheme=lsf --param levels=2 --param slice=0.2 --param slice_format=svg
+        --param scheme=lsf --param levels=2 --param layer_height=0.2 --param slice_format=svg
 
 With an API key: --api-key KEY (or STLREFINE_API_KEY). Exit 0 when the job is done, 1 when
 it failed or was cancelled (its problem is printed), 2 on a usage or transport error.

@@ -19,7 +19,9 @@
 
 #include "api/params.h"
 #include "api/problem.h"
+#include "server/build_info.h"
 #include "server/compute_routes.h"
+#include "server/cors.h"
 #include "server/front_end.h"
 #include "server/http.h"
 #include "server/http_adapter.h"
@@ -119,8 +121,12 @@ struct Daemon::Impl : FrontEndDelegate {
                       std::string detail) override;
   //! A problem answer written by the front end, recorded like any other.
   std::string front_answer(const HttpRequest* req, const api::Problem& problem);
+  //! A CORS preflight (OPTIONS with Origin and Access-Control-Request-Method): 204 with the
+  //! route's methods for an allowed origin, else 403; no API key needed (browsers send none).
+  std::string preflight_answer(const HttpRequest& req);
 
   DaemonConfig config;
+  CorsPolicy cors;
   api::RequestLimits limits;
   ComputeSlots slots;
   MemoryBudget memory;
@@ -174,6 +180,7 @@ DaemonConfig checked(DaemonConfig c) {
 
 Daemon::Impl::Impl(DaemonConfig c)
     : config(checked(std::move(c))),
+      cors(config.cors_origins),
       limits{.max_faces = config.max_faces,
              .default_max_faces = 0,
              .max_slice_points = config.max_slice_points,
@@ -237,6 +244,7 @@ std::string Daemon::Impl::front_answer(const HttpRequest* req, const api::Proble
   const std::string id = req ? request_id_of(*req) : request_id(std::string());
   Fields headers = ctx.problem_headers(problem);
   headers.emplace("X-Request-Id", id);
+  if (req) headers.merge(cors.answer_fields(req->header("Origin")));
   const std::string body = api::problem_body(problem);
   const bool head_only = req && req->method == "HEAD";
   record(req ? req->method : "-", req ? req->path : "-", problem.status,
@@ -252,9 +260,33 @@ std::string Daemon::Impl::refusal(const RequestHead* head, int status, std::stri
   return front_answer(&req, problem);
 }
 
+std::string Daemon::Impl::preflight_answer(const HttpRequest& req) {
+  const Route* route = find_route(req.path);
+  if (!route)
+    return front_answer(&req, api::not_found("not-found", "no route " + shortened(req.path)));
+  const std::string origin = req.header("Origin");
+  std::optional<Fields> fields = cors.preflight_fields(origin, route->allow);
+  if (!fields)
+    return front_answer(
+        &req, api::forbidden("cors-origin-not-allowed",
+                             "the origin " + shortened(origin) +
+                                 " may not call this API (the server allows: " +
+                                 (cors.enabled() ? "--cors-origin values" : "none") + ")"));
+  const std::string id = request_id_of(req);
+  fields->emplace("X-Request-Id", id);
+  fields->emplace("Allow", route->allow);
+  record(req.method, req.path, api::http::kNoContent, 0, 0.0, id, req.remote_addr);
+  return whole_answer(api::http::kNoContent, "text/plain", "", *fields, true);
+}
+
 Verdict Daemon::Impl::decide(const RequestHead& head) {
   const HttpRequest req = to_http_request(head);
   Verdict verdict;
+  if (CorsPolicy::is_preflight(req)) {
+    verdict.kind = Verdict::Kind::Answer;
+    verdict.response = preflight_answer(req);
+    return verdict;
+  }
   // Probes are answered here, on the event loop: they never wait behind a worker.
   const bool probe = (req.path == "/healthz" || req.path == "/readyz") &&
                      (req.method == "GET" || req.method == "HEAD");
@@ -276,8 +308,9 @@ Verdict Daemon::Impl::decide(const RequestHead& head) {
     record(req.method, req.path, api::http::kOk, head_only ? 0 : body.size(), 0.0, id,
            req.remote_addr);
     verdict.kind = Verdict::Kind::Answer;
-    verdict.response =
-        whole_answer(api::http::kOk, kJsonContentType, body, {{"X-Request-Id", id}}, head_only);
+    Fields fields = cors.answer_fields(req.header("Origin"));
+    fields.emplace("X-Request-Id", id);
+    verdict.response = whole_answer(api::http::kOk, kJsonContentType, body, fields, head_only);
     return verdict;
   }
   if (problem) {
@@ -374,6 +407,7 @@ void Daemon::Impl::route(const HttpRequest& req, ReadRequest& read, HttpAnswer& 
       break;
   }
   if (req.path == "/v1/openapi.json") return res.set_content(openapi_document(), kJsonContentType);
+  if (req.path == "/v1/version") return res.set_content(version_document(), kJsonContentType);
   if (req.path == "/metrics") {
     Metrics::Gauges g;
     g.compute_slots = slots.capacity();
@@ -384,7 +418,7 @@ void Daemon::Impl::route(const HttpRequest& req, ReadRequest& read, HttpAnswer& 
       g.jobs_queued = jobs->queued();
       g.jobs_running = jobs->running();
     }
-    return res.set_content(metrics.render(g), "text/plain; version=0.0.4");
+    return res.set_content(metrics.render(g) + process_metrics(), "text/plain; version=0.0.4");
   }
   // /healthz and /readyz: normally answered by decide() on the event loop.
   if (config.test_hook) config.test_hook(r.path);
@@ -400,6 +434,7 @@ Answer Daemon::Impl::finish(const HttpRequest& req, HttpAnswer res, bool ranges,
                             std::chrono::steady_clock::time_point accepted) {
   const std::string id = request_id_of(req);
   res.set_header("X-Request-Id", id);
+  for (auto& [name, value] : cors.answer_fields(req.header("Origin"))) res.set_header(name, value);
   return frame_answer(
       req, std::move(res), ranges,
       [this, method = req.method, path = req.path, id, remote = req.remote_addr, accepted](

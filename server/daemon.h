@@ -74,6 +74,9 @@ struct DaemonConfig {
   //! When not empty, every route except /healthz, /readyz and /metrics needs
   //! `Authorization: Bearer <key>` with one of these keys (compared in constant time).
   std::vector<std::string> api_keys;
+  //! Origins whose browser pages may call the API (CORS): "scheme://host[:port]" or "*".
+  //! Empty: no CORS field is ever sent, and a preflight (OPTIONS) answers 403.
+  std::vector<std::string> cors_origins;
   //! For tests only: called with the route ("/v1/refine", ...) at the start of each route
   //! handler. It may throw, to exercise the generic 500 path.
   std::function<void(std::string_view route)> test_hook;

@@ -181,8 +181,11 @@ HttpRequest to_http_request(const RequestHead& head, std::string_view body) {
 std::string whole_answer(int status, const std::string& content_type, const std::string& body,
                          const Fields& fields, bool head_only) {
   std::string out = status_line(status);
-  out += "Content-Type: " + content_type + "\r\n";
-  out += "Content-Length: " + std::to_string(body.size()) + "\r\n";
+  // A 204 has neither (RFC 9110 8.6, 15.3.5).
+  if (status != api::http::kNoContent) {
+    out += "Content-Type: " + content_type + "\r\n";
+    out += "Content-Length: " + std::to_string(body.size()) + "\r\n";
+  }
   out += "Connection: close\r\n";
   for (const auto& [name, value] : fields) out += name + ": " + value + "\r\n";
   out += "\r\n";

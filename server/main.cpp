@@ -25,6 +25,7 @@
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "server/daemon.h"
 #include "server/memory_budget.h"
@@ -96,6 +97,7 @@ int main(int argc, char** argv) {
   std::uint64_t disk_budget_mib = 10240;
   int shutdown_grace = 30;
   std::string api_key_file;
+  std::vector<std::string> cors_origins;
   std::size_t max_connections = 1024;
   std::string memory_budget;
   double request_deadline = 900;
@@ -154,9 +156,13 @@ int main(int argc, char** argv) {
                  "SIGTERM before they are cancelled")
       ->check(CLI::Range(0, 3600))
       ->capture_default_str();
-  app.add_option("--api-key-file", api_key_file,
-                 "File with one API key per line (>= 16 characters); then every route but "
-                 "/healthz, /readyz and /metrics needs Authorization: Bearer <key>");
+  app.add_option(
+      "--api-key-file", api_key_file,
+      "File with one API key per line (>= 16 characters); then every route but "
+      "/healthz, /readyz and /metrics needs Authorization: Bearer <key> or X-Api-Key: <key>");
+  app.add_option("--cors-origin", cors_origins,
+                 "An origin (scheme://host[:port], or *) whose browser pages may call the API "
+                 "(CORS); repeat for several. None: no CORS headers, preflights answer 403");
   app.add_option("--max-connections", max_connections,
                  "Connections open at once; more are only answered if they are /healthz or "
                  "/readyz, else 503")
@@ -245,6 +251,7 @@ int main(int argc, char** argv) {
       }
       if (config.api_keys.empty()) throw std::runtime_error("--api-key-file has no keys");
     }
+    config.cors_origins = cors_origins;
     stlrefine::server::Daemon daemon(config);
     const int bound = daemon.bind(host, port);
     // The one line on stdout: scripts and tests read the port from it.

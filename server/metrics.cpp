@@ -41,9 +41,9 @@ std::string label(const std::string& v) {
   return out;
 }
 
-constexpr std::string_view kFixedRoutes[] = {"/",         "/healthz",         "/readyz",
-                                             "/metrics",  "/v1/openapi.json", "/v1/refine",
-                                             "/v1/slice", "/v1/info",         "/v1/jobs"};
+constexpr std::string_view kFixedRoutes[] = {
+    "/",           "/healthz",   "/readyz",   "/metrics", "/v1/openapi.json",
+    "/v1/version", "/v1/refine", "/v1/slice", "/v1/info", "/v1/jobs"};
 // What route_label returns besides the fixed routes.
 constexpr std::string_view kRouteTemplates[] = {"/v1/jobs/{id}", "/v1/jobs/{id}/{file}",
                                                 "/assets/{file}", "other"};

@@ -48,7 +48,7 @@ Json parameter_schema(const api::ParamRow& row) {
   return schema;
 }
 
-Json query_parameters(const std::vector<std::string_view>& names) {
+Json query_parameters(const std::vector<std::string_view>& names, api::RequestKind kind) {
   Json params = Json::array();
   for (std::string_view name : names) {
     const api::ParamRow* row = api::find_param(name);
@@ -62,6 +62,8 @@ Json query_parameters(const std::vector<std::string_view>& names) {
     } else {
       p["schema"] = {{"type", "string"}};  // undocumented: the OpenAPI test fails on this
     }
+    if (const std::string_view replacement = api::replaced_by(kind, name); !replacement.empty())
+      p["deprecated"] = true;  // the description names the replacement
     if (name == "scheme") {
       Json names_json = Json::array();
       for (std::string_view s : scheme_names()) names_json.push_back(s);
@@ -156,6 +158,7 @@ std::string operation_id(const std::string& path, const std::string& method) {
       {"delete /v1/jobs/{id}", "cancelJob"},
       {"get /v1/jobs/{id}/{file}", "downloadJobFile"},
       {"get /v1/openapi.json", "getOpenApi"},
+      {"get /v1/version", "getVersion"},
       {"get /metrics", "getMetrics"},
       {"get /healthz", "getHealth"},
       {"get /readyz", "getReady"},
@@ -209,7 +212,8 @@ Json build() {
       if (p == "/v1/jobs")
         op["responses"]["507"] = problem_response(
             "No room in the data directory for the input and the predicted results.");
-      op["parameters"] = query_parameters(api::refine_param_names(limits));
+      op["parameters"] =
+          query_parameters(api::refine_param_names(limits), api::RequestKind::Refine);
       op["requestBody"] = stl_body();
       item["post"] = op;
     } else if (p == "/v1/slice") {
@@ -220,13 +224,13 @@ Json build() {
               true));
       op["responses"]["200"]["headers"]["X-Stlrefine-Report"] =
           header("The slice report (JSON, one line).");
-      op["parameters"] = query_parameters(api::slice_param_names(limits));
+      op["parameters"] = query_parameters(api::slice_param_names(limits), api::RequestKind::Slice);
       op["requestBody"] = stl_body();
       item["post"] = op;
     } else if (p == "/v1/info") {
       Json op = operation("Report on an STL: ingest, features, curvature",
                           common_errors({{"200", json_response("The report.")}}, true));
-      op["parameters"] = query_parameters(api::info_param_names());
+      op["parameters"] = query_parameters(api::info_param_names(), api::RequestKind::Info);
       op["requestBody"] = stl_body();
       item["post"] = op;
     } else if (p == "/v1/jobs/{id}") {
@@ -267,6 +271,10 @@ Json build() {
            {"410", problem_response("Removed after retention.")}});
     } else if (p == "/v1/openapi.json") {
       item["get"] = operation("This document", {{"200", json_response("OpenAPI 3.0.3")}});
+    } else if (p == "/v1/version") {
+      item["get"] =
+          operation("This build: version, API version, compiler, build type, the schemes it serves",
+                    {{"200", json_response("The build.")}});
     } else if (p == "/metrics") {
       item["get"] =
           operation("Prometheus metrics",
@@ -333,9 +341,14 @@ Json build() {
       {"type", "http"},
       {"scheme", "bearer"},
       {"description", "Only when the server is started with API keys (--api-key-file)."}};
+  doc["components"]["securitySchemes"]["apiKey"] = {
+      {"type", "apiKey"},
+      {"in", "header"},
+      {"name", "X-Api-Key"},
+      {"description", "The same key as the bearer scheme, in the header API gateways use."}};
   // The key applies to every operation but the public ones (their own empty `security`);
-  // a server without keys ignores it.
-  doc["security"] = Json::array({{{"bearer", Json::array()}}});
+  // either scheme will do; a server without keys ignores them.
+  doc["security"] = Json::array({{{"bearer", Json::array()}}, {{"apiKey", Json::array()}}});
   doc["servers"] = Json::array({{{"url", "/"}, {"description", "This server."}}});
   return doc;
 }

@@ -44,6 +44,20 @@ std::optional<std::string_view> bearer_token(std::string_view header) {
   return header.substr(kBearer.size());
 }
 
+// The API key the request presents: "Authorization: Bearer KEY" or "X-Api-Key: KEY" (what
+// API gateways and many HTTP clients send). Both given and different: no key, so that a
+// proxy's key cannot be shadowed by a client's.
+std::optional<std::string> presented_key(const HttpRequest& req) {
+  const std::string authorization = req.header("Authorization");
+  const std::string api_key = req.header("X-Api-Key");
+  const std::optional<std::string_view> bearer = bearer_token(authorization);
+  if (!authorization.empty() && !bearer) return std::nullopt;
+  if (bearer && !api_key.empty() && *bearer != api_key) return std::nullopt;
+  if (bearer) return std::string(*bearer);
+  if (!api_key.empty()) return api_key;
+  return std::nullopt;
+}
+
 }  // namespace
 
 void send_problem(HttpAnswer& res, const api::Problem& problem) {
@@ -64,8 +78,9 @@ std::optional<api::Problem> RouteContext::precheck(const HttpRequest& req,
     return p;
   }
   if (!authorized(req)) {
-    api::Problem p = api::unauthorized("unauthorized",
-                                       "this server needs an API key: Authorization: Bearer <key>");
+    api::Problem p = api::unauthorized(
+        "unauthorized",
+        "this server needs an API key: Authorization: Bearer <key> or X-Api-Key: <key>");
     p.extensions["www_authenticate"] = "Bearer";
     return p;
   }
@@ -202,9 +217,8 @@ void RouteContext::respond(HttpAnswer& res, const api::Problem& problem) const {
 
 std::string RouteContext::tenant(const HttpRequest& req) const {
   if (config.api_keys.empty() || !jobs) return {};
-  // authorized() let it through: "Bearer <one of the keys>".
-  const std::string header = req.header("Authorization");
-  return jobs->tenant_of(bearer_token(header).value_or(std::string_view()));
+  // authorized() let it through: one of the keys.
+  return jobs->tenant_of(presented_key(req).value_or(std::string()));
 }
 
 bool RouteContext::authorized(const HttpRequest& req) const {
@@ -215,8 +229,7 @@ bool RouteContext::authorized(const HttpRequest& req) const {
       (route->kind == RouteKind::Page || std::string_view(route->path) == "/healthz" ||
        std::string_view(route->path) == "/readyz" || std::string_view(route->path) == "/metrics"))
     return true;
-  const std::string header = req.header("Authorization");
-  const std::optional<std::string_view> given = bearer_token(header);
+  const std::optional<std::string> given = presented_key(req);
   if (!given) return false;
   bool ok = false;
   for (const std::string& key : config.api_keys) ok |= same_secret(*given, key);  // no early exit

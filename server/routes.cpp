@@ -22,6 +22,7 @@ constexpr Route kRoutes[] = {
     {"/v1/jobs", "POST", RouteKind::Submit},
     {"/v1/jobs/", "GET, HEAD, DELETE", RouteKind::JobItem},
     {"/v1/openapi.json", "GET, HEAD", RouteKind::Plain},
+    {"/v1/version", "GET, HEAD", RouteKind::Plain},
     {"/metrics", "GET, HEAD", RouteKind::Plain},
     {"/healthz", "GET, HEAD", RouteKind::Plain},
     {"/readyz", "GET, HEAD", RouteKind::Plain},

@@ -70,9 +70,11 @@ TEST(ParamTable, EveryRowIsAcceptedByTheQueryParser) {
     ASSERT_FALSE(row.example.empty()) << row.name;
     const std::string name(row.name), value(row.example);
     if (row.takes(RequestKind::Refine)) {
-      // `slice_format` needs `slice`; every other row accepts it beside itself.
+      // The slicing modifiers need a layer height; every other row accepts it beside itself
+      // (`slice`, the old name of `layer_height`, is accepted in place of it).
       api::RawParams raw = {{name, value}};
-      if (name != "slice") raw.emplace_back("slice", "0.5");
+      if (name != "slice" && name != "layer_height" && name != "heights")
+        raw.emplace_back("layer_height", "0.5");
       EXPECT_NO_THROW(api::parse_refine_params(raw, cli)) << name;
       if (row.cli_only) {
         EXPECT_THROW(api::parse_refine_params(raw, daemon), Error) << name;
@@ -160,6 +162,7 @@ TEST(ParamTable, EveryRangeIsTheOneItsReaderEnforces) {
     const std::string name(row.name);
     if (row.takes(RequestKind::Refine)) {
       api::RawParams raw = {{name, text.str()}};
+      if (name == "max_layers") raw.emplace_back("layer_height", "1");  // it needs one
       api::parse_refine_params(raw, limits);
     } else if (row.takes(RequestKind::Slice)) {
       api::parse_slice_params({{name, text.str()}}, limits);
@@ -211,11 +214,15 @@ TEST(ParamTable, EveryDefaultIsAcceptedAndIsTheDefault) {
   for (const ParamRow& row : api::param_table()) {
     const std::string value = api::default_text(row);
     if (value.empty()) continue;
-    api::RawParams raw = {{std::string(row.name), value}};
+    const api::RawParams raw = {{std::string(row.name), value}};
     if (row.takes(RequestKind::Refine)) {
-      if (row.name == "slice_format") raw.emplace_back("slice", "0.5");  // it needs slice
+      api::RawParams refine_raw = raw;
+      // The slicing modifiers need a layer height.
+      if (row.name == "slice_format" || row.name == "max_layers" || row.name == "z_min" ||
+          row.name == "z_max")
+        refine_raw.emplace_back("layer_height", "0.5");
       api::RefineRequest given;
-      ASSERT_NO_THROW(given = api::parse_refine_params(raw, cli)) << row.name;
+      ASSERT_NO_THROW(given = api::parse_refine_params(refine_raw, cli)) << row.name;
       // The refinement is made the same way with and without it.
       if (!row.scheme_option) {
         EXPECT_EQ(given.refine.scheme, none.refine.scheme) << row.name;
