@@ -9,6 +9,8 @@
 #include "api/units.h"
 #include "core/io/stl.h"
 #include "core/mesh/build_mesh.h"
+#include "core/mesh/mesh_stats.h"
+#include "repair/hole_filling.h"
 
 namespace stlrefine::api {
 
@@ -23,6 +25,10 @@ struct Ingested {
   IngestResult result;  //!< the mesh (in mm) and what ingest repaired
   UnitsReport units;    //!< the units assumed and the size in mm
   double seconds = 0;   //!< wall time of read + weld + build
+  // Set by repair_ingested (api/repair_step.h), after ingest:
+  repair::RepairMode repair_mode = repair::RepairMode::None;
+  repair::HoleFillReport repair;  //!< what repair=fill_holes did
+  MeshStats stats;                //!< of the mesh worked on (after repair): bodies, boundaries
 };
 
 //! bytes -> read_stl -> weld -> build_mesh -> apply_units (weld_tolerance is in the file's

@@ -33,6 +33,8 @@ struct Coefficients {
   double contour_growth;    // the contour string while it grows (capacity doubling)
   double zip_growth;        // the zip archive while it grows
   double text_compression;  // deflate ratio of text contours in the zip (at least)
+  double repair_face;       // repair=fill_holes: the CGAL Surface_mesh copy, the soup and the
+                            // rebuilt mesh next to the input mesh (per input face)
 };
 
 constexpr Coefficients kC{
@@ -47,7 +49,15 @@ constexpr Coefficients kC{
     .contour_growth = 2,
     .zip_growth = 2,
     .text_compression = 3,
+    // Estimated, not calibrated: Surface_mesh ~64 B a face (3 half-edge pairs of 2 x 12 B,
+    // a face, half a vertex of 24 B point + 4 B), the soup 24 B, the rebuilt mesh ~100 B.
+    .repair_face = 200,
 };
+
+// What repair=fill_holes adds while it runs, on top of ingest.
+double repair_bytes(repair::RepairMode mode, std::uint64_t faces) {
+  return mode == repair::RepairMode::FillHoles ? kC.repair_face * double(faces) : 0.0;
+}
 
 // Bytes of one contour point in each format (measured 40-43, 38-41, 37-41 and 8.0-8.4).
 double point_bytes(slicer::SliceFormat format) {
@@ -154,8 +164,9 @@ MemoryEstimate estimate_refine_memory(std::span<const std::uint8_t> bytes, const
   const double stl = double(stl_bytes(held_faces, request.output_format));
   const double base = kC.fixed + double(shape.bytes);
   // The per-face coefficients include a binary STL record (50 bytes) next to the mesh.
-  double peak =
-      base + kC.input_face * double(faces) + (per_face - double(kFacet)) * double(held_faces) + stl;
+  double peak = base + kC.input_face * double(faces) +
+                std::max(repair_bytes(request.repair, faces),
+                         (per_face - double(kFacet)) * double(held_faces) + stl);
   double contours = 0;
   if (request.slice) {
     // Faces crossing a plane grow like 1 / edge length: x2 per 1-to-4 step, x sqrt(3) per
@@ -231,17 +242,18 @@ MemoryEstimate estimate_slice_memory(std::span<const std::uint8_t> bytes, const 
   e.contour_points = contour_points(count_crossings(bytes, shape, params), params);
   const double contours = point_bytes(request.slice.format) * double(e.contour_points);
   e.answer_bytes = std::uint64_t(contours);
-  e.peak_bytes =
-      std::uint64_t(kC.fixed + double(shape.bytes) + kC.slice_input_face * double(shape.faces) +
-                    kC.contour_growth * contours);
+  e.peak_bytes = std::uint64_t(
+      kC.fixed + double(shape.bytes) + kC.slice_input_face * double(shape.faces) +
+      std::max(repair_bytes(request.repair, shape.faces), kC.contour_growth * contours));
   if (kC.contour_growth * contours > 0.5 * double(e.peak_bytes))
     e.field = params.heights.empty() ? "layer_height" : "heights";
   return e;
 }
 
-MemoryEstimate estimate_info_memory(const StlShape& shape) {
+MemoryEstimate estimate_info_memory(const StlShape& shape, repair::RepairMode repair) {
   MemoryEstimate e;
-  e.peak_bytes = std::uint64_t(kC.fixed + double(shape.bytes) + kC.info_face * double(shape.faces));
+  e.peak_bytes = std::uint64_t(kC.fixed + double(shape.bytes) + kC.info_face * double(shape.faces) +
+                               repair_bytes(repair, shape.faces));
   return e;
 }
 

@@ -91,7 +91,8 @@ Problem memory_budget_problem(const MemoryBudgetError& error, std::uint64_t capa
 MemoryEstimate estimate_slice_memory(std::span<const std::uint8_t> bytes, const StlShape& shape,
                                      const SliceRequest& request);
 //! An info report.
-MemoryEstimate estimate_info_memory(const StlShape& shape);
+MemoryEstimate estimate_info_memory(const StlShape& shape,
+                                    repair::RepairMode repair = repair::RepairMode::None);
 
 //! The 422 of a request whose prediction is over what one request may reserve
 //! (`capacity`): type budget-exceeded, title "Memory budget exceeded", reason

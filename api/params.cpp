@@ -293,6 +293,13 @@ Error in_callers_words(const Error& e, RequestKind kind, std::optional<std::stri
   return e;
 }
 
+repair::RepairMode parse_repair_mode(const std::string& value) {
+  if (value == "none") return repair::RepairMode::None;
+  if (value == "fill_holes") return repair::RepairMode::FillHoles;
+  throw invalid("repair", "unknown_value",
+                "repair = " + shown(value) + " is not one of none, fill_holes");
+}
+
 // A request may only lower the default cap.
 std::size_t max_layers_value(const std::string& v) {
   return static_cast<std::size_t>(
@@ -456,6 +463,22 @@ const ParamRow kParams[] = {
                   const RequestLimits&) { r.units.scale = parse_scale(v); },
      .slice = [](SliceRequest& r, const std::string& v) { r.units.scale = parse_scale(v); },
      .info = [](InfoRequest& r, const std::string& v) { r.units.scale = parse_scale(v); }},
+    {.name = "repair",
+     .type = ParamType::String,
+     .description =
+         "What to fix before refining or slicing: none (default), or fill_holes (close every "
+         "open boundary with CGAL's hole filling: triangulated, refined to the rim's density, "
+         "faired; holes with more than 10000 rim edges, or whose rim no Delaunay triangulation "
+         "fills, stay open). The report says what was "
+         "done.",
+     .help = "none, or fill_holes: close the open boundaries (CGAL hole filling with fairing) "
+             "before refining or slicing",
+     .example = "fill_holes",
+     .default_value = "none",
+     .refine = [](RefineRequest& r, const std::string& v,
+                  const RequestLimits&) { r.repair = parse_repair_mode(v); },
+     .slice = [](SliceRequest& r, const std::string& v) { r.repair = parse_repair_mode(v); },
+     .info = [](InfoRequest& r, const std::string& v) { r.repair = parse_repair_mode(v); }},
     {.name = "adaptive_tol",
      .type = ParamType::Number,
      .description =

@@ -14,6 +14,7 @@
 #include "core/io/stl.h"
 #include "core/refine.h"
 #include "primitives/post_pass.h"
+#include "repair/hole_filling.h"
 #include "slicer/slice.h"
 #include "slicer/writers.h"
 
@@ -42,6 +43,7 @@ struct InfoRequest {
   FeatureParams features;     //!< `crease_angle`: `auto` (default) or degrees [0, 180]
   double weld_tolerance = 0;  //!< `weld_tolerance`, the file's units, >= 0; 0 = exact welding
   UnitOptions units;          //!< `units`, `scale`
+  repair::RepairMode repair = repair::RepairMode::None;  //!< `repair`: none, fill_holes
 };
 
 //! Planes and output format of a slice, alone (`slice`) or after a refinement.
@@ -59,8 +61,9 @@ struct SliceOptions {
 //! What `slice` needs besides the STL bytes.
 struct SliceRequest {
   SliceOptions slice;
-  double weld_tolerance = 0;  //!< as in InfoRequest
-  UnitOptions units;          //!< as in InfoRequest
+  double weld_tolerance = 0;                             //!< as in InfoRequest
+  UnitOptions units;                                     //!< as in InfoRequest
+  repair::RepairMode repair = repair::RepairMode::None;  //!< as in InfoRequest
 };
 
 //! The post-pass after refinement (issue 17 items 4 and 6): recognised primitives and the
@@ -94,9 +97,10 @@ struct RefineRequest {
   //! `adaptive_angle`, `max_level`, and the schemes' options (`alpha`, `kappa`, ...: the
   //! registry's, into RefineParams::scheme_options)
   RefineParams refine;
-  double weld_tolerance = 0;                    //!< as in InfoRequest
-  UnitOptions units;                            //!< as in InfoRequest
-  StlFormat output_format = StlFormat::Binary;  //!< not a parameter: the CLI's --ascii
+  double weld_tolerance = 0;                             //!< as in InfoRequest
+  UnitOptions units;                                     //!< as in InfoRequest
+  repair::RepairMode repair = repair::RepairMode::None;  //!< as in InfoRequest
+  StlFormat output_format = StlFormat::Binary;           //!< not a parameter: the CLI's --ascii
   //! `slice` (layer height, mm) and `slice_format`: also slice the refined mesh.
   std::optional<SliceOptions> slice;
   //! `primitives`, `primitive_tol`, `max_deviation`.

@@ -10,6 +10,7 @@
 #include "api/ingest.h"
 #include "api/memory_model.h"
 #include "api/problem.h"
+#include "api/repair_step.h"
 #include "api/report.h"
 #include "core/error.h"
 #include "core/features/features.h"
@@ -57,12 +58,13 @@ nlohmann::ordered_json run_info(std::span<const std::uint8_t> bytes, const InfoP
 InfoOutcome run_info(std::span<const std::uint8_t> bytes, const InfoRequest& request,
                      bool curvature_csv) {
   request.features.validate();
-  const Ingested in = ingest_stl(bytes, request.weld_tolerance, request.units);
+  Ingested in = ingest_stl(bytes, request.weld_tolerance, request.units);
+  repair_ingested(in, request.repair);
   const Mesh& mesh = in.result.mesh;
   const Features features = detect_features(mesh, request.features);
   const std::vector<VertexCurvature> curvatures = vertex_curvatures(mesh, features);
   InfoOutcome out;
-  out.report = info_report(in, compute_stats(mesh), features, request);
+  out.report = info_report(in, in.stats, features, request);
   out.report["curvature"] = curvature_summary_json(summarize(curvatures));
   if (curvature_csv) out.curvature_csv = curvature_table_csv(mesh, features, curvatures);
   return out;
@@ -82,7 +84,8 @@ RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRe
 
   if (request.slice) request.slice->params.validate();
   Ingested in = ingest_stl(bytes, request.weld_tolerance, request.units);
-  times.ingest = in.seconds;
+  repair_ingested(in, request.repair);
+  times.ingest = in.seconds + in.repair.seconds;
   refuse_over_face_budget(in.result.mesh.num_faces(), scheme, request.refine);
   // The layer budget on the input's bounds, before any refinement work. (Refinement moves
   // the bounds a little; the refined mesh is planned again by the slicer itself.)
@@ -273,7 +276,8 @@ SliceOutcome run_slice(std::span<const std::uint8_t> bytes, const SliceRequest& 
   const auto start = Clock::now();
   request.slice.params.validate();  // a bad parameter is reported before the file is read
   request.slice.writer.validate();
-  const Ingested in = ingest_stl(bytes, request.weld_tolerance, request.units);
+  Ingested in = ingest_stl(bytes, request.weld_tolerance, request.units);
+  repair_ingested(in, request.repair);
   SliceOutcome out;
   slicer::SliceStats stats;
   out.contours = slice_to_string(in.result.mesh, request.slice, &stats, progress, cancel);

@@ -56,7 +56,8 @@ InfoPlan plan_info(const RawParams& raw, std::span<const std::uint8_t> bytes) {
 
 InfoPlan plan_info(InfoRequest request, std::span<const std::uint8_t> bytes) {
   const StlShape shape = stl_shape(bytes);
-  return InfoPlan(std::move(request), shape, estimate_info_memory(shape));
+  MemoryEstimate memory = estimate_info_memory(shape, request.repair);
+  return InfoPlan(std::move(request), shape, std::move(memory));
 }
 
 }  // namespace stlrefine::api

@@ -19,6 +19,9 @@ Json vec3_json(const Vec3& v) {
   return Json::array({v.x, v.y, v.z});
 }
 
+Json repair_json(const Ingested& in);
+Json bodies_json(const MeshStats& s);
+
 Json input_json(const Ingested& in) {
   Json j;
   j["format"] = to_string(in.format);
@@ -33,15 +36,83 @@ Json input_json(const Ingested& in) {
                 {"scale", u.scale},
                 {"factor_to_mm", u.factor},
                 {"size_mm", vec3_json(u.size_mm)}};
+  j["repair"] = repair_json(in);
+  j["bodies"] = in.stats.components;
+  j["watertight"] = in.stats.watertight;
+  j["largest_bodies"] = bodies_json(in.stats);
   return j;
 }
 
-// What a caller should look at before printing: one {code, message} per finding.
+// What a caller should look at before printing: one {code, message} per finding, about
+// the mesh as it is worked on (after `repair`).
 Json warnings_json(const Ingested& in) {
   Json list = Json::array();
-  if (in.units.warning)
-    list.push_back({{"code", "suspicious_units"}, {"message", *in.units.warning}});
+  const auto warn = [&](const char* code, std::string message) {
+    list.push_back({{"code", code}, {"message", std::move(message)}});
+  };
+  if (in.units.warning) warn("suspicious_units", *in.units.warning);
+  const MeshStats& s = in.stats;
+  if (s.boundary_loops > 0) {
+    std::string message = std::to_string(s.boundary_loops) + " hole(s) (" +
+                          std::to_string(s.boundary_edges) +
+                          " open boundary edges): the part is not watertight and does not print "
+                          "as a solid";
+    if (in.repair_mode == repair::RepairMode::None)
+      message += "; repair=fill_holes closes them";
+    else if (in.repair.left_open > 0)
+      message += "; " + std::to_string(in.repair.left_open) +
+                 " were left open by repair=fill_holes (rim over 10000 edges, or no Delaunay "
+                 "triangulation of it)";
+    warn("open_boundaries", std::move(message));
+  }
+  const IngestReport& r = in.result.report;
+  if (r.non_manifold_edges > 0)
+    warn("non_manifold_edges_cut",
+         std::to_string(r.non_manifold_edges) +
+             " edge(s) shared by more than two facets were cut apart (each sheet keeps its own "
+             "copy, a sharp boundary)");
+  if (r.faces_reoriented > 0)
+    warn("facets_reoriented", std::to_string(r.faces_reoriented) +
+                                  " facet(s) wound against their neighbours were turned over");
+  if (s.components > 1)
+    warn("several_bodies", std::to_string(s.components) +
+                               " separate bodies: each is refined on its own; see bodies[] for "
+                               "the largest");
+  if (in.repair_mode == repair::RepairMode::FillHoles && in.repair.fairing_failed > 0)
+    warn("hole_fairing_failed", std::to_string(in.repair.fairing_failed) +
+                                    " filled hole(s) could not be faired and were left flat");
   return list;
+}
+
+// The largest bodies (compute_stats lists at most 10: the report may travel in a header).
+Json bodies_json(const MeshStats& s) {
+  Json list = Json::array();
+  for (const BodyStats& b : s.bodies)
+    list.push_back({{"faces", b.faces},
+                    {"vertices", b.vertices},
+                    {"volume", b.volume},
+                    {"area", b.area},
+                    {"watertight", b.watertight},
+                    {"genus", b.genus ? Json(*b.genus) : Json(nullptr)},
+                    {"holes", b.boundary_loops},
+                    {"bbox", {{"min", vec3_json(b.bbox_min)}, {"max", vec3_json(b.bbox_max)}}}});
+  return list;
+}
+
+Json repair_json(const Ingested& in) {
+  Json j;
+  j["mode"] = repair::to_string(in.repair_mode);
+  if (in.repair_mode == repair::RepairMode::None) return j;
+  const repair::HoleFillReport& r = in.repair;
+  j["holes"] = r.holes;
+  j["filled"] = r.filled;
+  j["fairing_failed"] = r.fairing_failed;
+  j["left_open"] = r.left_open;
+  j["largest_hole_edges"] = r.largest_hole_edges;
+  j["faces_added"] = r.faces_added;
+  j["vertices_added"] = r.vertices_added;
+  j["seconds"] = r.seconds;
+  return j;
 }
 
 Json distribution_json(const Distribution& d, bool any) {
@@ -122,7 +193,8 @@ Json info_report(const Ingested& in, const MeshStats& s, const Features& feature
   mesh["zero_area_faces"] = s.zero_area_faces;
   mesh["euler_characteristic"] = s.euler_characteristic;
   mesh["watertight"] = s.watertight;
-  mesh["genus"] = s.genus ? Json(*s.genus) : Json(nullptr);
+  mesh["genus"] = s.genus ? Json(*s.genus) : Json(nullptr);  // summed over the bodies
+  mesh["bodies"] = bodies_json(s);
   mesh["bbox"] = {{"min", vec3_json(s.bbox_min)}, {"max", vec3_json(s.bbox_max)}};
   mesh["area"] = s.area;
   mesh["volume"] = s.volume;
