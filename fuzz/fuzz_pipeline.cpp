@@ -129,6 +129,16 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   (void)info.report.dump(2, ' ', true);
   fuzz::check(info.curvature_csv.has_value(), "no curvature table");
 
+  // info after repair=fill_holes: CGAL's hole filling on whatever rims the input has.
+  api::InfoRequest repaired;
+  repaired.repair = repair::RepairMode::FillHoles;
+  const nlohmann::ordered_json fixed = api::run_info(bytes, repaired);
+  const auto& r = fixed["input"]["repair"];
+  if (r.contains("holes"))
+    fuzz::check(r["holes"].get<std::size_t>() ==
+                    r["filled"].get<std::size_t>() + r["left_open"].get<std::size_t>(),
+                "repair: holes != filled + left_open");
+
   // slice of the input.
   api::SliceRequest slice;
   slice.slice = slice_options(mesh, slicer::SliceFormat::Json);
