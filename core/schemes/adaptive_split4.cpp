@@ -20,11 +20,10 @@ namespace stlrefine {
 namespace {
 
 // Coarse vertices then one candidate point per edge (V + e), through the plane rule and the
-// fold guard like the uniform host, so an adaptive step places the points a uniform step
-// would. (The guard's smooth normals are the sector normals of this level here; the uniform
-// host carries the input's from level to level, so from level 2 on the two can differ
-// where the guard acts.) `guard_reserve`
-// gets the fold guard's work bytes when it needs them.
+// fold guard like the uniform host. Used on the conforming mesh only (meshes that are not
+// simple, and edges_over_tolerance): the guard's smooth normals are the sector normals of
+// this level there, while the uniform regions (update_uniform) carry the input's as the
+// uniform host does. `guard_reserve` gets the fold guard's work bytes when it needs them.
 BigVector<Vec3> candidate_points(const Level& level, const Split4Stencil& stencil, StepStats& stats,
                                  const std::function<void(std::uint64_t)>& guard_reserve) {
   const Mesh& m = level.mesh;
@@ -107,7 +106,8 @@ AdaptiveSplit4::AdaptiveSplit4(const Level& coarse, std::function<void(std::uint
     : reserve_(std::move(reserve)) {
   const Mesh& m = coarse.mesh;
   const std::size_t nv = m.num_vertices(), ne = m.num_edges(), nf = m.num_faces();
-  need(nv * sizeof(Vec3) + ne * sizeof(Edge) + nf * sizeof(Leaf) + build_bytes(nf, 0, nf, ne, nv));
+  need(nv * sizeof(Vec3) + ne * sizeof(Edge) + nf * sizeof(Leaf) + build_bytes(nf, 0, nf, ne, nv) +
+       big_vector_bytes<Vec3>(3 * nf));  // the smooth normals of uniform_[0]
   positions_.assign(m.positions().begin(), m.positions().end());
   edges_.resize(m.num_edges());
   for (std::uint32_t e = 0; e < m.num_edges(); ++e) {
@@ -137,6 +137,11 @@ AdaptiveSplit4::AdaptiveSplit4(const Level& coarse, std::function<void(std::uint
     UniformLevel u0;
     u0.level.mesh = coarse.mesh;
     u0.level.features = coarse.features;
+    // The smooth surface's normals the fold guard holds children to, estimated once on the
+    // input and carried to every uniform level, as the uniform host does (issue 17 item 2).
+    u0.level.smooth_normals = coarse.smooth_normals.size() == 3 * nf
+                                  ? coarse.smooth_normals
+                                  : sector_normals(coarse.mesh, coarse.features);
     u0.hierarchy_vertex.resize(nv);
     for (std::uint32_t v = 0; v < nv; ++v) u0.hierarchy_vertex[v] = v;
     u0.trusted.assign(nv, 1);
@@ -237,7 +242,10 @@ void AdaptiveSplit4::evaluate_uniform(UniformLevel& u, const Split4Stencil& sten
   stencil.edge_points(u.level, std::span<Vec3>(u.points.data() + nv, ne));
   const std::vector<Vec3> raw(u.points.begin() + static_cast<std::ptrdiff_t>(nv), u.points.end());
   keep_dominant_planes(m, u.level.features, u.points);
-  guard_folds(m, u.level.features, u.points, guard_reserve);
+  if (u.level.smooth_normals.size() == 3 * std::size_t(m.num_faces()))
+    guard_folds(m, u.level.features, u.level.smooth_normals, u.points, guard_reserve);
+  else
+    guard_folds(m, u.level.features, u.points, guard_reserve);
   u.edge_guarded.resize(ne);
   for (std::size_t e = 0; e < ne; ++e) u.edge_guarded[e] = !(u.points[nv + e] == raw[e]);
   u.edge_trusted = trusted_edges(m, u.trusted, u.cut);
@@ -341,10 +349,18 @@ void AdaptiveSplit4::update_uniform(const Split4Stencil& stencil) {
                     : HalfedgeId();
     }
     const std::uint64_t held = held_bytes();
-    need(held + mesh_bytes(cm));
+    const bool carried = c.level.smooth_normals.size() == 3 * cf;
+    need(held + mesh_bytes(cm) + (carried ? big_vector_bytes<Vec3>(3 * faces.size()) : 0));
     Level region;
     region.mesh = Mesh::from_parts(std::move(positions), std::move(corner), std::move(twin));
     region.step = static_cast<int>(k) - 1;
+    // The level's carried smooth normals, per corner of its faces: split4 guards the region's
+    // children with them and carries them on to the next level, as the uniform host does.
+    if (carried) {
+      region.smooth_normals = BigVector<Vec3>(3 * faces.size());
+      for (std::size_t i = 0; i < 3 * faces.size(); ++i)
+        region.smooth_normals[i] = c.level.smooth_normals[3 * std::size_t(faces[i / 3]) + i % 3];
+    }
     const Mesh& rm = region.mesh;
     BigVector<std::uint8_t> sharp(rm.num_edges());
     std::vector<std::uint8_t> region_cut(rm.num_edges(), 0);
