@@ -276,6 +276,7 @@ RefineResult run_levels(Mesh mesh, const RefineParams& params, const Scheme& sch
     level = adaptive->result();
     r.levels = adaptive->stats().levels;
     r.faces_over_criterion = adaptive->stats().over_criterion_at_cap;
+    stats.fold_fallbacks += adaptive->stats().flips_kept;  // flips the fold guard did not make
     r.stop_reason = r.faces_over_criterion > 0 ? "max_level" : "tolerance";
   } else if (params.adaptive()) {
     const Split4Stencil& stencil = *adaptive_scheme(scheme);

@@ -60,6 +60,9 @@ struct Tri {
   std::uint8_t sharp = 0;  // bit k: edge k is sharp
   std::uint8_t canon = 0;  // bit k: sharp edge k is its edge's canonical half in sqrt3_refine
   std::uint8_t flags = 0;
+  //! The fold guard's decision per edge k (sqrt3_host's keep_folding_flips): bit k: decided,
+  //! bit 3 + k: the edge is not flipped although both of its sides are refined.
+  std::uint8_t keep = 0;
 };
 
 enum class Origin : std::uint8_t { Input, FacePoint, NearFrom, NearTo };
@@ -185,12 +188,31 @@ class AdaptiveSqrt3::Hierarchy {
 
   // In a trisecting level, the face's one sharp half-edge (invalid: none).
   HalfedgeId sharp_of(FaceId t) const;
-  // Both sides refined: an old edge is flipped; a sharp one is kept.
-  bool makes_flip_child(HalfedgeId h) {
-    const FaceId t = Mesh::face(h);
-    if (trisects(level(t))) return h != sharp_of(t);
-    return !sharp(h) && twin(h).valid();
+  // The edge of h is not flipped: sharp (in a trisecting level: cut), on the boundary, or
+  // left unflipped by the fold guard (sqrt3_host's Sqrt3Layout::kept).
+  // Without the guard the twins are looked up in the order the hierarchy always did (a
+  // trisecting level has no boundary edge that is not sharp), so the output is the same
+  // bit for bit, vertex numbering included.
+  bool kept(HalfedgeId h) {
+    if (sharp(h)) return true;
+    if (!guarded_) return !trisects(level(Mesh::face(h))) && !twin(h).valid();
+    return !twin(h).valid() || unflipped(h);
   }
+  // Both sides refined: an old edge is flipped, a kept one is not.
+  bool makes_flip_child(HalfedgeId h) { return !kept(h); }
+  // The fold guard's topological half (adaptive_sqrt3_guard.cpp), decided once per edge.
+  bool unflipped(HalfedgeId h);
+  bool flip_folds(HalfedgeId h);
+  Vec3 sector_normal(HalfedgeId h);
+  Vec3 apex_normal(HalfedgeId h);
+  bool folds(const std::array<VertexId, 3>& c, int level, const Vec3& smooth);
+  // sqrt3_host's Sqrt3Layout::to_apex and set_to_apex_side: the fine half-edge to(x) ->
+  // apex(x), and the one across it inside face(x).
+  HalfedgeId to_apex(HalfedgeId x) {
+    const HalfedgeId t = twin(x);
+    return kept(x) ? fine(x, 1) : fine(t, 0);
+  }
+  HalfedgeId to_apex_side(HalfedgeId x);
 
   HalfedgeId twin(HalfedgeId h);
   HalfedgeId derive_twin(HalfedgeId h);
@@ -296,6 +318,8 @@ class AdaptiveSqrt3::Hierarchy {
   const Sqrt3Stencil& stencil_;
   Sqrt3AdaptiveCriteria criteria_;
   bool interpolating_;
+  bool guarded_;  // the stencil asks for the fold guard (as sqrt3_refine's FoldGuard::AsStencil)
+  double cos_fold_;
   bool has_alpha_ = false;
   int top_level_;  // the finest level any position is asked for (two past the cap)
   std::uint32_t input_vertices_;

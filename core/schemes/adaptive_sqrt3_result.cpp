@@ -35,6 +35,7 @@ Level AdaptiveSqrt3::Hierarchy::result(std::vector<std::uint8_t>* face_level) {
   const std::uint64_t face_bits = 2 * std::uint64_t(num_faces);  // sharp bits, levels
   phase(face_list + face_bits);
 
+  stats_.flips_kept = 0;
   std::vector<Face> faces;
   std::vector<std::uint8_t> sharp_bits, levels;
   faces.reserve(num_faces);
@@ -49,6 +50,12 @@ Level AdaptiveSqrt3::Hierarchy::result(std::vector<std::uint8_t>* face_level) {
       sharp_bits.push_back(tris_[t].sharp);
       levels.push_back(static_cast<std::uint8_t>(l));
       continue;
+    }
+    // An edge both of whose sides are refined and that the fold guard kept, counted once.
+    for (std::uint8_t k = 0; k < 3; ++k) {
+      if (!((tris_[t].keep >> (3 + k)) & 1)) continue;
+      const HalfedgeId tw = twin(he(t, k));
+      if (refined(Mesh::face(tw)) && he(t, k).idx < tw.idx) ++stats_.flips_kept;
     }
     // Where the old edge is not flipped yet: the split's piece (from, to, apex).
     const HalfedgeId s = trisects(l) ? sharp_of(t) : HalfedgeId();

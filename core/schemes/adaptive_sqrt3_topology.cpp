@@ -5,6 +5,8 @@
 // the uniform sqrt3 hierarchy, made one at a time when the driver asks for them.
 #include <algorithm>
 #include <array>
+#include <cmath>
+#include <numbers>
 #include <utility>
 #include <vector>
 
@@ -21,6 +23,8 @@ AdaptiveSqrt3::Hierarchy::Hierarchy(const Level& coarse, const Sqrt3Stencil& ste
     : stencil_(stencil),
       criteria_(c),
       interpolating_(stencil.interpolating()),
+      guarded_(c.guard == FoldGuard::AsStencil && stencil.guards_folds()),
+      cos_fold_(std::cos(kSqrt3FoldAngleDeg * std::numbers::pi / 180.0)),
       top_level_(c.max_level + 2),
       input_vertices_(static_cast<std::uint32_t>(coarse.mesh.num_vertices())),
       input_faces_(coarse.mesh.num_faces()),
@@ -32,7 +36,9 @@ AdaptiveSqrt3::Hierarchy::Hierarchy(const Level& coarse, const Sqrt3Stencil& ste
   int valence = 12;
   for (std::uint32_t v = 0; v < input_vertices_; ++v)
     if (!m.is_isolated(VertexId(v))) valence = std::max(valence, m.valence(VertexId(v)));
-  patch_bytes_ = std::uint64_t(top_level_ + 1) *
+  // The fold guard's decisions evaluate the points of the level above while a level's
+  // fans are walked: up to twice as many patches.
+  patch_bytes_ = std::uint64_t(top_level_ + 1) * (guarded_ ? 2 : 1) *
                  (kPatchBytes + kPatchFaceBytes * (1 + 3 * std::uint64_t(valence)));
   need(held_bytes() + big_vector_bytes<double>(input_vertices_));  // the initial alpha
   const BigVector<double> alpha = stencil.initial_alpha(coarse);
@@ -114,100 +120,91 @@ HalfedgeId AdaptiveSqrt3::Hierarchy::twin(HalfedgeId h) {
   return r;
 }
 
+HalfedgeId AdaptiveSqrt3::Hierarchy::to_apex_side(HalfedgeId x) {
+  const FaceId f = Mesh::face(x);
+  const HalfedgeId sx = trisects(level(f)) ? sharp_of(f) : HalfedgeId();
+  if (!sx.valid()) return fine(Mesh::next(x), 2);
+  if (x == Mesh::next(sx)) return fine(sx, 1);  // the edge (m2, c) of the middle child
+  // x == prev(sx): to(x) -> m1 is the first third of the sharp edge sx
+  const HalfedgeId across = twin(sx);
+  return across.valid() ? fine(Mesh::next(across), 2) : HalfedgeId();
+}
+
 HalfedgeId AdaptiveSqrt3::Hierarchy::derive_twin(HalfedgeId h) {
-  using M = Mesh;
-  const HalfedgeId c = tris_[M::face(h)].owner;  // the coarse half-edge that made h's face
-  if (!trisects(level(M::face(c)))) {
-    const HalfedgeId t = twin(c);
-    const bool flipped = t.valid() && !sharp(c);
-    switch (corner_of(h)) {
-      case 0:  // a -> apex across (flipped), or the kept edge a -> b
-        if (flipped) return fine(M::next(t), 2);
-        return t.valid() ? fine(t, 0) : HalfedgeId();
-      case 1:
-        return flipped ? fine(t, 1) : fine(M::next(c), 2);
-      default: {  // the spoke apex -> a, shared with the child of prev(c) or its twin's
-        const HalfedgeId p = M::prev(c);
-        const HalfedgeId tp = twin(p);
-        return tp.valid() && !sharp(p) ? fine(tp, 0) : fine(p, 1);
-      }
-    }
-  }
-  const HalfedgeId s = sharp_of(M::face(c));
+  // sqrt3_host's Sqrt3Layout::fine_face, for the one fine half-edge h.
+  const HalfedgeId c = tris_[Mesh::face(h)].owner;  // the coarse half-edge that made h's face
+  const FaceId f = Mesh::face(c);
+  const HalfedgeId s = trisects(level(f)) ? sharp_of(f) : HalfedgeId();
+  const std::uint8_t k = corner_of(h);
   if (c == s) {  // the middle child (m1, m2, apex) of a face cut at its sharp edge
-    switch (corner_of(h)) {
-      case 0: {
-        const HalfedgeId t = twin(s);
-        return t.valid() ? fine(t, 0) : HalfedgeId();
-      }
-      case 1:
-        return fine(twin(M::next(s)), 0);
-      default:
-        return fine(M::prev(s), 2);
+    if (k == 0) {
+      const HalfedgeId t = twin(s);
+      return t.valid() ? fine(t, 0) : HalfedgeId();
     }
+    if (k == 1) return to_apex(Mesh::next(s));
+    return fine(Mesh::prev(s), 2);
   }
   const HalfedgeId t = twin(c);
-  switch (corner_of(h)) {
-    case 0: {  // a -> apex(t): when t's face is cut, possibly the first third of its edge
-      const HalfedgeId sg = sharp_of(M::face(t));
-      if (!sg.valid()) return fine(M::next(t), 2);
-      if (t == M::next(sg)) return fine(sg, 1);
-      const HalfedgeId across = twin(sg);
-      return across.valid() ? fine(M::next(across), 2) : HalfedgeId();
+  if (k == 2) {  // apex(c) -> a
+    if (!s.valid()) return to_apex(Mesh::prev(c));
+    if (c == Mesh::next(s)) {  // m2 -> a: the last third of the sharp edge s
+      const HalfedgeId across = twin(s);
+      return across.valid() ? to_apex(Mesh::prev(across)) : HalfedgeId();
     }
-    case 1:
-      return fine(t, 1);
-    default: {  // apex(c) -> a: when c's face is cut, possibly the last third of its edge
-      if (!s.valid()) return fine(twin(M::prev(c)), 0);
-      if (c == M::next(s)) {
-        const HalfedgeId across = twin(s);
-        return across.valid() ? fine(twin(M::prev(across)), 0) : HalfedgeId();
-      }
-      return fine(s, 2);
-    }
+    return fine(s, 2);  // c == prev(s): shared with s's middle child
   }
+  if (kept(c)) {  // (a, b, apex(c))
+    if (k == 0) return t.valid() ? fine(t, 0) : HalfedgeId();
+    return to_apex_side(c);
+  }
+  // flipped: (a, apex(t), apex(c))
+  if (k == 0) return to_apex_side(t);
+  return fine(t, 1);
 }
 
 FaceId AdaptiveSqrt3::Hierarchy::child(HalfedgeId h) {
   const FaceId parent = Mesh::face(h);
   if (const FaceId known = tris_[parent].child[corner_of(h)]; known.valid()) return known;
   const int l = level(parent);
+  const HalfedgeId s = trisects(l) ? sharp_of(parent) : HalfedgeId();
   Tri c;
   c.level = static_cast<std::uint8_t>(l + 1);
   c.owner = h;
-  if (!trisects(l)) {
-    const HalfedgeId t = twin(h);
-    if (t.valid() && !sharp(h)) {
-      c.v = {from(h), face_point(Mesh::face(t)), face_point(parent)};
-      c.flags = kFlip;
-    } else {  // a sharp edge is kept whole with its face point's triangle
-      c.v = {from(h), to(h), face_point(parent)};
+  if (h == s) {  // the middle child of a face cut at its sharp edge
+    const auto [m1, m2] = trisection(s);
+    c.v = {m1, m2, opposite(s)};
+    c.sharp = 1;
+    c.canon = canonical(s) ? 1 : 0;
+  } else if (const HalfedgeId t = twin(h); kept(h)) {  // the edge kept whole with its apex
+    c.v = {from(h), to(h), apex(h)};
+    if (sharp(h) || !t.valid()) {
       c.sharp = 1;
       c.canon = canonical(h) ? 1 : 0;
     }
-  } else {
-    const HalfedgeId s = sharp_of(parent);
-    if (h == s) {
-      const auto [m1, m2] = trisection(s);
-      c.v = {m1, m2, opposite(s)};
-      c.sharp = 1;
-      c.canon = canonical(s) ? 1 : 0;
-    } else {
-      const HalfedgeId t = twin(h);
-      c.v = {from(h), apex(t), apex(h)};
-      c.flags = kFlip;
-      // a -> m1 is the first third of the sharp edge of t's face; its canonical half is on
-      // the other side of a crease (the last third there), on this side at a boundary.
-      const HalfedgeId sg = sharp_of(Mesh::face(t));
-      if (sg.valid() && t == Mesh::prev(sg)) {
-        c.sharp |= 1;
-        if (!twin(sg).valid()) c.canon |= 1;
-      }
-      // m2 -> a is the last third of this face's sharp edge; this side is canonical.
-      if (s.valid() && h == Mesh::next(s)) {
-        c.sharp |= 4;
-        c.canon |= 4;
-      }
+    // to(h) -> m1 is the first third of this face's sharp edge: canonical at a boundary only
+    // (across a crease it is the other side's last third).
+    if (s.valid() && h == Mesh::prev(s)) {
+      c.sharp |= 2;
+      if (!twin(s).valid()) c.canon |= 2;
+    }
+    if (s.valid() && h == Mesh::next(s)) {  // m2 -> a, the last third: canonical here
+      c.sharp |= 4;
+      c.canon |= 4;
+    }
+  } else {  // t looked up before kept(h), as before the guard (the same numbering)
+    c.v = {from(h), apex(t), apex(h)};
+    c.flags = kFlip;
+    // a -> m1 is the first third of the sharp edge of t's face; its canonical half is on
+    // the other side of a crease (the last third there), on this side at a boundary.
+    const HalfedgeId sg = trisects(l) ? sharp_of(Mesh::face(t)) : HalfedgeId();
+    if (sg.valid() && t == Mesh::prev(sg)) {
+      c.sharp |= 1;
+      if (!twin(sg).valid()) c.canon |= 1;
+    }
+    // m2 -> a is the last third of this face's sharp edge; this side is canonical.
+    if (s.valid() && h == Mesh::next(s)) {
+      c.sharp |= 4;
+      c.canon |= 4;
     }
   }
   if (tris_[parent].child[corner_of(h)].valid()) throw internal("a child was made twice");
