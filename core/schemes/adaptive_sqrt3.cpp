@@ -296,7 +296,19 @@ void AdaptiveSqrt3::Hierarchy::run(std::uint64_t max_faces, const std::atomic<bo
     const FaceId t(i);
     if (level(t) != criteria_.max_level || refined(t) || !exists(t)) continue;
     throw_if_cancelled();
-    if (wants_refinement(t)) ++stats_.over_criterion_at_cap;
+    if (wants_refinement(t)) {
+      ++stats_.over_criterion_at_cap;
+      // How far, and where: the report says where the cap stopped it.
+      const double d =
+          criteria_.tol > 0 ? deviation(t, std::numeric_limits<double>::infinity()) : 0.0;
+      if (std::isfinite(d) && d > stats_.max_over_tolerance) {
+        const auto& v = tris_[t].v;
+        const int l = level(t);
+        stats_.max_over_tolerance = d;
+        stats_.worst_over_tolerance_at =
+            (position(v[0], l) + position(v[1], l) + position(v[2], l)) * (1.0 / 3.0);
+      }
+    }
     if (held_bytes() > base + batch) rollback(mark);
   }
   rollback(mark);

@@ -59,6 +59,11 @@ struct Sqrt3AdaptiveStats {
   int levels = 0;  //!< finest level of an output face
   //! Output faces at max_level that a criterion would still refine.
   std::size_t over_criterion_at_cap = 0;
+  //! Of those, with the tolerance on: the largest distance (mm) of the surface two levels
+  //! finer from such a face (what the criterion measures against tol / 1.22; finite ones
+  //! only), and that face's centroid. 0 when none is over the tolerance.
+  double max_over_tolerance = 0;
+  Vec3 worst_over_tolerance_at{0, 0, 0};
   //! Edges of the hierarchy the fold guard left unflipped (in the output, or only measured
   //! by the criterion).
   std::size_t flips_kept = 0;
