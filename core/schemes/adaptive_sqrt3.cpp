@@ -339,6 +339,8 @@ void AdaptiveSqrt3::Hierarchy::rollback(const Checkpoint& c) {
   tris_.truncate(c.tris);
   verts_.truncate(c.verts);
   alpha_.truncate(c.verts);
+  stencil_pos_.truncate(c.verts);
+  stencil_known_.truncate(c.verts);
   pool_.truncate(c.slots);
   known_.truncate(c.slots);
 }

@@ -45,9 +45,10 @@ struct Sqrt3AdaptiveCriteria {
   //! Triangles of this level are not refined, [1, 8].
   int max_level = 4;
   Sqrt3Closure closure = Sqrt3Closure::Stencil;
-  //! AsStencil (production): an edge whose flip would fold is not flipped, as in
-  //! sqrt3_refine (adaptive_sqrt3_guard.cpp). Off: the stencil's rules alone, the same
-  //! triangles and points as sqrt3_refine with FoldGuard::Off.
+  //! AsStencil (production): an edge whose flip would fold is not flipped, and a face point
+  //! whose fine faces fold moves towards its face's centroid, as in sqrt3_refine
+  //! (adaptive_sqrt3_guard.cpp). Off: the stencil's rules alone, the same triangles and
+  //! points as sqrt3_refine with FoldGuard::Off.
   FoldGuard guard = FoldGuard::AsStencil;
 };
 
@@ -67,6 +68,8 @@ struct Sqrt3AdaptiveStats {
   //! Edges of the hierarchy the fold guard left unflipped (in the output, or only measured
   //! by the criterion).
   std::size_t flips_kept = 0;
+  //! Output face points the fold guard moved off the stencil's point.
+  std::size_t face_points_pulled = 0;
 };
 
 //! Forward adaptive sqrt3 refinement (Labsik-Greiner section 3.2 after Kobbelt, spec 3.6)

@@ -73,6 +73,7 @@ struct Vert {
   HalfedgeId home;         // a half-edge from it at its own level (invalid: not known yet)
   Origin origin = Origin::Input;
   std::uint8_t level = 0;
+  bool pulled = false;  // a face point the fold guard moved off the stencil's point
 };
 
 //! The criterion measures the surface two levels finer; the levels after those add a tail.
@@ -205,7 +206,14 @@ class AdaptiveSqrt3::Hierarchy {
   bool flip_folds(HalfedgeId h);
   Vec3 sector_normal(HalfedgeId h);
   Vec3 apex_normal(HalfedgeId h);
-  bool folds(const std::array<VertexId, 3>& c, int level, const Vec3& smooth);
+  bool folds(const std::array<VertexId, 3>& c, int level, const Vec3& smooth,
+             VertexId moved = VertexId(), const Vec3& at = Vec3{});
+  // The geometric half, for one face point: where a fine face round it folds, it moves.
+  Vec3 guard_face_point(VertexId q, const Vec3& stencil);
+  // The points the guard's decisions see: a face point's stencil point (before any pull,
+  // as in the uniform host's first round), any other vertex's position.
+  Vec3 guard_view(VertexId v, int level);
+  Vec3 stencil_face_point(VertexId q);
   // sqrt3_host's Sqrt3Layout::to_apex and set_to_apex_side: the fine half-edge to(x) ->
   // apex(x), and the one across it inside face(x).
   HalfedgeId to_apex(HalfedgeId x) {
@@ -242,7 +250,7 @@ class AdaptiveSqrt3::Hierarchy {
     // more, and a partly used block per queue.
     const std::uint64_t queues = 5 * std::uint64_t(tris_.capacity()) + queue_.size() * 2048;
     return tris_.bytes() + verts_.bytes() + pool_.bytes() + known_.bytes() + alpha_.bytes() +
-           queues + patch_bytes_ + transient_bytes_;
+           stencil_pos_.bytes() + stencil_known_.bytes() + queues + patch_bytes_ + transient_bytes_;
   }
   void need(std::uint64_t bytes) const {
     if (reserve_) reserve_(bytes);
@@ -330,6 +338,8 @@ class AdaptiveSqrt3::Hierarchy {
   Chunked<Vec3> pool_;
   Chunked<std::uint8_t> known_;
   Chunked<double> alpha_;
+  Chunked<Vec3> stencil_pos_;  // guarded: per vertex, a face point's stencil point
+  Chunked<std::uint8_t> stencil_known_;
 
   std::array<std::deque<FaceId>, 9> queue_;
   std::size_t refined_count_ = 0;

@@ -36,6 +36,7 @@ Level AdaptiveSqrt3::Hierarchy::result(std::vector<std::uint8_t>* face_level) {
   phase(face_list + face_bits);
 
   stats_.flips_kept = 0;
+  stats_.face_points_pulled = 0;
   std::vector<Face> faces;
   std::vector<std::uint8_t> sharp_bits, levels;
   faces.reserve(num_faces);
@@ -98,6 +99,7 @@ Level AdaptiveSqrt3::Hierarchy::result(std::vector<std::uint8_t>* face_level) {
   for (std::uint32_t i = 0; i < used.size(); ++i) {
     out_id[used[i]] = i;
     positions[i] = position(VertexId(used[i]), vertex_level[used[i]]);
+    stats_.face_points_pulled += verts_[VertexId(used[i])].pulled;
     if (has_alpha_) alpha[i] = alpha_[used[i]];
   }
   std::vector<std::uint32_t>().swap(used);
