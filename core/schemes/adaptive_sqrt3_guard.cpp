@@ -153,7 +153,14 @@ Vec3 AdaptiveSqrt3::Hierarchy::apex_normal(HalfedgeId h) {
 // edges (or the boundary) on either side of h's face.
 Vec3 AdaptiveSqrt3::Hierarchy::sector_normal(HalfedgeId h) {
   constexpr int kMaxValence = 1 << 16;
-  const int l = level(Mesh::face(h));
+  const FaceId f = Mesh::face(h);
+  const std::uint8_t k = corner_of(h);
+  const auto known = static_cast<std::uint8_t>(kNormalKnown << k);
+  if (tris_[f].flags & known) {
+    const std::array<float, 9>& c = corner_normal_[f];
+    return Vec3{c[3 * k], c[3 * k + 1], c[3 * k + 2]};
+  }
+  const int l = level(f);
   const Vec3 p = position(from(h), l);
   Vec3 sum{};
   auto add = [&](HalfedgeId c) {
@@ -187,7 +194,14 @@ Vec3 AdaptiveSqrt3::Hierarchy::sector_normal(HalfedgeId h) {
       if (++steps > kMaxValence) throw internal("a vertex fan does not close");
     }
   }
-  return normalized(sum);
+  // Stored and returned as floats: the same value whether computed now or read back.
+  const Vec3 n = normalized(sum);
+  std::array<float, 9>& c = corner_normal_[f];
+  c[3 * k] = static_cast<float>(n.x);
+  c[3 * k + 1] = static_cast<float>(n.y);
+  c[3 * k + 2] = static_cast<float>(n.z);
+  tris_[f].flags |= known;
+  return Vec3{c[3 * k], c[3 * k + 1], c[3 * k + 2]};
 }
 
 }  // namespace stlrefine

@@ -45,6 +45,7 @@ enum TriFlag : std::uint8_t {
   kFlip = 2,           // made by a flip: exists once the triangles on both sides are refined
   kQueued = 4,         // in the driver's queue
   kPiecesChecked = 8,  // refined, and its pieces (edges not flipped yet) were measured
+  kNormalKnown = 16,   // << k: the sector normal at corner k is in corner_normal_ (guarded)
 };
 
 //! A triangle of the uniform hierarchy at its level. Corner order, neighbours and children
@@ -250,7 +251,8 @@ class AdaptiveSqrt3::Hierarchy {
     // more, and a partly used block per queue.
     const std::uint64_t queues = 5 * std::uint64_t(tris_.capacity()) + queue_.size() * 2048;
     return tris_.bytes() + verts_.bytes() + pool_.bytes() + known_.bytes() + alpha_.bytes() +
-           stencil_pos_.bytes() + stencil_known_.bytes() + queues + patch_bytes_ + transient_bytes_;
+           stencil_pos_.bytes() + stencil_known_.bytes() + corner_normal_.bytes() + queues +
+           patch_bytes_ + transient_bytes_;
   }
   void need(std::uint64_t bytes) const {
     if (reserve_) reserve_(bytes);
@@ -339,6 +341,9 @@ class AdaptiveSqrt3::Hierarchy {
   Chunked<std::uint8_t> known_;
   Chunked<double> alpha_;
   Chunked<Vec3> stencil_pos_;  // guarded: per vertex, a face point's stencil point
+  // Guarded: per triangle, the sector normals at its corners (floats: the guard compares
+  // them with a 30 degree limit), each computed once; the guard asks for each many times.
+  Chunked<std::array<float, 9>> corner_normal_;
   Chunked<std::uint8_t> stencil_known_;
 
   std::array<std::deque<FaceId>, 9> queue_;

@@ -95,9 +95,12 @@ VertexId AdaptiveSqrt3::Hierarchy::new_vertex(Origin origin, FaceId tri, int lev
 FaceId AdaptiveSqrt3::Hierarchy::add_tri(const Tri& t) {
   // Far past any face budget's memory; keeps the half-edge ids 3t + k in 32 bits.
   if (tris_.size() >= kMaxTriangles) throw internal("the hierarchy has too many triangles");
-  if (const std::uint64_t growth = tris_.growth_bytes(tris_.size() + 1))
-    need(held_bytes() + growth);
+  const std::uint64_t growth =
+      tris_.growth_bytes(tris_.size() + 1) +
+      (guarded_ ? corner_normal_.growth_bytes(corner_normal_.size() + 1) : 0);
+  if (growth) need(held_bytes() + growth);
   tris_.push_back(t);
+  if (guarded_) corner_normal_.push_back({});
   return FaceId(static_cast<std::uint32_t>(tris_.size() - 1));
 }
 
