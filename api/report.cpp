@@ -252,12 +252,12 @@ Json refine_report(const Ingested& in, const RefineReport& r, const RefineReques
   j["edges_over_tolerance"] = r.edges_over_tolerance;
   j["faces_over_criterion"] = r.faces_over_criterion;
   if (!r.stop_reason.empty()) {
-    // Adaptive mode: why it stopped, and (1-to-4, at the cap) how far off and where.
+    // Adaptive mode: why it stopped, and (at the cap) how far off and where.
     Json stop = {{"reason", r.stop_reason}};
-    if (r.stop_reason == "max_level" && r.edges_over_tolerance > 0) {
+    if (r.stop_reason == "max_level" && (r.edges_over_tolerance > 0 || r.max_over_tolerance > 0)) {
       stop["max_over_tolerance_mm"] = r.max_over_tolerance;
       stop["worst_at"] = vec3_json(r.worst_over_tolerance_at);
-      stop["edges_not_converging"] = r.edges_not_converging;
+      if (r.edges_over_tolerance > 0) stop["edges_not_converging"] = r.edges_not_converging;
     }
     j["adaptive_stop"] = std::move(stop);
   }

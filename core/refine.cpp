@@ -276,6 +276,10 @@ RefineResult run_levels(Mesh mesh, const RefineParams& params, const Scheme& sch
     level = adaptive->result();
     r.levels = adaptive->stats().levels;
     r.faces_over_criterion = adaptive->stats().over_criterion_at_cap;
+    // Flips the fold guard did not make, face points it moved.
+    stats.fold_fallbacks += adaptive->stats().flips_kept + adaptive->stats().face_points_pulled;
+    r.max_over_tolerance = adaptive->stats().max_over_tolerance;
+    r.worst_over_tolerance_at = adaptive->stats().worst_over_tolerance_at;
     r.stop_reason = r.faces_over_criterion > 0 ? "max_level" : "tolerance";
   } else if (params.adaptive()) {
     const Split4Stencil& stencil = *adaptive_scheme(scheme);

@@ -45,6 +45,11 @@ struct Sqrt3AdaptiveCriteria {
   //! Triangles of this level are not refined, [1, 8].
   int max_level = 4;
   Sqrt3Closure closure = Sqrt3Closure::Stencil;
+  //! AsStencil (production): an edge whose flip would fold is not flipped, and a face point
+  //! whose fine faces fold moves towards its face's centroid, as in sqrt3_refine
+  //! (adaptive_sqrt3_guard.cpp). Off: the stencil's rules alone, the same triangles and
+  //! points as sqrt3_refine with FoldGuard::Off.
+  FoldGuard guard = FoldGuard::AsStencil;
 };
 
 struct Sqrt3AdaptiveStats {
@@ -55,6 +60,16 @@ struct Sqrt3AdaptiveStats {
   int levels = 0;  //!< finest level of an output face
   //! Output faces at max_level that a criterion would still refine.
   std::size_t over_criterion_at_cap = 0;
+  //! Of those, with the tolerance on: the largest distance (mm) of the surface two levels
+  //! finer from such a face (what the criterion measures against tol / 1.22; finite ones
+  //! only), and that face's centroid. 0 when none is over the tolerance.
+  double max_over_tolerance = 0;
+  Vec3 worst_over_tolerance_at{0, 0, 0};
+  //! Edges of the hierarchy the fold guard left unflipped (in the output, or only measured
+  //! by the criterion).
+  std::size_t flips_kept = 0;
+  //! Output face points the fold guard moved off the stencil's point.
+  std::size_t face_points_pulled = 0;
 };
 
 //! Forward adaptive sqrt3 refinement (Labsik-Greiner section 3.2 after Kobbelt, spec 3.6)

@@ -61,9 +61,12 @@ struct Outcome {
   Sqrt3AdaptiveStats stats;
 };
 
-Outcome adapt(const Level& coarse, const char* scheme, const Sqrt3AdaptiveCriteria& c,
+// The hierarchy's rules alone (FoldGuard::Off), compared here with the uniform host's
+// rules alone, which it matches; the fold guard is tested in adaptive_sqrt3_guard_test.cpp.
+Outcome adapt(const Level& coarse, const char* scheme, Sqrt3AdaptiveCriteria c,
               std::uint64_t max_faces = 1u << 26) {
   const auto s = make_scheme(scheme);
+  c.guard = FoldGuard::Off;
   AdaptiveSqrt3 adaptive(coarse, *adaptive_sqrt3_scheme(*s), c);
   adaptive.run(max_faces);
   Outcome out;
@@ -72,8 +75,6 @@ Outcome adapt(const Level& coarse, const char* scheme, const Sqrt3AdaptiveCriter
   return out;
 }
 
-// The adaptive sqrt3 host has no fold guard yet (issue 17 item 2 added it to the uniform
-// host): it is compared with the uniform host's rules alone, which it matches.
 Level uniform(const Level& coarse, const char* scheme, int levels) {
   return refine_levels_unguarded(scheme, coarse, levels);
 }

@@ -56,8 +56,8 @@ inline Level refine_levels(std::string_view scheme, Level level, int levels,
 }
 
 //! A sqrt3 stencil's rules without the host's fold guard: for tests that read the linear
-//! rules alone (weights off a lifted vertex) or compare with the adaptive sqrt3 host, which
-//! has no fold guard yet.
+//! rules alone (weights off a lifted vertex) or compare with the adaptive sqrt3 host run
+//! with FoldGuard::Off.
 class UnguardedSqrt3 final : public Sqrt3Stencil {
  public:
   explicit UnguardedSqrt3(const Sqrt3Stencil& s) : s_(s) {}
