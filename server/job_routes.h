@@ -17,6 +17,9 @@ namespace stlrefine::server {
 //! it). \pre ctx.jobs
 void serve_job_submit(const RouteContext& ctx, const HttpRequest& req, api::RefinePlan parameters,
                       HttpAnswer& res);
+//! GET /v1/jobs: the caller's jobs, newest first, `limit` (1..100, 20) at a time from
+//! `cursor` (the `next` link of the page before), `state` filter. \pre ctx.jobs
+void serve_job_list(const RouteContext& ctx, const HttpRequest& req, HttpAnswer& res);
 //! /v1/jobs/{id} and /v1/jobs/{id}/{file}. \pre ctx.jobs
 void serve_job_item(const RouteContext& ctx, const HttpRequest& req, HttpAnswer& res);
 

@@ -78,13 +78,19 @@ struct JobView {
   std::string stage;     //!< "queued", "level 2/3", "slicing", "done", ...
   std::string scheme;
   std::string query;  //!< the parameters as submitted
+  std::string name;   //!< the uploaded file's name (http_upload.h's upload_name), or empty
   std::chrono::system_clock::time_point created, started, finished;
   nlohmann::ordered_json report;                  //!< the refine report once done
   std::optional<nlohmann::ordered_json> problem;  //!< RFC 9457 body once failed/cancelled
   std::vector<std::string> results;               //!< file names ready for download
 };
 
-//! The job's JSON answer: id, state, progress, stage, timings, report, problem, links.
+//! Seconds a running job still needs, from its progress and its run time so far; 0 when
+//! done; null (JSON) until that is meaningful and for a job not running.
+nlohmann::ordered_json eta_seconds(const JobView& job);
+
+//! The job's JSON answer: id, state, progress, stage, eta_seconds, timings, report,
+//! problem, links.
 nlohmann::ordered_json job_json(const JobView& job);
 
 //! What JobStore::submit did with a job.
@@ -147,8 +153,10 @@ class JobStore {
   //! leaves no job directory behind (NoSpace when it failed for want of space, otherwise
   //! the exception propagates).
   //! `plan` is what the job's runner uses (made with `stl_bytes`; nothing is planned again).
+  //! `name`: the uploaded file's name, kept with the job (its downloads are named after it).
   SubmitResult submit(api::RefinePlan plan, std::string query, std::string_view stl_bytes,
-                      std::string owner, std::uint64_t predicted_result_bytes);
+                      std::string owner, std::uint64_t predicted_result_bytes,
+                      std::string name = {});
   //! submit for a request parsed and validated: planned here on `stl_bytes`.
   //! \throw Error(InvalidParameter) when its scheme cannot be made from it.
   SubmitResult submit(api::RefineRequest request, std::string query, std::string_view stl_bytes,
@@ -176,6 +184,18 @@ class JobStore {
   //! replicas of the directory), 32 hex digits. Stable across restarts; the key itself is
   //! never stored.
   std::string tenant_of(std::string_view api_key) const;
+  //! Where a page of list() starts: after the job created at created_ms with this id (the
+  //! order is newest first, ties by id).
+  struct ListCursor {
+    std::int64_t created_ms = 0;
+    std::string id;
+  };
+  //! `owner`'s jobs known to this store (submitted here, or found at its start), newest
+  //! first, at most `limit` of them after `after`, in `state` when given. `more`: whether
+  //! another page follows.
+  std::vector<JobView> list(const std::string& owner, std::optional<JobState> state,
+                            const std::optional<ListCursor>& after, std::size_t limit,
+                            bool* more) const;
   //! Path of a result file of a done job (name from JobView::results).
   std::filesystem::path result_path(const std::string& id, const std::string& name) const;
 

@@ -19,7 +19,7 @@ constexpr Route kRoutes[] = {
     {"/v1/refine", "POST", RouteKind::Compute},
     {"/v1/slice", "POST", RouteKind::Compute},
     {"/v1/info", "POST", RouteKind::Compute},
-    {"/v1/jobs", "POST", RouteKind::Submit},
+    {"/v1/jobs", "GET, HEAD, POST", RouteKind::Submit},
     {"/v1/jobs/", "GET, HEAD, DELETE", RouteKind::JobItem},
     {"/v1/openapi.json", "GET, HEAD", RouteKind::Plain},
     {"/metrics", "GET, HEAD", RouteKind::Plain},
@@ -40,8 +40,8 @@ const Route* find_route(const std::string& path) {
   return nullptr;
 }
 
-bool has_body(const Route& route) {
-  return route.kind == RouteKind::Compute || route.kind == RouteKind::Submit;
+bool has_body(const Route& route, std::string_view method) {
+  return route.kind == RouteKind::Compute || (route.kind == RouteKind::Submit && method == "POST");
 }
 
 bool method_allowed(const Route& route, const std::string& method) {
