@@ -175,7 +175,7 @@ void serve_job_item(const RouteContext& ctx, const HttpRequest& req, HttpAnswer&
   const std::size_t slash = rest.find('/');
   const std::string id = rest.substr(0, slash);
   const std::string file = slash == std::string::npos ? "" : rest.substr(slash + 1);
-  if (slash != std::string::npos && !job_file_name(file))
+  if (slash != std::string::npos && !job_file_name(file) && file != "events")
     return ctx.respond(res, api::not_found("not-found", "no route " + shortened(req.path)));
   if (!file.empty() && req.method == "DELETE") {
     api::Problem p = api::method_not_allowed(
@@ -212,6 +212,7 @@ void serve_job_item(const RouteContext& ctx, const HttpRequest& req, HttpAnswer&
     return ctx.respond(res, api::gone("expired", "the results of job " + id +
                                                      " were removed after the retention period"));
   }
+  if (file == "events") return serve_job_events(ctx, req, id, res);
   if (file.empty()) {
     if (found == JobStore::Lookup::Expired && req.method != "DELETE") res.status = api::http::kGone;
     res.set_content(job_json(job).dump(2) + "\n", kJsonContentType);
