@@ -26,6 +26,7 @@ std::shared_ptr<JobStore::Job> JobStore::read_job(const fs::path& dir) const {
   job->scheme = j.value("scheme", "");
   job->query = j.value("parameters", "");
   job->name = j.value("name", "");
+  job->callback_url = j.value("callback_url", "");
   job->progress = j.value("progress", 0.0);
   job->stage = j.value("stage", "");
   job->created = from_epoch_ms(j.value("created_ms", std::int64_t{0}));
@@ -108,6 +109,7 @@ void JobStore::persist(const Job& job) const {
   j["scheme"] = job.scheme;
   j["parameters"] = job.query;
   if (!job.name.empty()) j["name"] = job.name;
+  if (!job.callback_url.empty()) j["callback_url"] = job.callback_url;
   j["progress"] = job.progress;
   j["stage"] = job.stage;
   j["created_ms"] = epoch_ms(job.created);

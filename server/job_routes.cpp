@@ -134,6 +134,27 @@ void serve_job_submit(const RouteContext& ctx, const HttpRequest& req, api::Refi
   Upload upload;
   if (std::optional<api::Problem> bad = read_upload(req, upload)) return ctx.respond(res, *bad);
   const std::string_view body = upload.bytes;
+  // callback_url: refused now (syntax, allow-list, resolved addresses), not when it ends.
+  std::string callback_url;
+  try {
+    int given = 0;
+    for (auto& [name, value] : req.parameters())
+      if (name == "callback_url") {
+        callback_url = value;
+        ++given;
+      }
+    if (given > 1) {
+      api::Problem p = api::bad_request("invalid-parameter", "callback_url is given twice");
+      p.field = "callback_url";
+      return ctx.respond(res, p);
+    }
+  } catch (const Error& e) {
+    return ctx.respond(res, api::problem_from_error(e));
+  }
+  if (!callback_url.empty())
+    if (std::optional<api::Problem> refused =
+            check_callback_url(ctx.jobs->config().callbacks, callback_url, nullptr))
+      return ctx.respond(res, *refused);
   if (ctx.config.test_hook) ctx.config.test_hook("/v1/jobs");
   // The contours carry the file's name (SVG title, CLI $$LABEL, JSON name).
   if (parameters.request.slice) parameters.request.slice->writer.label = download_stem(upload.name);
@@ -148,9 +169,10 @@ void serve_job_submit(const RouteContext& ctx, const HttpRequest& req, api::Refi
     std::string query = q == std::string::npos ? "" : req.target.substr(q + 1);
     const std::uint64_t result_bytes = predicted_result_bytes(plan.request, predicted);
     const SubmitResult submitted =
-        ctx.stopping ? SubmitResult::refused(SubmitResult::Status::ShuttingDown)
-                     : ctx.jobs->submit(std::move(plan), std::move(query), body, ctx.tenant(req),
-                                        result_bytes, std::move(upload.name));
+        ctx.stopping
+            ? SubmitResult::refused(SubmitResult::Status::ShuttingDown)
+            : ctx.jobs->submit(std::move(plan), std::move(query), body, ctx.tenant(req),
+                               result_bytes, std::move(upload.name), std::move(callback_url));
     if (submitted.status == SubmitResult::Status::NoSpace)
       return ctx.respond(res, no_space_problem(submitted));
     const std::optional<JobView>& job = submitted.job;

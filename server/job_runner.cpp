@@ -256,6 +256,7 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
   }
   if (on_finished_)
     on_finished_(done, std::chrono::duration<double>(done.finished - done.started).count());
+  notify_ended(done);
   janitor_wake_.notify_one();  // the disk budget may now be exceeded
 }
 

@@ -30,6 +30,8 @@ JobStore::JobStore(JobsConfig config, ComputeSlots& slots, FinishedFn on_finishe
   fs::create_directories(config_.data_dir);
   tenant_key_ = load_tenant_key(config_.data_dir);
   load_existing();
+  if (!config_.callbacks.secret.empty() && !config_.callbacks.allow.empty())
+    callbacks_ = std::make_unique<CallbackSender>(config_.callbacks);
   for (std::size_t i = 0; i < config_.runners; ++i) runners_.emplace_back([this] { run_jobs(); });
   janitor_ = std::thread([this] { janitor(); });
 }
@@ -60,6 +62,7 @@ JobView JobStore::view(const Job& job) const {
   v.scheme = job.scheme;
   v.query = job.query;
   v.name = job.name;
+  v.callback_url = job.callback_url;
   v.created = job.created;
   v.started = job.started;
   v.finished = job.finished;
@@ -92,6 +95,11 @@ std::vector<JobView> JobStore::list(const std::string& owner, std::optional<JobS
   return out;
 }
 
+void JobStore::notify_ended(const JobView& job) {
+  if (callbacks_ && !job.callback_url.empty())
+    callbacks_->send(job.callback_url, job_json(job).dump());
+}
+
 void JobStore::release_disk(Job& job) {
   committed_disk_ -= std::min(committed_disk_, job.reserved_disk);
   job.reserved_disk = 0;
@@ -108,7 +116,7 @@ SubmitResult JobStore::submit(api::RefineRequest request, std::string query,
 
 SubmitResult JobStore::submit(api::RefinePlan plan, std::string query, std::string_view stl_bytes,
                               std::string owner, std::uint64_t predicted_result_bytes,
-                              std::string name) {
+                              std::string name, std::string callback_url) {
   using Status = SubmitResult::Status;
   std::uint64_t needed = 0;
   auto job = std::make_shared<Job>();
@@ -119,6 +127,7 @@ SubmitResult JobStore::submit(api::RefinePlan plan, std::string query, std::stri
   job->scheme = plan.request.refine.scheme;
   job->query = std::move(query);
   job->name = std::move(name);
+  job->callback_url = std::move(callback_url);
   job->plan = std::move(plan);
   job->created = Clock::now();
   const std::uint64_t input = stl_bytes.size();
@@ -284,6 +293,7 @@ JobStore::Lookup JobStore::cancel(const std::string& id, const std::string& owne
         std::error_code ignored;
         fs::remove(job.dir / kInputFile, ignored);
         persist_or_log(job);
+        notify_ended(view(job));
       }
       if (out) {
         *out = view(job);

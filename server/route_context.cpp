@@ -145,7 +145,10 @@ std::optional<api::Problem> RouteContext::precheck(const HttpRequest& req,
   // Parameters, before the body is uploaded: resolved once, for the handler. A refinement's
   // validation makes its scheme (make_scheme(RefineParams)); that scheme is the one it runs.
   try {
-    const api::RawParams raw = req.parameters();
+    api::RawParams raw = req.parameters();
+    // A job's own parameter (not the refinement's): checked by its handler.
+    if (route->kind == RouteKind::Submit)
+      std::erase_if(raw, [](const auto& p) { return p.first == "callback_url"; });
     if (route->kind == RouteKind::Submit || route->path == std::string_view("/v1/refine"))
       checked.refine = api::plan_refine(api::parse_refine_fields(raw, limits));
     else if (route->path == std::string_view("/v1/slice"))
