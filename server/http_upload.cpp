@@ -16,7 +16,9 @@ namespace stlrefine::server {
 
 namespace {
 
-constexpr std::size_t kMaxPartHead = 8 << 10;  // a part's header block
+// A part's header block (in memory already: the bound is on the scan). Long enough for a
+// 1 MB file name, which is then cut to kMaxNameBytes.
+constexpr std::size_t kMaxPartHead = 2 << 20;
 constexpr std::size_t kMaxNameBytes = 200;
 
 std::string_view trim(std::string_view s) {
@@ -200,7 +202,7 @@ std::optional<api::Problem> read_upload(const HttpRequest& req, Upload& out) {
     if (body.substr(pos, 2) == "\r\n") {
       content_start = pos + 2;
     } else if (head_end == std::string_view::npos) {
-      return upload_problem("file", "a multipart part's headers do not end (or exceed 8 KiB)",
+      return upload_problem("file", "a multipart part's headers do not end (or exceed 2 MiB)",
                             "malformed_multipart");
     } else {
       head = body.substr(pos, head_end + 2 - pos);  // each line with its CRLF
