@@ -19,7 +19,7 @@ namespace {
 // A part's header block (in memory already: the bound is on the scan). Long enough for a
 // 1 MB file name, which is then cut to kMaxNameBytes.
 constexpr std::size_t kMaxPartHead = 2 << 20;
-constexpr std::size_t kMaxNameBytes = 200;
+constexpr std::size_t kMaxNameBytes = 240;
 
 std::string_view trim(std::string_view s) {
   while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);

@@ -37,7 +37,7 @@ std::optional<std::string> multipart_boundary(std::string_view content_type);
 std::optional<api::Problem> read_upload(const HttpRequest& req, Upload& out);
 
 //! A client's file name as it may be kept: the last path component, without control
-//! characters and invalid UTF-8, at most 200 bytes (cut at a character boundary), trimmed
+//! characters and invalid UTF-8, at most 240 bytes (cut at a character boundary), trimmed
 //! of spaces and dots; empty when nothing is left.
 std::string upload_name(std::string_view raw);
 

@@ -266,7 +266,7 @@ bool CallbackSender::deliver(const Delivery& d) {
   httplib::Headers headers = {{"X-Stlrefine-Signature", callback_signature(policy_.secret, d.body)},
                               {"User-Agent", "stlrefined"}};
   const httplib::Result r = client.Post(t.path, headers, d.body, "application/json");
-  if (r && r->status >= 200 && r->status < 300) return true;
+  if (r && r->status / 100 == 2) return true;  // any 2xx
   log_line("stlrefined: callback to " + shortened(d.url) + " attempt " +
            std::to_string(d.attempt + 1) + ": " +
            (r ? "status " + std::to_string(r->status) : httplib::to_string(r.error())));

@@ -63,6 +63,7 @@ std::vector<RouteInfo> served_routes() {
   for (const Route& r : kRoutes) {
     if (r.kind == RouteKind::JobItem) {
       out.push_back({"/v1/jobs/{id}", r.allow});
+      out.push_back({"/v1/jobs/{id}/events", "GET, HEAD"});
       out.push_back({"/v1/jobs/{id}/{file}", "GET, HEAD"});
     } else if (r.path == std::string_view("/assets/")) {
       out.push_back({"/assets/{file}", r.allow});
