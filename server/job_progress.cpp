@@ -8,17 +8,17 @@ namespace stlrefine::server {
 
 namespace {
 
-// Relative cost per unit of each stage, from the phase timings of job reports (fandisk and
-// bunny, butterfly and loop, 1-3 levels, sliced at 0.1-0.5 mm): reading and preparing an
-// input face costs about what making three output faces does; the deviation post-pass
-// about as much as the refinement; slicing is per output face and per contour point;
-// writing per output face.
+// Relative cost per unit of each stage, from stage timelines of fandisk jobs (butterfly,
+// loop, lsf, 2-4 levels, sliced at 0.02-0.05 mm or not: bench/results-issue19-s4-jobs.md):
+// reading and preparing an input face costs about what making one output face does; the
+// deviation post-pass (when it runs) a little more than the refinement; slicing is per
+// output face and per contour point; writing per output face.
 constexpr double kIngestPerInputFace = 3;
-constexpr double kRefinePerOutputFace = 4;
-constexpr double kPostPassPerOutputFace = 3;
+constexpr double kRefinePerOutputFace = 3;
+constexpr double kPostPassPerOutputFace = 4;
 constexpr double kSlicePerOutputFace = 1;
 constexpr double kSlicePerPoint = 2;
-constexpr double kWritePerOutputFace = 1;
+constexpr double kWritePerOutputFace = 2.5;
 // Held back until the job is done: its final rename and record are not free either.
 constexpr double kBeforeDone = 0.995;
 
@@ -29,7 +29,7 @@ JobProgress::JobProgress(const api::RefinePlan& plan) {
   const double out = static_cast<double>(std::max<std::uint64_t>(plan.predicted_faces, 1));
   weight_[0] = kIngestPerInputFace * in;
   weight_[1] = kRefinePerOutputFace * out;
-  weight_[2] = kPostPassPerOutputFace * out;
+  weight_[2] = plan.request.primitives.post_pass() ? kPostPassPerOutputFace * out : 0;
   weight_[3] = plan.request.slice
                    ? kSlicePerOutputFace * out +
                          kSlicePerPoint * static_cast<double>(plan.memory.contour_points)
