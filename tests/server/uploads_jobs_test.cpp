@@ -15,6 +15,7 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -491,6 +492,38 @@ TEST(JobEvents, StreamProgressThenTheFinalJobAndEnd) {
   auto unknown = c.Get("/v1/jobs/0123456789abcdef0123456789abcdef/events");
   ASSERT_TRUE(unknown);
   EXPECT_EQ(unknown->status, 404);
+}
+
+TEST(JobEvents, StreamsHoldNoWorker) {
+  // One HTTP worker: event streams waiting on a long job (and a client that never reads)
+  // leave it free for every other request.
+  const fs::path dir = fresh_dir("events-workers");
+  DaemonConfig config = config_with_jobs(dir);
+  config.http_threads = 1;
+  test::InProcessDaemon d(config);
+  httplib::Client c = d.client();
+  auto r = c.Post("/v1/jobs?scheme=butterfly&levels=4", fandisk(), "model/stl");
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 202);
+  const std::string location = r->get_header_value("Location");
+  std::vector<std::unique_ptr<test::RawConnection>> streams;
+  for (int i = 0; i < 4; ++i) {
+    streams.push_back(std::make_unique<test::RawConnection>(d.port()));
+    ASSERT_TRUE(streams.back()->send("GET " + location + "/events HTTP/1.1\r\nHost: x\r\n\r\n"));
+  }
+  std::this_thread::sleep_for(300ms);
+  for (int i = 0; i < 5; ++i) {
+    const auto start = std::chrono::steady_clock::now();
+    auto g = c.Get(location.c_str());
+    ASSERT_TRUE(g);
+    EXPECT_EQ(g->status, 200);
+    EXPECT_LT(std::chrono::steady_clock::now() - start, 2s);
+  }
+  // Every stream still gets its end.
+  for (auto& s : streams) {
+    const std::string text = s->read_all(120s);
+    EXPECT_NE(text.find("event: end"), std::string::npos) << text.substr(0, 300);
+  }
 }
 
 std::string percent_encoded(const std::string& text) {
