@@ -10,6 +10,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/error.h"
 #include "server/request_head.h"
 
 namespace stlrefine::server {
@@ -161,11 +162,25 @@ std::optional<api::Problem> read_upload(const HttpRequest& req, Upload& out) {
   out = Upload{req.body, {}};
   const std::string content_type = req.header("Content-Type");
   const std::optional<std::string> boundary = multipart_boundary(content_type);
+  // `filename=` in the query: any body's name unless the body names itself.
+  std::string query_name;
+  int query_names = 0;
+  try {
+    for (const auto& [name, value] : req.parameters())
+      if (name == "filename") {
+        query_name = value;
+        ++query_names;
+      }
+  } catch (const Error& e) {  // precheck parsed it already; a handler called directly may not
+    return api::problem_from_error(e);
+  }
+  if (query_names > 1) return upload_problem("filename", "filename is given twice", "duplicate");
   if (!boundary) {
-    // A raw body: its name, when the client gives one, in a Content-Disposition header.
+    // A raw body: its name in a Content-Disposition header, else the query's.
     if (req.has_header("Content-Disposition"))
       out.name = upload_name(
           disposition_filename(header_params(req.header("Content-Disposition")).second));
+    if (out.name.empty()) out.name = upload_name(query_name);
     return std::nullopt;
   }
   if (boundary->empty())
@@ -253,7 +268,7 @@ std::optional<api::Problem> read_upload(const HttpRequest& req, Upload& out) {
                             "duplicate_file");
     have_file = true;
     out.bytes = body.substr(content_start, content_end - content_start);
-    out.name = upload_name(filename);
+    out.name = upload_name(filename.empty() ? query_name : filename);
     pos = content_end + inner.size();
   }
   if (!have_file)

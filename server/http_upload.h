@@ -30,7 +30,9 @@ struct Upload {
 //! (RFC 2046: 1..70 characters).
 std::optional<std::string> multipart_boundary(std::string_view content_type);
 
-//! The file a request uploads. 400 (bad-request, `field` names the part or header) for a
+//! The file a request uploads, and its name: the part's filename, a raw body's
+//! Content-Disposition filename, else the query's `filename=`. 400 (bad-request, `field`
+//! names the part, header or parameter) for a repeated `filename`, for a
 //! multipart body without a `file` part, with a second one, with another field (parameters
 //! are given in the query string), with malformed part headers or without its closing
 //! boundary.

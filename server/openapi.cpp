@@ -105,6 +105,17 @@ Json header(const char* description, const char* type = "string") {
 }
 
 // Busy and shutting-down answers say when to come back.
+// The same as a query parameter, for clients that cannot set a header.
+Json filename_parameter() {
+  return {{"name", "filename"},
+          {"in", "query"},
+          {"required", false},
+          {"description",
+           "The file's name when the body does not carry one (no multipart filename, no "
+           "Content-Disposition header): the downloads are named after it."},
+          {"schema", {{"type", "string"}}}};
+}
+
 // Every download: `attachment; filename="part_refined.stl"` (RFC 6266, `filename*` for a
 // name that is not ASCII).
 Json download_header() {
@@ -255,6 +266,7 @@ Json build() {
               "the resolved addresses): otherwise 400."},
              {"schema", {{"type", "string"}, {"format", "uri"}, {"maxLength", 2048}}}});
       op["parameters"].push_back(disposition_parameter());
+      op["parameters"].push_back(filename_parameter());
       op["requestBody"] = stl_body();
       item["post"] = op;
       if (p == "/v1/jobs") {
@@ -306,6 +318,7 @@ Json build() {
       op["responses"]["200"]["headers"]["Content-Disposition"] = download_header();
       op["parameters"] = query_parameters(api::slice_param_names(limits));
       op["parameters"].push_back(disposition_parameter());
+      op["parameters"].push_back(filename_parameter());
       op["requestBody"] = stl_body();
       item["post"] = op;
     } else if (p == "/v1/info") {

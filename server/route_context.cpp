@@ -146,9 +146,13 @@ std::optional<api::Problem> RouteContext::precheck(const HttpRequest& req,
   // validation makes its scheme (make_scheme(RefineParams)); that scheme is the one it runs.
   try {
     api::RawParams raw = req.parameters();
-    // A job's own parameter (not the refinement's): checked by its handler.
-    if (route->kind == RouteKind::Submit)
-      std::erase_if(raw, [](const auto& p) { return p.first == "callback_url"; });
+    // The upload's own parameters (not the computation's): read by the handlers (a job's
+    // callback_url; the name of a file whose downloads are named, not /v1/info's).
+    const bool named = route->path != std::string_view("/v1/info");
+    std::erase_if(raw, [&](const auto& p) {
+      return (p.first == "filename" && named) ||
+             (p.first == "callback_url" && route->kind == RouteKind::Submit);
+    });
     if (route->kind == RouteKind::Submit || route->path == std::string_view("/v1/refine"))
       checked.refine = api::plan_refine(api::parse_refine_fields(raw, limits));
     else if (route->path == std::string_view("/v1/slice"))

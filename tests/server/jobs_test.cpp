@@ -418,11 +418,14 @@ TEST(OpenApi, DocumentsExactlyTheServedRoutesAndParameters) {
   std::set<std::string> job_names = as_set(api::refine_param_names(daemon_limits));
   job_names.insert("callback_url");
   job_names.insert("Content-Disposition");
+  job_names.insert("filename");
   EXPECT_EQ(names_of("/v1/jobs"), job_names);
   std::set<std::string> refine_names = as_set(api::refine_param_names(daemon_limits));
   refine_names.insert("Content-Disposition");
+  refine_names.insert("filename");
   std::set<std::string> slice_names = as_set(api::slice_param_names(daemon_limits));
   slice_names.insert("Content-Disposition");
+  slice_names.insert("filename");
   EXPECT_EQ(names_of("/v1/refine"), refine_names);
   EXPECT_EQ(names_of("/v1/slice"), slice_names);
   EXPECT_EQ(names_of("/v1/info"), as_set(api::info_param_names()));

@@ -147,6 +147,23 @@ TEST(Uploads, MultipartGivesTheBytesOfARawBodyAndTheNameOnTheDownload) {
   EXPECT_EQ(named->get_header_value("Content-Disposition"),
             "attachment; filename=\"bracket v2_refined.stl\"");
 
+  // Or with filename= in the query; a form's own name wins over it.
+  auto by_query = c.Post("/v1/refine?levels=1&filename=clip.stl", octahedron(), "model/stl");
+  ASSERT_TRUE(by_query);
+  ASSERT_EQ(by_query->status, 200) << by_query->body;
+  EXPECT_EQ(by_query->get_header_value("Content-Disposition"),
+            "attachment; filename=\"clip_refined.stl\"");
+  auto form_wins = post_form(c, "/v1/refine?levels=1&filename=clip.stl",
+                             form({{"file", "housing.stl", octahedron()}}));
+  ASSERT_TRUE(form_wins);
+  EXPECT_EQ(form_wins->get_header_value("Content-Disposition"),
+            "attachment; filename=\"housing_refined.stl\"");
+  auto twice =
+      c.Post("/v1/refine?levels=1&filename=a.stl&filename=b.stl", octahedron(), "model/stl");
+  ASSERT_TRUE(twice);
+  EXPECT_EQ(twice->status, 400);
+  EXPECT_EQ(problem_field(twice), "filename");
+
   // Slices: the name on the file and as the contours' label.
   auto cli = post_form(c, "/v1/slice?layer_height=0.25&format=cli",
                        form({{"file", "housing.stl", octahedron()}}));
