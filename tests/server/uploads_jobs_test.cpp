@@ -18,6 +18,8 @@
 #include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
+#include <optional>
+#include <random>
 #include <set>
 #include <string>
 #include <thread>
@@ -26,6 +28,8 @@
 #include "http_test_client.h"
 #include "in_process_daemon.h"
 #include "server/daemon.h"
+#include "server/http.h"
+#include "server/http_upload.h"
 #include "test_stl.h"
 
 namespace stlrefine::server {
@@ -308,6 +312,40 @@ TEST(Uploads, HostileNamesAreSanitisedNeverReflected) {
   ASSERT_EQ(utf8.size(), 1u);
   EXPECT_EQ(utf8[0].header("content-disposition"),
             "attachment; filename=\"_t__refined.stl\"; filename*=UTF-8''%C3%A9t%C3%A9_refined.stl");
+}
+
+TEST(Uploads, MangledFormsNeverCrashAndNeverReadOutsideTheBody) {
+  // Every cut and a few thousand random byte edits of a valid form: read_upload answers a
+  // 400 or a file that lies inside the body, never more (run under the asan preset too).
+  const std::string valid = form({{"file", "part.stl", octahedron()}});
+  std::mt19937 random(19);
+  auto check = [](const std::string& body) {
+    HttpRequest req;
+    req.method = "POST";
+    req.target = "/v1/refine";
+    req.headers.emplace("Content-Type", form_type());
+    req.body = body;
+    Upload upload;
+    const std::optional<api::Problem> problem = read_upload(req, upload);
+    if (problem) {
+      EXPECT_EQ(problem->status, 400);
+      EXPECT_FALSE(problem->field.empty());
+      return;
+    }
+    EXPECT_GE(upload.bytes.data(), body.data());
+    EXPECT_LE(upload.bytes.data() + upload.bytes.size(), body.data() + body.size());
+  };
+  for (std::size_t cut = 0; cut < valid.size(); cut += 7) check(valid.substr(0, cut));
+  for (int i = 0; i < 3000; ++i) {
+    std::string body = valid;
+    const int edits = 1 + static_cast<int>(random() % 4);
+    for (int e = 0; e < edits; ++e) {
+      // Mostly near the framing (the first and last 200 bytes), where the parser looks.
+      const std::size_t at = random() % 2 ? random() % 200 : body.size() - 1 - random() % 200;
+      body[at] = "\r\n-\"; =ab"[random() % 10];
+    }
+    check(body);
+  }
 }
 
 TEST(JobsList, CallersJobsNewestFirstPagedAndFiltered) {
