@@ -17,13 +17,18 @@
 #include "core/error.h"
 #include "core/io/stl.h"
 #include "server/admission.h"
+#include "server/http_upload.h"
 #include "slicer/writers.h"
 
 namespace stlrefine::server {
 
 void serve_compute(const RouteContext& ctx, const HttpRequest& req, CheckedRequest checked, int fd,
                    std::shared_ptr<MemoryBudget::Reservation> reservation, HttpAnswer& res) {
-  const std::string_view raw_body = req.body;
+  // The file (a raw body, or the `file` part of a multipart form) and its name.
+  Upload upload;
+  if (std::optional<api::Problem> bad = read_upload(req, upload)) return ctx.respond(res, *bad);
+  const std::string_view raw_body = upload.bytes;
+  const std::string stem = download_stem(upload.name);
   if (ctx.config.test_hook) ctx.config.test_hook(checked.route->path);
   if (ctx.config.test_faults) {
     const std::string fault = req.header("X-Stlrefine-Test-Fault");
@@ -49,6 +54,10 @@ void serve_compute(const RouteContext& ctx, const HttpRequest& req, CheckedReque
     std::optional<api::RefinePlan> refine_plan;
     std::optional<api::SlicePlan> slice_plan;
     std::optional<api::InfoPlan> info_plan;
+    // The contours carry the file's name (SVG title, CLI $$LABEL, JSON name).
+    if (checked.refine && checked.refine->request.slice)
+      checked.refine->request.slice->writer.label = stem;
+    if (checked.slice) checked.slice->slice.writer.label = stem;
     if (checked.refine)
       refine_plan = api::plan_body(std::move(*checked.refine), body);
     else if (checked.slice)
@@ -77,7 +86,7 @@ void serve_compute(const RouteContext& ctx, const HttpRequest& req, CheckedReque
     // Once computed, the reservation shrinks to the body and the answer, which stay in
     // memory until the answer is sent and the connection closed.
     auto keep_answer = [&](std::uint64_t answer_bytes) {
-      reservation->shrink_to(raw_body.size() + answer_bytes);
+      reservation->shrink_to(req.body.size() + answer_bytes);
     };
 
     // Cancelled when the client hangs up, when the deadline passes (or on a second SIGTERM).
@@ -119,7 +128,6 @@ void serve_compute(const RouteContext& ctx, const HttpRequest& req, CheckedReque
         lease.reset();
         keep_answer(zip.size());
         res.set_header(kReportHeader, report);
-        res.set_header("Content-Disposition", "attachment; filename=\"refined.zip\"");
         provide(std::move(zip), kZipContentType);
       } else if (refined.stream()) {
         // 84 + 50 n bytes, known now, made on the event loop piece by piece from the float
@@ -140,12 +148,20 @@ void serve_compute(const RouteContext& ctx, const HttpRequest& req, CheckedReque
         res.set_header(kReportHeader, report);
         provide(std::move(out.stl), kStlContentType);
       }
+      // part.stl -> part_refined.stl (or .zip: named by what is sent).
+      res.set_header(
+          "Content-Disposition",
+          content_disposition(stem, "_refined" + extension_for(res.header("Content-Type"))));
     } else if (slice_plan) {
       api::SliceOutcome out = api::run_slice(body, *slice_plan, {}, cancel);
       lease.reset();
       keep_answer(out.contours.size());
       res.set_header(kReportHeader, out.report.dump(-1, ' ', true));
       provide(std::move(out.contours), slicer::media_type(slice_plan->request.slice.format));
+      res.set_header(
+          "Content-Disposition",
+          content_disposition(stem, std::string("_slices") +
+                                        slicer::file_extension(slice_plan->request.slice.format)));
     } else {
       const nlohmann::ordered_json report = api::run_info(body, *info_plan);
       lease.reset();

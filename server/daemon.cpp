@@ -320,7 +320,7 @@ Verdict Daemon::Impl::decide(const RequestHead& head) {
   }
   verdict.hold = accepted;
   const Route* route = accepted->checked.route;
-  if (has_body(*route)) {
+  if (has_body(*route, req.method)) {
     verdict.kind = Verdict::Kind::ReadBody;
     // precheck validated it: one decimal number, under the cap
     const std::string length = req.header("Content-Length");
@@ -383,7 +383,7 @@ void Daemon::Impl::route(const HttpRequest& req, ReadRequest& read, HttpAnswer& 
   // checked again.
   Accepted& accepted = *std::static_pointer_cast<Accepted>(read.hold);
   const Route& r = *accepted.checked.route;
-  if (has_body(r))
+  if (has_body(r, req.method))
     if (std::optional<api::Problem> problem = ctx.check_capacity(r))
       return ctx.respond(res, *problem);
   switch (r.kind) {
@@ -391,6 +391,7 @@ void Daemon::Impl::route(const HttpRequest& req, ReadRequest& read, HttpAnswer& 
       return serve_compute(ctx, req, std::move(accepted.checked), read.fd, accepted.reservation,
                            res);
     case RouteKind::Submit:
+      if (req.method != "POST") return serve_job_list(ctx, req, res);
       return serve_job_submit(ctx, req, std::move(*accepted.checked.refine), res);
     case RouteKind::JobItem:
       ranges = true;

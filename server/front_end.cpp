@@ -70,12 +70,14 @@ Answer::Answer(Answer&& other) noexcept
       made(std::move(other.made)),
       made_offset(other.made_offset),
       made_length(other.made_length),
+      stream(std::move(other.stream)),
       keep(std::move(other.keep)),
       done(std::move(other.done)) {
   other.body = {};
   other.file = -1;
   other.file_length = 0;
   other.made = nullptr;
+  other.stream = nullptr;
   other.made_length = 0;
 }
 
@@ -90,12 +92,14 @@ Answer& Answer::operator=(Answer&& other) noexcept {
     made = std::move(other.made);
     made_offset = other.made_offset;
     made_length = other.made_length;
+    stream = std::move(other.stream);
     keep = std::move(other.keep);
     done = std::move(other.done);
     other.body = {};
     other.file = -1;
     other.file_length = 0;
     other.made = nullptr;
+    other.stream = nullptr;
     other.made_length = 0;
   }
   return *this;
@@ -209,7 +213,7 @@ void FrontEnd::work() {
 
 void FrontEnd::update_events(Connection& c) {
   std::uint32_t want = c.read_closed ? 0u : static_cast<std::uint32_t>(EPOLLIN);
-  if (c.state == Connection::State::Answer) want |= EPOLLOUT;
+  if (c.state == Connection::State::Answer && !c.stream_idle) want |= EPOLLOUT;
   if (want == c.events) return;
   epoll_event ev{};
   ev.events = want;
@@ -364,9 +368,23 @@ void FrontEnd::expire(Clock::time_point now) {
         }
         break;
       case Connection::State::Answer:
-        if (grace_over_)
+        if (grace_over_) {
           finish_answer(*c, AnswerEnd::Outcome::Shutdown);
-        else if (too_slow(*c, now, options_.answer_window, c->out.size() - c->sent))
+        } else if (c->out.stream) {
+          // A stream ends with the daemon (its client reconnects to another); one idle is
+          // asked again, and only bytes waiting for the reader count against its rate.
+          const std::uint64_t pulled = c->out.head.size() + c->piece_at + c->piece.size();
+          const std::uint64_t waiting = pulled - std::min(c->sent, pulled);
+          if (stopping_) {
+            finish_answer(*c, AnswerEnd::Outcome::Complete);
+          } else if (c->stream_idle) {
+            c->window_start = now;
+            c->window_bytes = 0;
+            flush(*c);
+          } else if (too_slow(*c, now, options_.answer_window, waiting)) {
+            finish_answer(*c, AnswerEnd::Outcome::TooSlow);
+          }
+        } else if (too_slow(*c, now, options_.answer_window, c->out.size() - c->sent))
           finish_answer(*c, AnswerEnd::Outcome::TooSlow);
         break;
       case Connection::State::Linger:

@@ -41,6 +41,12 @@ const char* to_string(AnswerEnd::Outcome outcome);
 //! (a piece is at most FrontEnd::kMadePiece bytes) and not throwing.
 using BodyMaker = std::function<void(std::uint64_t offset, std::span<char> out)>;
 
+//! A body of unknown length (server-sent events), pulled on the event loop: appends what
+//! is ready now to `out` (nothing: pulled again within FrontEnd::kStreamPoll) and returns
+//! false once the stream has ended. Quick and not throwing, like BodyMaker. The answer has no
+//! Content-Length: its end is the connection's close.
+using StreamPull = std::function<bool(std::string& out)>;
+
 //! A complete answer, written by the event loop (never by a worker, so a client that reads
 //! slowly or not at all holds no thread). `head` is sent first (the status line, fields,
 //! blank line, and possibly a small body), then `body`, `file` or `made`.
@@ -53,6 +59,8 @@ struct Answer {
   //! holds): bytes [made_offset, made_offset + made_length) of what `made` makes.
   BodyMaker made;
   std::uint64_t made_offset = 0, made_length = 0;
+  //! or a stream (then nothing of the above but `head`).
+  StreamPull stream;
   std::shared_ptr<const void> keep;  //!< what `body` points into, reservations
   //! Called once on the event loop when the answer is written or abandoned.
   std::function<void(const AnswerEnd&)> done;
@@ -146,6 +154,10 @@ class FrontEnd {
   //! A made body (Answer::made) is made and sent in pieces of at most this much, one buffer
   //! per connection writing one.
   static constexpr std::size_t kMadePiece = 256 << 10;
+  //! A stream with nothing to send is asked again this often (the expiry scan's period).
+  //! Streams end when the front end stops; a reader slower than `min_rate` with bytes
+  //! waiting is dropped like any other.
+  static constexpr std::chrono::milliseconds kStreamPoll{20};
 
   struct Options {
     std::size_t workers = 4;
@@ -192,6 +204,7 @@ class FrontEnd {
   void on_head(Connection& c, std::size_t head_end);
   void answer(Connection& c, Answer answer);
   void flush(Connection& c);
+  void flush_stream(Connection& c);
   void finish_answer(Connection& c, AnswerEnd::Outcome outcome);
   void dispatch(Connection& c);
   void close(Connection& c);

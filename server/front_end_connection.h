@@ -40,6 +40,9 @@ struct FrontEnd::Connection {
   // A made body's current piece: its bytes [piece_at, piece_at + piece.size()).
   std::string piece;
   std::uint64_t piece_at = 0;
+  // A stream (Answer::stream): nothing to send until it is pulled again; no more to pull.
+  bool stream_idle = false;
+  bool stream_ended = false;
   std::shared_ptr<void> hold;  // released once the answer is written
   bool in_probe_lane = false;
   bool read_closed = false;  // the client half-closed while its answer is written

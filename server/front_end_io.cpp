@@ -50,6 +50,8 @@ void FrontEnd::finish_answer(Connection& c, AnswerEnd::Outcome outcome) {
   c.out = Answer();  // the body, its file and what kept them
   c.piece = std::string();
   c.piece_at = 0;
+  c.stream_idle = false;
+  c.stream_ended = false;
   c.hold.reset();  // the reservation
   if (outcome != AnswerEnd::Outcome::Complete) return close(c);
   // Sent: no more from us; read and drop what the client still sends, then close. Closing
@@ -61,7 +63,52 @@ void FrontEnd::finish_answer(Connection& c, AnswerEnd::Outcome outcome) {
   update_events(c);
 }
 
+void FrontEnd::flush_stream(Connection& c) {
+  // The head, then each pulled piece (c.piece: stream bytes [piece_at, piece_at + size)).
+  const Answer& a = c.out;
+  std::uint64_t budget = kWriteSlice;
+  c.stream_idle = false;
+  for (;;) {
+    std::string_view pending;
+    if (c.sent < a.head.size()) {
+      pending = std::string_view(a.head).substr(static_cast<std::size_t>(c.sent));
+    } else {
+      const std::uint64_t at = c.sent - a.head.size();
+      if (at >= c.piece_at + c.piece.size()) {
+        if (c.stream_ended) return finish_answer(c, AnswerEnd::Outcome::Complete);
+        c.piece_at = at;
+        c.piece.clear();
+        bool more = false;
+        try {
+          more = a.stream(c.piece);
+        } catch (...) {  // a broken stream ends
+        }
+        c.stream_ended = !more;
+        if (c.piece.empty()) {
+          if (c.stream_ended) return finish_answer(c, AnswerEnd::Outcome::Complete);
+          c.stream_idle = true;  // expire() pulls again
+          return update_events(c);
+        }
+      }
+      pending = std::string_view(c.piece).substr(static_cast<std::size_t>(at - c.piece_at));
+    }
+    if (budget == 0) return update_events(c);
+    const ssize_t n =
+        ::send(c.fd, pending.data(), std::min<std::uint64_t>(pending.size(), budget), MSG_NOSIGNAL);
+    if (n > 0) {
+      c.sent += static_cast<std::uint64_t>(n);
+      c.window_bytes += static_cast<std::uint64_t>(n);
+      budget -= std::min<std::uint64_t>(budget, static_cast<std::uint64_t>(n));
+      continue;
+    }
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) return update_events(c);
+    return finish_answer(c, AnswerEnd::Outcome::ClientGone);
+  }
+}
+
 void FrontEnd::flush(Connection& c) {
+  if (c.out.stream) return flush_stream(c);
   const Answer& a = c.out;
   const std::uint64_t head_end = a.head.size();
   const std::uint64_t body_end = head_end + a.body.size();

@@ -64,7 +64,9 @@ struct HttpAnswer {
   void set_content(std::string content, const std::string& content_type);
   bool has_header(const std::string& name) const;
   std::string header(const std::string& name) const;
-  bool has_large_body() const { return !large.body.empty() || large.file >= 0 || large.made; }
+  bool has_large_body() const {
+    return !large.body.empty() || large.file >= 0 || large.made || large.stream;
+  }
 };
 
 }  // namespace stlrefine::server

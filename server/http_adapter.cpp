@@ -199,7 +199,9 @@ Answer frame_answer(const HttpRequest& req, HttpAnswer res, bool ranges, AnswerD
       small ? res.body.size()
             : res.large.body.size() + res.large.file_length + res.large.made_length;
   std::uint64_t first = 0, count = length;
-  if (ranges) {
+  // A stream's end is the close, and it has no byte ranges.
+  const bool stream = !small && res.large.stream;
+  if (ranges && !stream) {
     res.set_header("Accept-Ranges", "bytes");
     // If-Range: the range only applies to the representation the client has (its ETag).
     const std::string if_range = req.header("If-Range");
@@ -236,7 +238,7 @@ Answer frame_answer(const HttpRequest& req, HttpAnswer res, bool ranges, AnswerD
     if (!not_modified && lowercase(name) == "content-length") continue;
     head += name + ": " + value + "\r\n";
   }
-  if (!not_modified) head += "Content-Length: " + std::to_string(count) + "\r\n";
+  if (!not_modified && !stream) head += "Content-Length: " + std::to_string(count) + "\r\n";
   head += "Connection: close\r\n\r\n";
   const bool head_only = req.method == "HEAD" || not_modified;
   Answer out;
@@ -257,6 +259,13 @@ Answer frame_answer(const HttpRequest& req, HttpAnswer res, bool ranges, AnswerD
     } else {
       out.body = out.body.substr(static_cast<std::size_t>(first), static_cast<std::size_t>(count));
     }
+  }
+  if (stream) {
+    out.done = [done = std::move(done), status = res.status,
+                head_bytes = out.head.size()](const AnswerEnd& end) {
+      done(status, end.bytes_sent > head_bytes ? end.bytes_sent - head_bytes : 0, end);
+    };
+    return out;
   }
   const std::uint64_t body_bytes = head_only ? 0 : count;
   const std::uint64_t head_bytes = out.head.size() - (small && !head_only ? count : 0);

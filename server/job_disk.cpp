@@ -25,6 +25,8 @@ std::shared_ptr<JobStore::Job> JobStore::read_job(const fs::path& dir) const {
   job->expired = j.value("expired", false);
   job->scheme = j.value("scheme", "");
   job->query = j.value("parameters", "");
+  job->name = j.value("name", "");
+  job->callback_url = j.value("callback_url", "");
   job->progress = j.value("progress", 0.0);
   job->stage = j.value("stage", "");
   job->created = from_epoch_ms(j.value("created_ms", std::int64_t{0}));
@@ -106,6 +108,8 @@ void JobStore::persist(const Job& job) const {
   j["expired"] = job.expired;
   j["scheme"] = job.scheme;
   j["parameters"] = job.query;
+  if (!job.name.empty()) j["name"] = job.name;
+  if (!job.callback_url.empty()) j["callback_url"] = job.callback_url;
   j["progress"] = job.progress;
   j["stage"] = job.stage;
   j["created_ms"] = epoch_ms(job.created);

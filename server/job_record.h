@@ -36,6 +36,8 @@ struct JobStore::Job {
   //! (such a job is never run: an unfinished one is failed).
   api::RefinePlan plan;
   std::string scheme, query;
+  std::string name;          // the uploaded file's name (sanitised; may be empty); "name" on disk
+  std::string callback_url;  // "callback_url" on disk
   JobState state = JobState::Queued;
   bool expired = false;
   std::atomic<bool> cancel{false};

@@ -7,10 +7,14 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <charconv>
+#include <cstdio>
+#include <set>
 #include <span>
 
 #include "api/plan.h"
 #include "core/error.h"
+#include "server/http_upload.h"
 #include "slicer/writers.h"
 
 namespace stlrefine::server {
@@ -23,12 +27,137 @@ bool job_file_name(const std::string& name) {
          name == "contours.svg" || name == "contours.cli";
 }
 
+api::Problem list_problem(const std::string& field, std::string detail) {
+  api::Problem p = api::bad_request("invalid-parameter", std::move(detail));
+  p.field = field;
+  return p;
+}
+
+// A list cursor: the last job of a page as "<created_ms hex>-<id>". Opaque to clients; only
+// what list_cursor() makes is read back.
+std::string list_cursor(const JobView& job) {
+  char text[24];
+  std::snprintf(
+      text, sizeof text, "%llx-",
+      static_cast<unsigned long long>(
+          std::chrono::duration_cast<std::chrono::milliseconds>(job.created.time_since_epoch())
+              .count()));
+  return text + job.id;
+}
+
+std::optional<JobStore::ListCursor> read_cursor(std::string_view text) {
+  const std::size_t dash = text.find('-');
+  if (dash == 0 || dash == std::string_view::npos || dash > 15 || text.size() != dash + 33)
+    return std::nullopt;
+  unsigned long long ms = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + dash, ms, 16);
+  if (ec != std::errc() || end != text.data() + dash) return std::nullopt;
+  const std::string_view id = text.substr(dash + 1);
+  if (!std::all_of(id.begin(), id.end(),
+                   [](char c) { return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'); }))
+    return std::nullopt;
+  return JobStore::ListCursor{static_cast<std::int64_t>(ms), std::string(id)};
+}
+
 }  // namespace
+
+void serve_job_list(const RouteContext& ctx, const HttpRequest& req, HttpAnswer& res) {
+  std::size_t limit = 20;
+  std::optional<JobState> state;
+  std::optional<JobStore::ListCursor> cursor;
+  std::string state_text, cursor_text;
+  try {
+    std::set<std::string> seen;
+    for (const auto& [name, value] : req.parameters()) {
+      if (!seen.insert(name).second)
+        return ctx.respond(
+            res, list_problem(name, "parameter '" + shortened(name) + "' is given twice"));
+      if (name == "limit") {
+        unsigned long long n = 0;
+        const auto [end, ec] = std::from_chars(value.data(), value.data() + value.size(), n);
+        if (value.empty() || ec != std::errc() || end != value.data() + value.size() || n < 1 ||
+            n > 100)
+          return ctx.respond(res,
+                             list_problem("limit", "limit must be an integer in [1, 100], not '" +
+                                                       shortened(value) + "'"));
+        limit = static_cast<std::size_t>(n);
+      } else if (name == "state") {
+        for (JobState s : {JobState::Queued, JobState::Running, JobState::Done, JobState::Failed,
+                           JobState::Cancelled})
+          if (value == to_string(s)) state = s;
+        if (!state)
+          return ctx.respond(
+              res, list_problem("state",
+                                "state must be queued, running, done, failed or cancelled, not '" +
+                                    shortened(value) + "'"));
+        state_text = value;
+      } else if (name == "cursor") {
+        cursor = read_cursor(value);
+        if (!cursor)
+          return ctx.respond(res,
+                             list_problem("cursor", "cursor '" + shortened(value) +
+                                                        "' is not one this server made (use the "
+                                                        "`next` link of the page before)"));
+        cursor_text = value;
+      } else {
+        return ctx.respond(res,
+                           list_problem(name, "unknown parameter '" + shortened(name) +
+                                                  "' (GET /v1/jobs takes limit, cursor, state)"));
+      }
+    }
+  } catch (const Error& e) {
+    return ctx.respond(res, api::problem_from_error(e));
+  }
+  bool more = false;
+  const std::vector<JobView> jobs = ctx.jobs->list(ctx.tenant(req), state, cursor, limit, &more);
+  nlohmann::ordered_json j;
+  j["jobs"] = nlohmann::ordered_json::array();
+  for (const JobView& job : jobs) j["jobs"].push_back(job_json(job));
+  auto page = [&](const std::string& at) {
+    std::string link = "/v1/jobs?limit=" + std::to_string(limit);
+    if (state) link.append("&state=").append(state_text);
+    if (!at.empty()) link.append("&cursor=").append(at);
+    return link;
+  };
+  nlohmann::ordered_json links;
+  links["self"] = page(cursor_text);
+  if (more && !jobs.empty()) {
+    j["next_cursor"] = list_cursor(jobs.back());
+    links["next"] = page(list_cursor(jobs.back()));
+  }
+  j["links"] = links;
+  res.set_content(j.dump(2) + "\n", kJsonContentType);
+}
 
 void serve_job_submit(const RouteContext& ctx, const HttpRequest& req, api::RefinePlan parameters,
                       HttpAnswer& res) {
-  const std::string_view body = req.body;
+  Upload upload;
+  if (std::optional<api::Problem> bad = read_upload(req, upload)) return ctx.respond(res, *bad);
+  const std::string_view body = upload.bytes;
+  // callback_url: refused now (syntax, allow-list, resolved addresses), not when it ends.
+  std::string callback_url;
+  try {
+    int given = 0;
+    for (auto& [name, value] : req.parameters())
+      if (name == "callback_url") {
+        callback_url = value;
+        ++given;
+      }
+    if (given > 1) {
+      api::Problem p = api::bad_request("invalid-parameter", "callback_url is given twice");
+      p.field = "callback_url";
+      return ctx.respond(res, p);
+    }
+  } catch (const Error& e) {
+    return ctx.respond(res, api::problem_from_error(e));
+  }
+  if (!callback_url.empty())
+    if (std::optional<api::Problem> refused =
+            check_callback_url(ctx.jobs->config().callbacks, callback_url, nullptr))
+      return ctx.respond(res, *refused);
   if (ctx.config.test_hook) ctx.config.test_hook("/v1/jobs");
+  // The contours carry the file's name (SVG title, CLI $$LABEL, JSON name).
+  if (parameters.request.slice) parameters.request.slice->writer.label = download_stem(upload.name);
   try {
     // A job that could never get its memory is refused now, not when its turn comes.
     const auto bytes = std::span(reinterpret_cast<const std::uint8_t*>(body.data()), body.size());
@@ -39,10 +168,11 @@ void serve_job_submit(const RouteContext& ctx, const HttpRequest& req, api::Refi
     const std::size_t q = req.target.find('?');
     std::string query = q == std::string::npos ? "" : req.target.substr(q + 1);
     const std::uint64_t result_bytes = predicted_result_bytes(plan.request, predicted);
-    const SubmitResult submitted = ctx.stopping
-                                       ? SubmitResult::refused(SubmitResult::Status::ShuttingDown)
-                                       : ctx.jobs->submit(std::move(plan), std::move(query), body,
-                                                          ctx.tenant(req), result_bytes);
+    const SubmitResult submitted =
+        ctx.stopping
+            ? SubmitResult::refused(SubmitResult::Status::ShuttingDown)
+            : ctx.jobs->submit(std::move(plan), std::move(query), body, ctx.tenant(req),
+                               result_bytes, std::move(upload.name), std::move(callback_url));
     if (submitted.status == SubmitResult::Status::NoSpace)
       return ctx.respond(res, no_space_problem(submitted));
     const std::optional<JobView>& job = submitted.job;
@@ -67,7 +197,7 @@ void serve_job_item(const RouteContext& ctx, const HttpRequest& req, HttpAnswer&
   const std::size_t slash = rest.find('/');
   const std::string id = rest.substr(0, slash);
   const std::string file = slash == std::string::npos ? "" : rest.substr(slash + 1);
-  if (slash != std::string::npos && !job_file_name(file))
+  if (slash != std::string::npos && !job_file_name(file) && file != "events")
     return ctx.respond(res, api::not_found("not-found", "no route " + shortened(req.path)));
   if (!file.empty() && req.method == "DELETE") {
     api::Problem p = api::method_not_allowed(
@@ -104,6 +234,7 @@ void serve_job_item(const RouteContext& ctx, const HttpRequest& req, HttpAnswer&
     return ctx.respond(res, api::gone("expired", "the results of job " + id +
                                                      " were removed after the retention period"));
   }
+  if (file == "events") return serve_job_events(ctx, req, id, res);
   if (file.empty()) {
     if (found == JobStore::Lookup::Expired && req.method != "DELETE") res.status = api::http::kGone;
     res.set_content(job_json(job).dump(2) + "\n", kJsonContentType);
@@ -133,7 +264,15 @@ void serve_job_item(const RouteContext& ctx, const HttpRequest& req, HttpAnswer&
                      : file == "contours.svg"  ? slicer::media_type(slicer::SliceFormat::Svg)
                                                : "application/octet-stream";
   res.set_header("Content-Type", type);
-  res.set_header("Content-Disposition", "attachment; filename=\"" + file + "\"");
+  // result.stl -> part_refined.stl, contours.cli -> part_slices.cli, report.json ->
+  // part_report.json.
+  const std::size_t dot = file.rfind('.');
+  const std::string kind = file.substr(0, dot);
+  const std::string suffix = kind == "result"     ? "_refined"
+                             : kind == "contours" ? "_slices"
+                                                  : "_" + kind;
+  res.set_header("Content-Disposition",
+                 content_disposition(download_stem(job.name), suffix + file.substr(dot)));
 }
 
 }  // namespace stlrefine::server

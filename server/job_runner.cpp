@@ -11,6 +11,7 @@
 #include "core/error.h"
 #include "core/io/stl.h"
 #include "server/admission.h"
+#include "server/job_progress.h"
 #include "server/job_record.h"
 #include "server/thread_priority.h"
 #include "slicer/writers.h"
@@ -101,11 +102,19 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
         ticket->raise(job->cancel_reason == CancelReason::Client ? RequestWatch::Reason::Cancelled
                                                                  : RequestWatch::Reason::Shutdown);
     }
+    // One fraction over every stage, never backwards (job_progress.h).
+    JobProgress tracker(plan);
+    const auto publish = [&] {
+      std::lock_guard lock(mutex_);
+      job->progress = tracker.fraction();
+      job->stage = tracker.stage();
+    };
+    tracker.enter(JobProgress::Stage::Ingest);
+    publish();
     auto progress = [&](double fraction, std::string_view stage) {
       cancel_noted(*job);  // from another replica
-      std::lock_guard lock(mutex_);
-      job->progress = std::clamp(fraction, 0.0, 1.0);
-      job->stage = std::string(stage);
+      tracker.on_core(fraction, stage);
+      publish();
     };
     // The reservation grows with the refinement. Memory held by other work may come back:
     // wait for it a while (cancellable), then give up rather than hold half a hierarchy.
@@ -123,6 +132,8 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
         api::run_refine_to_mesh(input_bytes, plan, progress, &ticket->cancel, grow);
     const api::RefineOutcome& out = refined.outcome;
     report = out.report;
+    tracker.enter(JobProgress::Stage::Write);
+    publish();
     // Each file is listed once it is whole, so a failure below removes exactly those.
     if (refined.stream()) {  // binary: made as it is written, never whole in memory
       const auto start = std::chrono::steady_clock::now();
@@ -214,7 +225,8 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
     job->state = state;
     job->finished = Clock::now();
     job->progress = state == JobState::Done ? 1.0 : job->progress;
-    job->stage = to_string(state);
+    // `state` alone says done; the stage of a failed or cancelled job says so too.
+    job->stage = state == JobState::Done ? "finished" : to_string(state);
     job->report = std::move(report);
     if (problem) job->problem = api::to_json(*problem);
     job->results = results;
@@ -244,6 +256,7 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
   }
   if (on_finished_)
     on_finished_(done, std::chrono::duration<double>(done.finished - done.started).count());
+  notify_ended(done);
   janitor_wake_.notify_one();  // the disk budget may now be exceeded
 }
 

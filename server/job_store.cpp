@@ -30,6 +30,8 @@ JobStore::JobStore(JobsConfig config, ComputeSlots& slots, FinishedFn on_finishe
   fs::create_directories(config_.data_dir);
   tenant_key_ = load_tenant_key(config_.data_dir);
   load_existing();
+  if (!config_.callbacks.secret.empty() && !config_.callbacks.allow.empty())
+    callbacks_ = std::make_unique<CallbackSender>(config_.callbacks);
   for (std::size_t i = 0; i < config_.runners; ++i) runners_.emplace_back([this] { run_jobs(); });
   janitor_ = std::thread([this] { janitor(); });
 }
@@ -59,6 +61,8 @@ JobView JobStore::view(const Job& job) const {
   v.stage = job.stage;
   v.scheme = job.scheme;
   v.query = job.query;
+  v.name = job.name;
+  v.callback_url = job.callback_url;
   v.created = job.created;
   v.started = job.started;
   v.finished = job.finished;
@@ -66,6 +70,34 @@ JobView JobStore::view(const Job& job) const {
   v.problem = job.problem;
   if (!job.expired) v.results = job.results;
   return v;
+}
+
+std::vector<JobView> JobStore::list(const std::string& owner, std::optional<JobState> state,
+                                    const std::optional<ListCursor>& after, std::size_t limit,
+                                    bool* more) const {
+  // Newest first: (created, id) descending, so a cursor is a position that stays valid as
+  // jobs come and go.
+  using Key = std::pair<std::int64_t, std::string>;
+  std::vector<std::pair<Key, const Job*>> mine;
+  std::vector<JobView> out;
+  std::lock_guard lock(mutex_);
+  for (const auto& [id, job] : jobs_) {
+    if (!same_tenant(job->tenant, owner)) continue;
+    if (state && job->state != *state) continue;
+    Key key{epoch_ms(job->created), id};
+    if (after && key >= Key{after->created_ms, after->id}) continue;
+    mine.emplace_back(std::move(key), job.get());
+  }
+  std::sort(mine.begin(), mine.end(),
+            [](const auto& a, const auto& b) { return a.first > b.first; });
+  if (more) *more = mine.size() > limit;
+  for (std::size_t i = 0; i < mine.size() && i < limit; ++i) out.push_back(view(*mine[i].second));
+  return out;
+}
+
+void JobStore::notify_ended(const JobView& job) {
+  if (callbacks_ && !job.callback_url.empty())
+    callbacks_->send(job.callback_url, job_json(job).dump());
 }
 
 void JobStore::release_disk(Job& job) {
@@ -83,7 +115,8 @@ SubmitResult JobStore::submit(api::RefineRequest request, std::string query,
 }
 
 SubmitResult JobStore::submit(api::RefinePlan plan, std::string query, std::string_view stl_bytes,
-                              std::string owner, std::uint64_t predicted_result_bytes) {
+                              std::string owner, std::uint64_t predicted_result_bytes,
+                              std::string name, std::string callback_url) {
   using Status = SubmitResult::Status;
   std::uint64_t needed = 0;
   auto job = std::make_shared<Job>();
@@ -93,6 +126,8 @@ SubmitResult JobStore::submit(api::RefinePlan plan, std::string query, std::stri
   job->dir = config_.data_dir / job->id;
   job->scheme = plan.request.refine.scheme;
   job->query = std::move(query);
+  job->name = std::move(name);
+  job->callback_url = std::move(callback_url);
   job->plan = std::move(plan);
   job->created = Clock::now();
   const std::uint64_t input = stl_bytes.size();
@@ -258,6 +293,7 @@ JobStore::Lookup JobStore::cancel(const std::string& id, const std::string& owne
         std::error_code ignored;
         fs::remove(job.dir / kInputFile, ignored);
         persist_or_log(job);
+        notify_ended(view(job));
       }
       if (out) {
         *out = view(job);

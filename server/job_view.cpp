@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 // Copyright (c) 2026 stlrefine authors
 // What a client sees of a job: its JSON, the problems it ends with, the space it needs.
+#include <cmath>
 #include <cstdio>
 #include <limits>
 
@@ -41,6 +42,17 @@ const char* to_string(JobState state) {
   return "unknown";
 }
 
+nlohmann::ordered_json eta_seconds(const JobView& job) {
+  if (job.state == JobState::Done) return 0;
+  const bool has_started = job.started.time_since_epoch().count() != 0;
+  if (job.state != JobState::Running || !has_started) return nullptr;
+  // The rate so far, once there is one: a second of running and 2% of the work (before
+  // that, the first stage's start-up dominates and the figure jumps around).
+  const double elapsed = std::chrono::duration<double>(Clock::now() - job.started).count();
+  if (elapsed < 1 || job.progress < 0.02) return nullptr;
+  return std::round(elapsed * (1 - job.progress) / job.progress * 10) / 10;
+}
+
 nlohmann::ordered_json job_json(const JobView& job) {
   nlohmann::ordered_json j;
   const std::string self = "/v1/jobs/" + job.id;
@@ -49,8 +61,11 @@ nlohmann::ordered_json job_json(const JobView& job) {
   if (job.expired) j["expired"] = true;
   j["progress"] = job.progress;
   j["stage"] = job.stage;
+  j["eta_seconds"] = eta_seconds(job);
   j["scheme"] = job.scheme;
   j["parameters"] = job.query;
+  if (!job.name.empty()) j["name"] = job.name;
+  if (!job.callback_url.empty()) j["callback_url"] = job.callback_url;
   nlohmann::ordered_json t;
   t["created"] = iso8601(job.created);
   const bool has_started = job.started.time_since_epoch().count() != 0;

@@ -26,6 +26,7 @@
 #include "api/plan.h"
 #include "api/problem.h"
 #include "server/compute_slots.h"
+#include "server/job_callbacks.h"
 #include "server/memory_budget.h"
 #include "server/request_watch.h"
 
@@ -67,6 +68,9 @@ struct JobsConfig {
   //! Free bytes of the data directory's file system (empty: statvfs's f_bavail * f_frsize;
   //! a file system it cannot measure counts as unlimited). Tests inject their own.
   std::function<std::uint64_t()> free_bytes;
+  //! Where and how `callback_url`s are called (job_callbacks.h); without a secret and an
+  //! allow-list, a job with one is refused.
+  CallbackPolicy callbacks;
 };
 
 //! What a client sees of a job (a copy, taken under the store's lock).
@@ -77,14 +81,21 @@ struct JobView {
   double progress = 0;   //!< [0, 1]
   std::string stage;     //!< "queued", "level 2/3", "slicing", "done", ...
   std::string scheme;
-  std::string query;  //!< the parameters as submitted
+  std::string query;         //!< the parameters as submitted
+  std::string name;          //!< the uploaded file's name (http_upload.h's upload_name), or empty
+  std::string callback_url;  //!< POSTed the job's JSON when it ends; empty: none
   std::chrono::system_clock::time_point created, started, finished;
   nlohmann::ordered_json report;                  //!< the refine report once done
   std::optional<nlohmann::ordered_json> problem;  //!< RFC 9457 body once failed/cancelled
   std::vector<std::string> results;               //!< file names ready for download
 };
 
-//! The job's JSON answer: id, state, progress, stage, timings, report, problem, links.
+//! Seconds a running job still needs, from its progress and its run time so far; 0 when
+//! done; null (JSON) until that is meaningful and for a job not running.
+nlohmann::ordered_json eta_seconds(const JobView& job);
+
+//! The job's JSON answer: id, state, progress, stage, eta_seconds, timings, report,
+//! problem, links.
 nlohmann::ordered_json job_json(const JobView& job);
 
 //! What JobStore::submit did with a job.
@@ -147,8 +158,10 @@ class JobStore {
   //! leaves no job directory behind (NoSpace when it failed for want of space, otherwise
   //! the exception propagates).
   //! `plan` is what the job's runner uses (made with `stl_bytes`; nothing is planned again).
+  //! `name`: the uploaded file's name, kept with the job (its downloads are named after it).
   SubmitResult submit(api::RefinePlan plan, std::string query, std::string_view stl_bytes,
-                      std::string owner, std::uint64_t predicted_result_bytes);
+                      std::string owner, std::uint64_t predicted_result_bytes,
+                      std::string name = {}, std::string callback_url = {});
   //! submit for a request parsed and validated: planned here on `stl_bytes`.
   //! \throw Error(InvalidParameter) when its scheme cannot be made from it.
   SubmitResult submit(api::RefineRequest request, std::string query, std::string_view stl_bytes,
@@ -176,6 +189,18 @@ class JobStore {
   //! replicas of the directory), 32 hex digits. Stable across restarts; the key itself is
   //! never stored.
   std::string tenant_of(std::string_view api_key) const;
+  //! Where a page of list() starts: after the job created at created_ms with this id (the
+  //! order is newest first, ties by id).
+  struct ListCursor {
+    std::int64_t created_ms = 0;
+    std::string id;
+  };
+  //! `owner`'s jobs known to this store (submitted here, or found at its start), newest
+  //! first, at most `limit` of them after `after`, in `state` when given. `more`: whether
+  //! another page follows.
+  std::vector<JobView> list(const std::string& owner, std::optional<JobState> state,
+                            const std::optional<ListCursor>& after, std::size_t limit,
+                            bool* more) const;
   //! Path of a result file of a done job (name from JobView::results).
   std::filesystem::path result_path(const std::string& id, const std::string& name) const;
 
@@ -215,6 +240,8 @@ class JobStore {
   bool cancel_noted(Job& job);                      // another replica's note; takes mutex_
   void cancel_running(CancelReason why);
   void release_disk(Job& job);  // under mutex_
+  //! Queues the job's callback, if it has one (it has just ended).
+  void notify_ended(const JobView& job);
   api::Problem cancel_problem(CancelReason why, bool discarded) const;
   //! A job that will not run (found unfinished at a start, queued at shutdown) ends now:
   //! cancelled when another replica's cancel was accepted for it, else failed at `stage`
@@ -238,7 +265,8 @@ class JobStore {
   std::array<unsigned char, 32> tenant_key_{};
   std::vector<std::thread> runners_;
   std::thread janitor_;
-  RequestWatch watch_;  // deadlines of running jobs
+  RequestWatch watch_;                         // deadlines of running jobs
+  std::unique_ptr<CallbackSender> callbacks_;  // when callbacks are configured
 };
 
 }  // namespace stlrefine::server

@@ -18,6 +18,7 @@
 #include <cmath>
 #include <csignal>
 #include <cstdint>
+#include <cstdlib>
 #include <ctime>
 #include <exception>
 #include <fstream>
@@ -202,6 +203,15 @@ int main(int argc, char** argv) {
                  "process's priority so probes and refusals are answered at once (0 = off)")
       ->check(CLI::Range(0, 19))
       ->capture_default_str();
+  std::string callback_secret;
+  std::vector<std::string> callback_allow;
+  app.add_option("--callback-secret", callback_secret,
+                 "Key of the HMAC-SHA256 signature (X-Stlrefine-Signature) of job callbacks; "
+                 "also from STLREFINE_CALLBACK_SECRET (better: not seen in ps)");
+  app.add_option("--callback-allow", callback_allow,
+                 "HOST[:PORT] a job's callback_url may call (repeatable); loopback, "
+                 "link-local and private addresses only when named here as an address")
+      ->delimiter(',');
   // Tests only: lets a request header make its handler throw or fail an allocation.
   app.add_flag("--test-faults", test_faults, "")->group("");
   // Every option can also come from the environment: STLREFINED_PORT=9000, ...
@@ -242,6 +252,10 @@ int main(int argc, char** argv) {
     config.request_deadline =
         std::chrono::milliseconds(static_cast<long long>(std::llround(request_deadline * 1000)));
     config.test_faults = test_faults;
+    if (callback_secret.empty())
+      if (const char* env = std::getenv("STLREFINE_CALLBACK_SECRET")) callback_secret = env;
+    config.jobs.callbacks.secret = callback_secret;
+    config.jobs.callbacks.allow = callback_allow;
     if (!api_key_file.empty()) {
       std::ifstream keys(api_key_file);
       if (!keys) throw std::runtime_error("cannot read --api-key-file " + api_key_file);

@@ -75,12 +75,31 @@ Json query_parameters(const std::vector<std::string_view>& names, api::RequestKi
 }
 
 Json stl_body() {
-  return {
-      {"required", true},
-      {"description", "An STL file, binary or ASCII, sent with a Content-Length."},
-      {"content",
-       {{"model/stl", {{"schema", {{"type", "string"}, {"format", "binary"}}}}},
-        {"application/octet-stream", {{"schema", {{"type", "string"}, {"format", "binary"}}}}}}}};
+  return {{"required", true},
+          {"description",
+           "An STL file, binary or ASCII, sent with a Content-Length: as the body, or as the one "
+           "part named `file` of a multipart/form-data body (curl -F file=@part.stl; the part's "
+           "filename names the downloads). Other form fields are refused (400 naming them): "
+           "parameters go in the query string."},
+          {"content",
+           {{"model/stl", {{"schema", {{"type", "string"}, {"format", "binary"}}}}},
+            {"application/octet-stream", {{"schema", {{"type", "string"}, {"format", "binary"}}}}},
+            {"multipart/form-data",
+             {{"schema",
+               {{"type", "object"},
+                {"required", {"file"}},
+                {"properties", {{"file", {{"type", "string"}, {"format", "binary"}}}}}}}}}}}};
+}
+
+// The raw body's file name (a multipart part carries its own).
+Json disposition_parameter() {
+  return {{"name", "Content-Disposition"},
+          {"in", "header"},
+          {"required", false},
+          {"description",
+           "The file's name for a raw body (`attachment; filename=\"part.stl\"`): the "
+           "downloads are named after it (part_refined.stl)."},
+          {"schema", {{"type", "string"}}}};
 }
 
 Json header(const char* description, const char* type = "string") {
@@ -88,6 +107,26 @@ Json header(const char* description, const char* type = "string") {
 }
 
 // Busy and shutting-down answers say when to come back.
+// The same as a query parameter, for clients that cannot set a header.
+Json filename_parameter() {
+  return {{"name", "filename"},
+          {"in", "query"},
+          {"required", false},
+          {"description",
+           "The file's name when the body does not carry one (no multipart filename, no "
+           "Content-Disposition header): the downloads are named after it."},
+          {"schema", {{"type", "string"}}}};
+}
+
+// Every download: `attachment; filename="part_refined.stl"` (RFC 6266, `filename*` for a
+// name that is not ASCII).
+Json download_header() {
+  return header(
+      "attachment; filename=\"<name>_refined.stl\" (or _refined.zip, _slices.cli, ...), after "
+      "the uploaded file's name (`part` without one); filename*=UTF-8''... when it is not "
+      "ASCII.");
+}
+
 Json retry_later(const char* description) {
   Json r = problem_response(description);
   r["headers"]["Retry-After"] = header("Seconds to wait before trying again.", "integer");
@@ -154,6 +193,8 @@ std::string operation_id(const std::string& path, const std::string& method) {
       {"post /v1/slice", "slice"},
       {"post /v1/info", "info"},
       {"post /v1/jobs", "submitJob"},
+      {"get /v1/jobs", "listJobs"},
+      {"get /v1/jobs/{id}/events", "followJob"},
       {"get /v1/jobs/{id}", "getJob"},
       {"delete /v1/jobs/{id}", "cancelJob"},
       {"get /v1/jobs/{id}/{file}", "downloadJobFile"},
@@ -204,18 +245,72 @@ Json build() {
                             : Json{{"202", json_response("The queued job; "
                                                          "Location names it.")}},
                         true));
-      if (p == "/v1/refine")
+      if (p == "/v1/refine") {
         op["responses"]["200"]["headers"]["X-Stlrefine-Report"] =
             header("The refine report (JSON, one line).");
-      else
+        op["responses"]["200"]["headers"]["Content-Disposition"] = download_header();
+      } else {
         op["responses"]["202"]["headers"]["Location"] = header("The job's URL: /v1/jobs/{id}.");
+      }
       if (p == "/v1/jobs")
         op["responses"]["507"] = problem_response(
             "No room in the data directory for the input and the predicted results.");
       op["parameters"] =
           query_parameters(api::refine_param_names(limits), api::RequestKind::Refine);
+      if (p == "/v1/jobs")
+        op["parameters"].push_back(
+            {{"name", "callback_url"},
+             {"in", "query"},
+             {"required", false},
+             {"description",
+              "http(s) URL POSTed the job's JSON when it ends, with X-Stlrefine-Signature: "
+              "sha256=<HMAC-SHA256 hex of the body> under the server's --callback-secret; "
+              "retried with back-off. Only hosts on the server's --callback-allow list, and no "
+              "loopback, link-local or private address unless the list names it (checked on "
+              "the resolved addresses): otherwise 400."},
+             {"schema", {{"type", "string"}, {"format", "uri"}, {"maxLength", 2048}}}});
+      op["parameters"].push_back(disposition_parameter());
+      op["parameters"].push_back(filename_parameter());
       op["requestBody"] = stl_body();
       item["post"] = op;
+      if (p == "/v1/jobs") {
+        const auto query = [](const char* name, const char* description, Json schema) {
+          return Json{{"name", name},
+                      {"in", "query"},
+                      {"required", false},
+                      {"description", description},
+                      {"schema", std::move(schema)}};
+        };
+        Json list = operation(
+            "The caller's jobs, newest first, a page at a time",
+            {{"200", json_response("`jobs` (each as GET /v1/jobs/{id}), `links.next` (and "
+                                   "`next_cursor`) while more follow.")},
+             {"400", problem_response("A malformed or unknown parameter (`field` names it).")},
+             {"401", problem_response("An API key is required.")}});
+        list["parameters"] = Json::array(
+            {query("limit", "Jobs per page.",
+                   {{"type", "integer"}, {"minimum", 1}, {"maximum", 100}, {"default", 20}}),
+             query("cursor", "Where the page starts: the `next_cursor` of the page before.",
+                   {{"type", "string"}}),
+             query("state", "Only jobs in this state.",
+                   {{"type", "string"},
+                    {"enum", {"queued", "running", "done", "failed", "cancelled"}}})});
+        item["get"] = list;
+      }
+    } else if (p == "/v1/jobs/{id}/events") {
+      item["parameters"] = Json::array(
+          {{{"name", "id"}, {"in", "path"}, {"required", true}, {"schema", {{"type", "string"}}}}});
+      item["get"] = operation(
+          "Follow a job as server-sent events",
+          {{"200",
+            {{"description",
+              "`progress` events (data: the job's JSON) at each change of state, progress or "
+              "stage, `: keep-alive` comments, and a final `end` event with the job's JSON "
+              "once it has ended (or `timeout` at the server's request deadline); the stream "
+              "then closes."},
+             {"content", {{"text/event-stream", {{"schema", {{"type", "string"}}}}}}}}},
+           {"404", problem_response("Unknown job.")},
+           {"410", problem_response("Removed after retention.")}});
     } else if (p == "/v1/slice") {
       Json op = operation(
           "Slice an STL into layer contours",
@@ -224,7 +319,10 @@ Json build() {
               true));
       op["responses"]["200"]["headers"]["X-Stlrefine-Report"] =
           header("The slice report (JSON, one line).");
+      op["responses"]["200"]["headers"]["Content-Disposition"] = download_header();
       op["parameters"] = query_parameters(api::slice_param_names(limits), api::RequestKind::Slice);
+      op["parameters"].push_back(disposition_parameter());
+      op["parameters"].push_back(filename_parameter());
       op["requestBody"] = stl_body();
       item["post"] = op;
     } else if (p == "/v1/info") {
@@ -259,7 +357,7 @@ Json build() {
               {"enum",
                {"result.stl", "report.json", "contours.json", "contours.svg", "contours.cli"}}}}}});
       item["parameters"] = params;
-      item["get"] = operation(
+      Json download = operation(
           "Download a result of a done job",
           {{"200", binary_response("The file.", {"model/stl", "application/json", "image/svg+xml",
                                                  "text/plain", "application/octet-stream"})},
@@ -269,6 +367,8 @@ Json build() {
            {"404", problem_response("Unknown job or no such result.")},
            {"409", problem_response("The job is not done.")},
            {"410", problem_response("Removed after retention.")}});
+      download["responses"]["200"]["headers"]["Content-Disposition"] = download_header();
+      item["get"] = download;
     } else if (p == "/v1/openapi.json") {
       item["get"] = operation("This document", {{"200", json_response("OpenAPI 3.0.3")}});
     } else if (p == "/v1/version") {

@@ -9,6 +9,7 @@
 
 #include "api/plan.h"
 #include "core/error.h"
+#include "server/http_upload.h"
 
 namespace stlrefine::server {
 
@@ -87,7 +88,7 @@ std::optional<api::Problem> RouteContext::precheck(const HttpRequest& req,
   if ((route->kind == RouteKind::Submit || route->kind == RouteKind::JobItem) && !jobs)
     return api::not_found("jobs-disabled",
                           "jobs are not enabled on this server (start it with --data-dir DIR)");
-  if (!has_body(*route)) {
+  if (!has_body(*route, req.method)) {
     // The library reads a DELETE body (a chunked one without any limit) and leaves a GET
     // body unread; neither route takes one.
     // get_header_value returns a copy: keep it alive while the view is used.
@@ -130,11 +131,19 @@ std::optional<api::Problem> RouteContext::precheck(const HttpRequest& req,
   // curl --data-binary labels the body application/x-www-form-urlencoded unless told
   // otherwise. The bytes arrive unchanged and are never form-decoded, so the plain
   // `curl --data-binary @part.stl URL` a user types is accepted as raw STL.
+  // multipart/form-data (curl -F file=@part.stl): its boundary is checked before the upload.
+  const std::optional<std::string> boundary = multipart_boundary(req.header("Content-Type"));
+  if (boundary && boundary->empty()) {
+    api::Problem p = api::bad_request(
+        "bad-request", "multipart/form-data needs a boundary parameter of 1 to 70 characters");
+    p.field = "Content-Type";
+    return p;
+  }
   if (type != "model/stl" && type != "application/octet-stream" &&
-      type != "application/x-www-form-urlencoded") {
+      type != "application/x-www-form-urlencoded" && !boundary) {
     api::Problem p = api::unsupported_media_type(
         "unsupported-media-type",
-        "Content-Type must be model/stl or application/octet-stream, not '" +
+        "Content-Type must be model/stl, application/octet-stream or multipart/form-data, not '" +
             shortened(req.header("Content-Type")) + "'");
     p.field = "Content-Type";
     return p;
@@ -151,7 +160,14 @@ std::optional<api::Problem> RouteContext::precheck(const HttpRequest& req,
   // Parameters, before the body is uploaded: resolved once, for the handler. A refinement's
   // validation makes its scheme (make_scheme(RefineParams)); that scheme is the one it runs.
   try {
-    const api::RawParams raw = req.parameters();
+    api::RawParams raw = req.parameters();
+    // The upload's own parameters (not the computation's): read by the handlers (a job's
+    // callback_url; the name of a file whose downloads are named, not /v1/info's).
+    const bool named = route->path != std::string_view("/v1/info");
+    std::erase_if(raw, [&](const auto& p) {
+      return (p.first == "filename" && named) ||
+             (p.first == "callback_url" && route->kind == RouteKind::Submit);
+    });
     if (route->kind == RouteKind::Submit || route->path == std::string_view("/v1/refine"))
       checked.refine = api::plan_refine(api::parse_refine_fields(raw, limits));
     else if (route->path == std::string_view("/v1/slice"))

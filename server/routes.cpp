@@ -19,7 +19,7 @@ constexpr Route kRoutes[] = {
     {"/v1/refine", "POST", RouteKind::Compute},
     {"/v1/slice", "POST", RouteKind::Compute},
     {"/v1/info", "POST", RouteKind::Compute},
-    {"/v1/jobs", "POST", RouteKind::Submit},
+    {"/v1/jobs", "GET, HEAD, POST", RouteKind::Submit},
     {"/v1/jobs/", "GET, HEAD, DELETE", RouteKind::JobItem},
     {"/v1/openapi.json", "GET, HEAD", RouteKind::Plain},
     {"/v1/version", "GET, HEAD", RouteKind::Plain},
@@ -41,8 +41,8 @@ const Route* find_route(const std::string& path) {
   return nullptr;
 }
 
-bool has_body(const Route& route) {
-  return route.kind == RouteKind::Compute || route.kind == RouteKind::Submit;
+bool has_body(const Route& route, std::string_view method) {
+  return route.kind == RouteKind::Compute || (route.kind == RouteKind::Submit && method == "POST");
 }
 
 bool method_allowed(const Route& route, const std::string& method) {
@@ -64,6 +64,7 @@ std::vector<RouteInfo> served_routes() {
   for (const Route& r : kRoutes) {
     if (r.kind == RouteKind::JobItem) {
       out.push_back({"/v1/jobs/{id}", r.allow});
+      out.push_back({"/v1/jobs/{id}/events", "GET, HEAD"});
       out.push_back({"/v1/jobs/{id}/{file}", "GET, HEAD"});
     } else if (r.path == std::string_view("/assets/")) {
       out.push_back({"/assets/{file}", r.allow});

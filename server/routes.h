@@ -18,7 +18,7 @@ inline constexpr const char* kReportHeader = "X-Stlrefine-Report";
 
 enum class RouteKind {
   Compute,  //!< POST with an STL body, answered synchronously, takes a compute slot
-  Submit,   //!< POST /v1/jobs: an STL body queued as a job
+  Submit,   //!< POST /v1/jobs: an STL body queued as a job; GET /v1/jobs: the caller's jobs
   JobItem,  //!< /v1/jobs/{id} and /v1/jobs/{id}/{file}
   Plain,    //!< GET without a body
   Page,     //!< the web page: / and /assets/{file}, embedded at build time (web/), no API key
@@ -32,8 +32,9 @@ struct Route {
 
 //! The route of a (decoded) path, or nullptr.
 const Route* find_route(const std::string& path);
-//! True for the routes that take an STL body.
-bool has_body(const Route& route);
+//! True for the requests that take an STL body (POST on a Compute or Submit route; GET
+//! /v1/jobs lists jobs and takes none).
+bool has_body(const Route& route, std::string_view method = "POST");
 bool method_allowed(const Route& route, const std::string& method);
 
 //! Paths and header values are echoed in details: at most 120 characters, then "...".

@@ -2,8 +2,9 @@
 // Copyright (c) 2026 stlrefine authors
 //
 // examples/stlrefine_client.py (issue 19 item 6: a Python client, standard library only)
-// against the real daemon: submit, poll until `state` says done, download every result
-// under the part's name; a refused submission exits 2 quoting the parameter.
+// against the real daemon: upload as a form, follow the job's events (or poll) until
+// `state` says done, download every result under the name the server gives it
+// (Content-Disposition); a refused submission exits 2 quoting the parameter.
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -40,16 +41,26 @@ TEST(ExampleClient, SubmitsFollowsAndDownloads) {
                                 120s);
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
   EXPECT_NE(r.err.find("done"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("polling"), std::string::npos) << r.err;  // followed by events
   const std::vector<Triangle> input = read_binary_stl(read_file(dir / "fandisk.stl"));
-  const std::vector<Triangle> refined = read_binary_stl(read_file(dir / "fandisk_result.stl"));
+  const std::vector<Triangle> refined = read_binary_stl(read_file(dir / "fandisk_refined.stl"));
   EXPECT_EQ(refined.size(), 4 * input.size());
   const nlohmann::json report = nlohmann::json::parse(read_file(dir / "fandisk_report.json"));
   EXPECT_EQ(report["scheme"], "loop");
-  EXPECT_NE(read_file(dir / "fandisk_contours.svg").find("<svg"), std::string::npos);
+  // The contours carry the part's name (the server kept it from the upload).
+  EXPECT_NE(read_file(dir / "fandisk_slices.svg").find("<title>fandisk"), std::string::npos);
   // Every file it printed exists.
   std::size_t printed = 0;
   for (std::size_t at = 0; (at = r.out.find('\n', at)) != std::string::npos; ++at) ++printed;
   EXPECT_EQ(printed, 3u) << r.out;
+
+  // Polling instead of events gives the same files.
+  fs::remove(dir / "fandisk_refined.stl");
+  r = run_process({"/usr/bin/python3", client, (dir / "fandisk.stl").string(), "--url", url,
+                   "--poll", "0.1", "--no-events", "--param", "scheme=loop", "--param", "levels=1"},
+                  120s);
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_EQ(read_binary_stl(read_file(dir / "fandisk_refined.stl")).size(), 4 * input.size());
 
   // A refused submission: exit 2, the problem quoting the parameter.
   r = run_process({"/usr/bin/python3", client, (dir / "fandisk.stl").string(), "--url", url,

@@ -395,9 +395,9 @@ TEST(JobStore, ACancelAnsweredFoundAlwaysEndsCancelledEvenAsTheJobFinishes) {
   for (int i = 0; i < 50; ++i) {
     const std::string id = submit(store, "scheme=butterfly&levels=3", octahedron());
     ASSERT_FALSE(id.empty());
-    // Cancel right as the job finishes: once its refinement reports 1.0 (it then writes its
-    // files and marks itself done); every fifth time a little before, every fifth once it
-    // is done.
+    // Cancel right as the job finishes: once its stage is "writing" (the computation has
+    // ended; it writes its files and marks itself done); every fifth time a little before,
+    // every fifth once it is done. (A running job's progress never reads 1.)
     JobView seen;
     bool computed = false;
     const auto deadline = std::chrono::steady_clock::now() + 30s;
@@ -405,8 +405,9 @@ TEST(JobStore, ACancelAnsweredFoundAlwaysEndsCancelledEvenAsTheJobFinishes) {
       ASSERT_EQ(store.find(id, "", &seen), Lookup::Found);
       if (is_finished(seen.state)) break;
       if (i % 5 == 4) continue;
-      if (seen.state == JobState::Running && seen.progress >= (i % 5 == 3 ? 0.5 : 1.0)) {
-        computed = seen.progress >= 1.0;
+      const bool writing = seen.stage == "writing";
+      if (seen.state == JobState::Running && (i % 5 == 3 ? seen.progress >= 0.5 : writing)) {
+        computed = writing;
         break;
       }
     }

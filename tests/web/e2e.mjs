@@ -203,7 +203,8 @@ async function main() {
     method: 'POST', headers: { 'Content-Type': 'model/stl' }, body: mesh,
   });
   const fromRefine = Buffer.from(await sync.arrayBuffer());
-  check(download.suggestedFilename() === 'result.stl', 'the download is called result.stl');
+  // Named by the server after the uploaded file (Content-Disposition).
+  check(download.suggestedFilename() === 'torus_refined.stl', `the download is called torus_refined.stl (${download.suggestedFilename()})`);
   check(downloaded.length > 84 && downloaded.equals(fromJob), `the downloaded result.stl (${downloaded.length} bytes) is GET /v1/jobs/{id}/result.stl`);
   check(sync.status === 200 && downloaded.equals(fromRefine), 'and a synchronous POST /v1/refine of the same parameters');
 

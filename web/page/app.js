@@ -229,8 +229,12 @@ async function run() {
   setBusy(true);
   cancelled = false;
   try {
+    // The file's name goes along: the server names the downloads after it (part_refined.stl).
+    const disposition = `attachment; filename*=UTF-8''${encodeURIComponent(input.name)}`;
     const res = await api(`v1/jobs?${q}`, {
-      method: 'POST', headers: { 'Content-Type': 'model/stl' }, body: input.bytes,
+      method: 'POST',
+      headers: { 'Content-Type': 'model/stl', 'Content-Disposition': disposition },
+      body: input.bytes,
     });
     job = await res.json();
     showJob(job);
