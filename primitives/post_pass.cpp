@@ -269,6 +269,14 @@ InputSurface::Impl::Turn InputSurface::Impl::measure_turn(const Mesh& refined,
 
 namespace {
 
+// Where a vertex is pulled back to: just inside its bound (by 1e-14 of the diagonal, far above
+// the coordinates' rounding). At the bound itself, the distance measured again came out up to
+// 1e-4 of it over (xyz cube, a bound of 1e-12 of the diagonal on its exact planes: 3.4652e-11
+// for 3.4649e-11), and the report said the bound did not hold.
+double just_inside(double bound, double diagonal) {
+  return std::max(0.5 * bound, bound - 1e-14 * diagonal);
+}
+
 // Adds the counts and keeps the largest figures of `part` (a chunk's, or one vertex's).
 void add_figures(PostPassReport& total, const PostPassReport& part) {
   total.vertices_checked += part.vertices_checked;
@@ -326,7 +334,7 @@ PostPassReport InputSurface::Impl::apply_bound(Mesh& refined, const PostPassPara
         const double bound = user_bound ? *params.max_deviation : this->bound[face];
         acc.max_bound = std::max(acc.max_bound, bound);
         if (d > bound) {
-          const Vec3 back = q + (p - q) * (bound / d);
+          const Vec3 back = q + (p - q) * (just_inside(bound, diagonal) / d);
           ++acc.pulled_back;
           acc.max_pull_back = std::max(acc.max_pull_back, distance(back, p));
           p = out_positions[i] = back;
@@ -662,7 +670,7 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
           std::size_t back_face = face;
           // Just inside the bound (by 1e-14 of the diagonal, far above the coordinates'
           // rounding): a snap taken back lands here and must still meet it.
-          const double inside = std::max(0.5 * bound, bound - 1e-14 * m.diagonal);
+          const double inside = just_inside(bound, m.diagonal);
           o.fallback = q + (p - q) * (inside / d);
           o.fallback_distance = distance(o.fallback, closest(o.fallback, back_face, face));
           o.fallback_face = static_cast<std::uint32_t>(back_face);
@@ -705,7 +713,7 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
                                          : m.bound[face];
         o.bound = bound;
         if (d > bound) {
-          const Vec3 back = q + (p - q) * (bound / d);
+          const Vec3 back = q + (p - q) * (just_inside(bound, m.diagonal) / d);
           o.pulled = 1;
           o.pull_back = distance(back, p);
           p = back;
