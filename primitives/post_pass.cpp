@@ -73,6 +73,13 @@ struct InputSurface::Impl {
   double diagonal = 0, tolerance = 0;
   Triangles triangles;
   Tree tree;
+  // The recognised regions' faces alone (their input face ids in region_faces), when they
+  // are under half of the input: a scan has a few flat facets at most, and a new vertex with
+  // none of them within reach cannot snap; this small tree says so without a search of the
+  // whole input. Empty otherwise (every vertex is searched).
+  Triangles region_triangles;
+  std::vector<std::uint32_t> region_faces;
+  Tree region_tree;
 
   std::size_t face_of(const Tree::Primitive_id& id) const {
     return static_cast<std::size_t>(id - triangles.begin());
@@ -87,6 +94,8 @@ struct InputSurface::Impl {
   //! The closest point of the input to p and its face, searched nearer boxes first; `hint`
   //! (a face near p: a neighbour's) bounds the search from the start.
   Vec3 closest(const Vec3& p, std::size_t& face, std::size_t hint) const;
+  //! False when region_tree is built and no face of it is within r of p.
+  bool region_face_within(const Vec3& p, double r) const;
   //! fn(face, distance) for every face within r of p, in the tree's order.
   template <class Fn>
   void for_each_face_within(const Vec3& p, double r, Fn&& fn) const;
@@ -182,6 +191,30 @@ void InputSurface::Impl::for_each_face_within(const Vec3& p, double r, Fn&& fn) 
   tree.traversal(point3(p), within);
 }
 
+bool InputSurface::Impl::region_face_within(const Vec3& p, double r) const {
+  if (region_faces.empty()) return true;
+  struct Any {
+    const Impl& m;
+    Vec3 p;
+    double r;
+    bool found = false;
+    bool go_further() const { return !found; }
+    void intersection(const K::Point_3&, const AabbPrimitive& primitive) {
+      const auto& t =
+          m.faces[m.region_faces[std::size_t(primitive.id() - m.region_triangles.begin())]];
+      const Vec3 q =
+          closest_point_on_triangle(p, m.positions[t[0]], m.positions[t[1]], m.positions[t[2]]);
+      found = found || distance(p, q) <= r;
+    }
+    bool do_intersect(const K::Point_3&, const TreeNode& node) const {
+      return squared_distance_to_box(p, node.bbox()) <= r * r;
+    }
+  };
+  Any any{*this, p, r};
+  region_tree.traversal(point3(p), any);
+  return any.found;
+}
+
 const double kCosTurn = std::cos(kFoldDegrees * std::numbers::pi / 180);
 
 template <class At, class Closest>
@@ -235,6 +268,14 @@ InputSurface::Impl::Turn InputSurface::Impl::measure_turn(const Mesh& refined,
 }
 
 namespace {
+
+// Where a vertex is pulled back to: just inside its bound (by 1e-14 of the diagonal, far above
+// the coordinates' rounding). At the bound itself, the distance measured again came out up to
+// 1e-4 of it over (xyz cube, a bound of 1e-12 of the diagonal on its exact planes: 3.4652e-11
+// for 3.4649e-11), and the report said the bound did not hold.
+double just_inside(double bound, double diagonal) {
+  return std::max(0.5 * bound, bound - 1e-14 * diagonal);
+}
 
 // Adds the counts and keeps the largest figures of `part` (a chunk's, or one vertex's).
 void add_figures(PostPassReport& total, const PostPassReport& part) {
@@ -293,7 +334,7 @@ PostPassReport InputSurface::Impl::apply_bound(Mesh& refined, const PostPassPara
         const double bound = user_bound ? *params.max_deviation : this->bound[face];
         acc.max_bound = std::max(acc.max_bound, bound);
         if (d > bound) {
-          const Vec3 back = q + (p - q) * (bound / d);
+          const Vec3 back = q + (p - q) * (just_inside(bound, diagonal) / d);
           ++acc.pulled_back;
           acc.max_pull_back = std::max(acc.max_pull_back, distance(back, p));
           p = out_positions[i] = back;
@@ -365,6 +406,19 @@ InputSurface::InputSurface(const Mesh& mesh, const Features& features, const Reg
   }
   m.tree.insert(m.triangles.begin(), m.triangles.end());
   m.tree.build();
+  const auto in_regions = static_cast<std::size_t>(std::count_if(
+      m.face_region.begin(), m.face_region.end(), [](std::int32_t r) { return r >= 0; }));
+  if (in_regions > 0 && 2 * in_regions < nf) {
+    m.region_faces.reserve(in_regions);
+    m.region_triangles.reserve(in_regions);
+    for (std::size_t f = 0; f < nf; ++f)
+      if (m.face_region[f] >= 0) {
+        m.region_faces.push_back(static_cast<std::uint32_t>(f));
+        m.region_triangles.push_back(m.triangles[f]);
+      }
+    m.region_tree.insert(m.region_triangles.begin(), m.region_triangles.end());
+    m.region_tree.build();
+  }
 }
 
 InputSurface::~InputSurface() = default;
@@ -381,7 +435,10 @@ std::uint64_t InputSurface::predict_bytes(std::uint64_t input_vertices, std::uin
   // face it touches, normals and centroids), stamps, bounds and face flags.
   const std::uint64_t detect =
       regions ? (3 * 24 + 2 * 24 + 8 + 4 + 4 + 16 + 16) * 2 * input_faces + 8 * input_vertices : 0;
-  return held + detect + (std::uint64_t{1} << 14);
+  // The regions' own tree, when they hold under half of the faces: their triangles and face
+  // ids (reserved to size), the tree's primitives and nodes.
+  const std::uint64_t region_tree = regions ? (72 + 4 + 8 + 64) * input_faces / 2 : 0;
+  return held + detect + region_tree + (std::uint64_t{1} << 14);
 }
 
 std::uint64_t InputSurface::predict_apply_bytes(std::uint64_t output_vertices) {
@@ -411,7 +468,18 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
     return m.closest(p, face, hint);
   };
 
+  // The longest edge of the output bounds every vertex's search radius below: with it a
+  // vertex far from every region is refused before its own edges are walked.
+  double longest_edge = 0;
+  if (!m.region_faces.empty())
+    for (std::uint32_t e = 0; e < refined.num_edges(); ++e) {
+      const HalfedgeId h = refined.halfedge(EdgeId(e));
+      longest_edge = std::max(longest_edge, distance(refined.position(refined.from(h)),
+                                                     refined.position(refined.to(h))));
+    }
+
   auto snap_target = [&](VertexId v, const Vec3& p, double d, Outcome& o) -> std::optional<Vec3> {
+    if (!m.region_face_within(p, d + 0.25 * longest_edge + 1e-9 * m.diagonal)) return std::nullopt;
     // Input faces near p (a quarter of its longest edge farther than the nearest: a vertex
     // of a crease may lie on one side's face, inside the other side's chord), each incident
     // refined face voting for the one whose normal it agrees with best.
@@ -421,6 +489,7 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
       longest = std::max(longest, distance(self, refined.position(refined.to(h))));
     });
     const double r = d + 0.25 * longest + 1e-9 * m.diagonal;
+    if (!m.region_face_within(p, r)) return std::nullopt;  // no region to vote for
     std::vector<std::size_t> near;
     std::vector<double> near_distance;
     m.for_each_face_within(p, r, [&](std::size_t f, double dist) {
@@ -601,7 +670,7 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
           std::size_t back_face = face;
           // Just inside the bound (by 1e-14 of the diagonal, far above the coordinates'
           // rounding): a snap taken back lands here and must still meet it.
-          const double inside = std::max(0.5 * bound, bound - 1e-14 * m.diagonal);
+          const double inside = just_inside(bound, m.diagonal);
           o.fallback = q + (p - q) * (inside / d);
           o.fallback_distance = distance(o.fallback, closest(o.fallback, back_face, face));
           o.fallback_face = static_cast<std::uint32_t>(back_face);
@@ -644,7 +713,7 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
                                          : m.bound[face];
         o.bound = bound;
         if (d > bound) {
-          const Vec3 back = q + (p - q) * (bound / d);
+          const Vec3 back = q + (p - q) * (just_inside(bound, m.diagonal) / d);
           o.pulled = 1;
           o.pull_back = distance(back, p);
           p = back;
@@ -687,6 +756,11 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
     std::vector<std::uint32_t> revert;
     for (std::size_t g = 0; g < refined.num_faces(); ++g) {
       const FaceId face(static_cast<std::uint32_t>(g));
+      // Only snapped corners are taken back: a face without one is left as it is.
+      bool any_snapped = false;
+      for (VertexId v : refined.face_vertices(face))
+        any_snapped = any_snapped || out[v.idx].snapped;
+      if (!any_snapped) continue;
       // A face the pass collapsed (two corners at one point: no normal, so agreement() and
       // the report do not see it) is treated as turned.
       const bool collapsed =

@@ -194,6 +194,10 @@ RegionMap detect_regions(const Mesh& mesh, const Features& features, const Regio
     return components[a].size() > components[b].size();
   });
   std::vector<std::uint8_t> assigned(nc, 0);
+  // The grown planes' face flags, once for all components (each touches its own faces
+  // only): allocated per component they cost a pass over every face for each of a scan's
+  // many small components.
+  std::vector<std::uint8_t> taken(nf, 0), tried(nf, 0);
 
   // Planes first; among the curved types the one that absorbs the most faces (two coaxial
   // circles lie on a cylinder or cone and on a sphere: the neighbours decide), ties in this
@@ -285,7 +289,6 @@ RegionMap detect_regions(const Mesh& mesh, const Features& features, const Regio
     std::iota(order.begin(), order.end(), std::size_t{0});
     std::stable_sort(order.begin(), order.end(),
                      [&](std::size_t a, std::size_t b) { return area[a] > area[b]; });
-    std::vector<std::uint8_t> taken(nf, 0), tried(nf, 0);
     for (std::size_t oi : order) {
       const std::uint32_t seed = seeds[oi];
       if (taken[seed] || tried[seed] || !(area[oi] > 0)) continue;
@@ -314,15 +317,19 @@ RegionMap detect_regions(const Mesh& mesh, const Features& features, const Regio
           stack.push_back(g);
         }
       }
-      const Patch gp = make_patch(mesh, grown, stamp, ++mark);
-      bool keep = grown.size() >= 2 && gp.area >= 0.05 * patch.area;
-      if (keep) {
-        const std::optional<Primitive> refit =
-            fit_primitive(PrimitiveType::Plane, gp.points, gp.normals, gp.centroids);
-        const Primitive& use = refit && max_residual(*refit, gp.points) <= tol ? *refit : plane;
-        const double residual = max_residual(use, gp.points);
-        keep = residual <= tol;
-        if (keep) add_region(use, gp, residual, true);
+      // A single face is never kept: refused before its patch is made (on a scan nearly
+      // every face is such a seed).
+      bool keep = false;
+      if (grown.size() >= 2) {
+        const Patch gp = make_patch(mesh, grown, stamp, ++mark);
+        if (gp.area >= 0.05 * patch.area) {
+          const std::optional<Primitive> refit =
+              fit_primitive(PrimitiveType::Plane, gp.points, gp.normals, gp.centroids);
+          const Primitive& use = refit && max_residual(*refit, gp.points) <= tol ? *refit : plane;
+          const double residual = max_residual(use, gp.points);
+          keep = residual <= tol;
+          if (keep) add_region(use, gp, residual, true);
+        }
       }
       // Faces of a rejected plane stay free for a larger plane grown from elsewhere, but are
       // not seeds again (they would grow the same plane).

@@ -318,8 +318,9 @@ void print_summary(std::ostream& md, const std::vector<FamilyResult>& results, c
       md << "\n";
     }
 
-  md << "\nFaces folded (normal > 90° from the true normal at the centroid's closest "
-        "point) / faces > 60°, totals over the seeds, at each level:\n\n| scheme | L |";
+  md << "\nFaces folded (normal > 90° from the true normal at the best agreeing of the "
+        "centroid's and the corners' closest points) / faces > 60°, totals over the seeds, at "
+        "each level:\n\n| scheme | L |";
   for (const FamilyResult& fr : results) md << " " << test::cad_family_name(fr.family) << " |";
   md << "\n|---|--:|";
   for (std::size_t i = 0; i < results.size(); ++i) md << "--:|";

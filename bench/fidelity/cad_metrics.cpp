@@ -34,8 +34,8 @@ CadMetrics measure_cad(const Mesh& mesh, const test::TrueSurface& surface, std::
     total_area += area;
     auto at = [&](double s, double t) { return a + (b - a) * s + (c - a) * t; };
 
-    // --- normal against the truth at the centroid's closest point (with k = 1 the centroid
-    // is also the face's one distance sample)
+    // --- the centroid's closest point (with k = 1 the face's one distance sample); the
+    // normal against the truth below
     const Vec3 centroid = (a + b + c) * (1.0 / 3);
     test::SurfacePoint cs = surface.closest_point(centroid);
     // A crease within float32 rounding of the closest point is where the face is: meshes
@@ -50,7 +50,9 @@ CadMetrics measure_cad(const Mesh& mesh, const test::TrueSurface& surface, std::
     if (n == Vec3{}) {
       ++m.degenerate_faces;
     } else {
-      const double angle = test::normal_angle_deg(cs, n);
+      // The best agreeing of the centroid's and the corners' closest points (a flat face a
+      // hair past its rim is not a fold; see test::face_truth_angle_deg).
+      const double angle = test::face_truth_angle_deg(surface, n, a, b, c, crease_snap);
       sum_a2 += area * angle * angle;
       m.worst_normal_deg = std::max(m.worst_normal_deg, angle);
       if (angle > 90) ++m.folded;

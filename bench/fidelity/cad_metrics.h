@@ -20,9 +20,10 @@ struct CadMetrics {
   //! face, and the maximum over barycentric lattice points (vertices and edge points
   //! included).
   double rms = 0, max = 0;
-  //! Per face: the angle between its normal and the true normal at its centroid's closest
-  //! point (at a crease, or within 1e-6 of the bbox diagonal of one, as float32 STL rounding
-  //! leaves a face: the angle to the arc of normals there).
+  //! Per face: the angle between its normal and the true normal, the smallest at the
+  //! closest points of its centroid and its corners (test::face_truth_angle_deg; at a
+  //! crease, or within 1e-6 of the bbox diagonal of one, as float32 STL rounding leaves a
+  //! face: the angle to the arc of normals there).
   std::size_t folded = 0;   //!< more than 90 degrees
   std::size_t over_60 = 0;  //!< more than 60 degrees (folded ones included)
   double worst_normal_deg = 0;

@@ -10,6 +10,7 @@
 #include "core/parallel.h"
 #include "core/refine.h"
 #include "core/schemes/crease_rules.h"
+#include "core/schemes/dominant_planes.h"
 
 namespace stlrefine {
 
@@ -147,24 +148,6 @@ std::uint64_t guard_folds_normal_bytes(const Mesh& m) {
   return sizeof(Vec3) * 3 * std::uint64_t(m.num_faces());
 }
 
-namespace {
-
-// Where a counter-clockwise walk around v's crease sectors starts: its most clockwise
-// half-edge on a boundary, else at a sharp edge if there is one (so that sectors do not wrap
-// around). Invalid for an isolated vertex.
-HalfedgeId sector_walk_start(const Mesh& m, const Features& features, VertexId v) {
-  const HalfedgeId start = m.halfedge(v);
-  if (!start.valid() || m.is_boundary(v)) return start;
-  HalfedgeId h = start;
-  do {
-    if (features.is_sharp(m.edge(h))) return h;
-    h = m.ccw_rotated(h);
-  } while (h != start);
-  return start;
-}
-
-}  // namespace
-
 BigVector<Vec3> sector_normals(const Mesh& m, const Features& features) {
   BigVector<Vec3> corner(3 * std::size_t(m.num_faces()));
   parallel_for_each_index(m.num_vertices(), [&](std::size_t i) {
@@ -219,114 +202,28 @@ BigVector<Vec3> split4_smooth_normals(const Mesh& m, const BigVector<Vec3>& corn
   return fine;
 }
 
-namespace {
-
-// Whether every corner of face g lies on face f's plane (unit normal n through p), to the
-// rounding of their coordinates: 1e-6 of the larger face's longest edge plus about four
-// float32 ulps of the coordinates' magnitude (an STL's vertices are floats).
-struct FacePlane {
-  Vec3 n, p;
-  double size = 0;  // longest edge
-  double area = 0;
-};
-
-FacePlane face_plane(const Mesh& m, std::uint32_t f) {
-  const auto [a, b, c] = m.face_vertices(FaceId(f));
-  const Vec3 &pa = m.position(a), &pb = m.position(b), &pc = m.position(c);
-  const Vec3 t = cross(pb - pa, pc - pa);
-  return {normalized(t), pa, std::max({norm(pb - pa), norm(pc - pb), norm(pa - pc)}),
-          0.5 * norm(t)};
-}
-
-double max_abs(const Vec3& v) {
-  return std::max({std::abs(v.x), std::abs(v.y), std::abs(v.z)});
-}
-
-double plane_tolerance(const FacePlane& f, double size, double magnitude) {
-  return 1e-6 * std::max(f.size, size) + 4.8e-7 * magnitude;
-}
-
-bool on_plane(const FacePlane& f, const Vec3& q, double size) {
-  return std::abs(dot(q - f.p, f.n)) <=
-         plane_tolerance(f, size, std::max(max_abs(q), max_abs(f.p)));
-}
-
-}  // namespace
-
 std::uint64_t keep_dominant_planes_bytes(const Mesh& m) {
-  return (sizeof(FacePlane) + 3) * std::uint64_t(m.num_faces()) + m.num_edges();
+  return dominant_planes_bytes(m) + m.num_edges();
 }
 
 std::size_t keep_dominant_planes(const Mesh& m, const Features& features, BigVector<Vec3>& pos) {
-  // The plane's largest face at an endpoint is at least this many times as large as any
-  // face there off the plane: a flat face of a part beside the thin strips of a fillet, not
-  // a flat net with one vertex lifted (the stencil tests read weights that way) nor the
-  // equal, pairwise coplanar halves of a ruled height field's quads.
-  constexpr double kDominance = 2.0;
   const std::uint32_t nv = static_cast<std::uint32_t>(m.num_vertices());
-  const std::size_t nf = m.num_faces();
-  std::vector<FacePlane> plane(nf);
-  parallel_for_each_index(
-      nf, [&](std::size_t f) { plane[f] = face_plane(m, static_cast<std::uint32_t>(f)); });
-  auto coplanar = [&](std::uint32_t f, std::uint32_t g) {
-    if (f == g) return true;
-    const auto [a, b, c] = m.face_vertices(FaceId(g));
-    const FacePlane& pf = plane[f];
-    const double size = plane[g].size;
-    return on_plane(pf, m.position(a), size) && on_plane(pf, m.position(b), size) &&
-           on_plane(pf, m.position(c), size);
-  };
-  // Per corner (half-edge leaving the corner's vertex): whether the corner's face's plane
-  // holds at least half of the face area of the vertex's crease sector.
-  std::vector<std::uint8_t> dominant(3 * nf, 0);
-  parallel_for_each_index(nv, [&](std::size_t i) {
-    const VertexId v(static_cast<std::uint32_t>(i));
-    const HalfedgeId start = sector_walk_start(m, features, v);
-    if (!start.valid()) return;
-    std::vector<HalfedgeId> sector;
-    HalfedgeId h = start;
-    while (true) {
-      sector.push_back(h);
-      const HalfedgeId next = m.ccw_rotated(h);
-      const bool end = !next.valid() || next == start;
-      if (end || features.is_sharp(m.edge(next))) {
-        double total = 0;
-        for (HalfedgeId g : sector) total += plane[g.idx / 3].area;
-        for (HalfedgeId g : sector) {
-          const std::uint32_t f = g.idx / 3;
-          if (plane[f].area == 0) continue;
-          double held = 0, largest_on = 0, largest_off = 0;
-          for (HalfedgeId o : sector) {
-            const double a = plane[o.idx / 3].area;
-            if (coplanar(f, o.idx / 3)) {
-              held += a;
-              largest_on = std::max(largest_on, a);
-            } else {
-              largest_off = std::max(largest_off, a);
-            }
-          }
-          dominant[g.idx] = 2 * held >= total && largest_on >= kDominance * largest_off;
-        }
-        sector.clear();
-      }
-      if (end) break;
-      h = next;
-    }
-  });
+  const DominantPlanes planes = dominant_planes(m, features);
   std::vector<std::uint8_t> moved(m.num_edges(), 0);
   parallel_for_each_index(m.num_edges(), [&](std::size_t e) {
     const EdgeId edge(static_cast<std::uint32_t>(e));
     if (features.is_sharp(edge) || m.is_boundary(edge)) return;
     const HalfedgeId h = m.halfedge(edge), t = m.twin(h);
-    const bool f_holds = dominant[h.idx] && dominant[Mesh::next(h).idx];
-    const bool g_holds = dominant[t.idx] && dominant[Mesh::next(t).idx];
+    const bool f_holds = planes.dominant[h.idx] && planes.dominant[Mesh::next(h).idx];
+    const bool g_holds = planes.dominant[t.idx] && planes.dominant[Mesh::next(t).idx];
     const std::uint32_t f = h.idx / 3, g = t.idx / 3;
-    if (f_holds && g_holds && !coplanar(f, g)) return;  // two planes: leave it to the stencil
+    // two planes: leave it to the stencil
+    if (f_holds && g_holds && !planes.coplanar(m, f, g)) return;
     if (!f_holds && !g_holds) return;
-    const FacePlane& pl = plane[f_holds ? f : g];
+    const std::uint32_t held = f_holds ? f : g;
     Vec3& q = pos[nv + e];
-    if (on_plane(pl, q, pl.size)) return;
-    q -= dot(q - pl.p, pl.n) * pl.n;
+    if (planes.on_plane(held, q, planes.plane[held].size)) return;
+    q = planes.project(held, q);
     moved[e] = 1;
   });
   return static_cast<std::size_t>(std::count(moved.begin(), moved.end(), 1));

@@ -751,14 +751,27 @@ double normal_angle_deg(const SurfacePoint& s, const Vec3& n) {
   return std::min(angle_between_deg(n, s.normal), angle_between_deg(n, s.other_normal));
 }
 
+double face_truth_angle_deg(const TrueSurface& surface, const Vec3& n, const Vec3& a, const Vec3& b,
+                            const Vec3& c, double crease_snap) {
+  double best = 180;
+  for (const Vec3& p : {(a + b + c) * (1.0 / 3.0), a, b, c}) {
+    SurfacePoint s = surface.closest_point(p);
+    if (!s.on_crease() && crease_snap > 0)
+      if (const auto crease = surface.closest_crease_point(p);
+          crease && distance(crease->point, s.point) <= crease_snap)
+        s = *crease;
+    best = std::min(best, normal_angle_deg(s, n));
+  }
+  return best;
+}
+
 std::size_t faces_off_truth(const Mesh& m, const TrueSurface& surface, double limit) {
   std::size_t off = 0;
   for (std::uint32_t f = 0; f < m.num_faces(); ++f) {
     const Vec3 n = normalized(m.face_normal(FaceId(f)));
     if (n == Vec3{}) continue;
     const auto [a, b, c] = m.face_vertices(FaceId(f));
-    const Vec3 centroid = (m.position(a) + m.position(b) + m.position(c)) * (1.0 / 3.0);
-    off += normal_angle_deg(surface.closest_point(centroid), n) > limit;
+    off += face_truth_angle_deg(surface, n, m.position(a), m.position(b), m.position(c)) > limit;
   }
   return off;
 }

@@ -131,8 +131,19 @@ double blob_harmonic(std::size_t k, const Vec3& d, Vec3* gradient = nullptr);
 //! (no crease). The boundary of the inner box grown by r.
 std::shared_ptr<const TrueSurface> rounded_box_surface(Vec3 half_extent, double radius);
 
-//! Faces of m more than `limit` degrees from the true normal at their centroid's closest
-//! point (at a crease, from the arc of normals there); degenerate faces are not counted.
+//! How far (degrees) the unit normal n of triangle (a, b, c) is from the true surface's: the
+//! smallest normal_angle_deg at the closest points of its centroid and of its three corners.
+//! Measured at the centroid alone, a face lying in a flat cap's plane a hair outside the
+//! rim (the rim's curve rule bulges 0.05 mm past a cylinder's circle after six sqrt3 steps)
+//! scored 90 degrees: its centroid is nearest to the side wall. Its own region is the one
+//! its corners are on; a fold or a ridge agrees with the truth at none of the four points.
+//! A closest point within `crease_snap` of a crease counts as on it (float32 rounding of an
+//! STL puts flat faces a hair past their rim).
+double face_truth_angle_deg(const TrueSurface& surface, const Vec3& n, const Vec3& a, const Vec3& b,
+                            const Vec3& c, double crease_snap = 0);
+
+//! Faces of m more than `limit` degrees from the true normal (face_truth_angle_deg);
+//! degenerate faces are not counted.
 std::size_t faces_off_truth(const Mesh& m, const TrueSurface& surface, double limit);
 
 }  // namespace stlrefine::test

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "core/mesh/build_mesh.h"
 #include "tests/support/random.h"
 
 namespace stlrefine::test {
@@ -200,6 +201,36 @@ TEST(TrueSurface, ProfilePiecesMeetAndPointOutward) {
   EXPECT_EQ(s.normal_at(0.5).v, -1);  // solid on the left (above), outward below
   EXPECT_THROW(ProfilePiece::arc({0, 0}, -1, 0, 1), std::invalid_argument);
   EXPECT_THROW(rounded_box_surface({1, 1, 1}, 2), std::invalid_argument);
+}
+
+// The fold measure (issue 17): a face lying in a flat cap's plane a hair outside the rim
+// (the rim's curve rule bulges past the circle) has its centroid nearest to the side wall,
+// 90 degrees from its normal; it is not a fold, and agrees with the cap at its inner corner.
+// The same face reversed, or tilted into a ridge, agrees nowhere.
+TEST(FaceTruthAngle, AFlatCapFacePastTheRimIsNotAFoldButAReversedOneIs) {
+  const auto cylinder = revolution_surface({ProfilePiece::segment({0, 0}, {10, 0}),
+                                            ProfilePiece::segment({10, 0}, {10, 20}),
+                                            ProfilePiece::segment({10, 20}, {0, 20})});
+  // In the top cap's plane (outward normal +z), 1e-4 below it (so that the nearest point of
+  // a corner outside the rim is on the side, not the rim): two corners 0.06 mm outside the
+  // rim, one inside.
+  const double z = 20 - 1e-4;
+  const Vec3 a{10.06, -0.3, z}, b{10.06, 0.3, z}, c{9.95, 0, z};
+  const Vec3 up{0, 0, 1};
+  const Vec3 centroid = (a + b + c) * (1.0 / 3.0);
+  EXPECT_NEAR(normal_angle_deg(cylinder->closest_point(centroid), up), 90, 1e-6);
+  EXPECT_NEAR(face_truth_angle_deg(*cylinder, up, a, b, c), 0, 1e-9);
+  EXPECT_NEAR(face_truth_angle_deg(*cylinder, up * -1.0, a, b, c), 90, 1e-6);
+  // A ridge: tilted 70 degrees from the cap towards -x, nowhere near the side's +x normal.
+  const double t = 70 * kPi / 180;
+  EXPECT_NEAR(face_truth_angle_deg(*cylinder, {-std::sin(t), 0, std::cos(t)}, a, b, c), 70, 1e-6);
+  // Reversed well inside the cap: folded.
+  const Vec3 shift{-5, 0, 0};
+  EXPECT_NEAR(face_truth_angle_deg(*cylinder, up * -1.0, a + shift, b + shift, c + shift), 180,
+              1e-6);
+
+  EXPECT_EQ(faces_off_truth(build_mesh({{a, b, c}, {{0u, 1u, 2u}}}).mesh, *cylinder, 60), 0u);
+  EXPECT_EQ(faces_off_truth(build_mesh({{a, b, c}, {{0u, 2u, 1u}}}).mesh, *cylinder, 60), 1u);
 }
 
 }  // namespace
