@@ -539,14 +539,14 @@ const ParamRow kParams[] = {
     {.name = "primitives",
      .type = ParamType::String,
      .description =
-         "auto (default): recognise planes, spheres, cylinders, cones and tori on the input "
-         "and put the new vertices of their regions exactly on them; off: do not (the "
-         "scheme's stencil alone).",
+         "auto: recognise planes, spheres, cylinders, cones and tori on the input and put "
+         "the new vertices of their regions exactly on them; off (default): do not (auto can "
+         "still turn thin faces along some rims over).",
      .help = "auto: recognise planes, spheres, cylinders, cones and tori on the input and put "
-             "the new vertices of their regions exactly on them; off: do not (the scheme's "
-             "stencil alone)",
-     .example = "off",
-     .default_value = "auto",
+             "the new vertices of their regions exactly on them; off: do not (auto can still "
+             "turn thin faces along some rims over)",
+     .example = "auto",
+     .default_value = "off",
      .refine = refine_primitives},
     {.name = "primitive_tol",
      .type = ParamType::Number,

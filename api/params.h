@@ -70,9 +70,10 @@ struct SliceRequest {
 //! deviation bound (primitives/).
 struct PrimitiveOptions {
   //! `primitives`: auto recognises planes, spheres, cylinders, cones and tori on the input
-  //! and puts the new vertices of their regions on them (the default, issue 17 item 4: on
-  //! a CAD part's cylinders, cones and planes lsf lands on the ideal); off does not.
-  bool enabled = true;
+  //! and puts the new vertices of their regions on them; off (the default) does not. Off by
+  //! default because the snaps still turn thin faces along some rims over (gearwheel,
+  //! featuretype: bench/RESULTS.md, issue 17), which the deviation bound alone does not.
+  bool enabled = false;
   //! `primitive_tol`: a region is recognised when every input vertex of it lies within this
   //! fraction of the bounding box diagonal of the primitive, (0, 1e-2], default 1e-6.
   double tolerance = 1e-6;

@@ -546,15 +546,14 @@ TEST(PrimitivesApi, Parameters) {
   EXPECT_TRUE(a.primitives.post_pass());
   const api::RefineRequest b = api::parse_refine_params({{"max_deviation", "0"}}, {});
   EXPECT_EQ(b.primitives.max_deviation, 0.0);
-  // Defaults (issue 17 item 4): snapping on, the deviation bound on. Only both off skip the
-  // post-pass.
+  // Defaults: no snapping (it still turns thin rim faces over), the deviation bound on.
   const api::RefineRequest d = api::parse_refine_params({}, {});
-  EXPECT_TRUE(d.primitives.enabled);
+  EXPECT_FALSE(d.primitives.enabled);
   EXPECT_FALSE(d.primitives.max_deviation);
   EXPECT_TRUE(d.primitives.post_pass());
-  EXPECT_TRUE(api::parse_refine_params({{"max_deviation", "off"}}, {}).primitives.post_pass());
-  EXPECT_FALSE(api::parse_refine_params({{"max_deviation", "off"}, {"primitives", "off"}}, {})
-                   .primitives.post_pass());
+  EXPECT_FALSE(api::parse_refine_params({{"max_deviation", "off"}}, {}).primitives.post_pass());
+  EXPECT_TRUE(api::parse_refine_params({{"max_deviation", "off"}, {"primitives", "auto"}}, {})
+                  .primitives.post_pass());
 }
 
 }  // namespace

@@ -557,7 +557,7 @@ TEST(Attack, ClientsThatNeverReadTheirAnswerHoldNoWorker) {
   for (int i = 0; i < 6; ++i) {
     sinks.push_back(std::make_unique<RawConnection>(port));
     ASSERT_TRUE(sinks.back()->send(
-        post_text("/v1/refine?levels=3&max_deviation=off&primitives=off", "model/stl", fandisk())));
+        post_text("/v1/refine?levels=3&max_deviation=off", "model/stl", fandisk())));
   }
   std::this_thread::sleep_for(100ms);
   // The workers computed and handed the answers to the event loop: others are served.

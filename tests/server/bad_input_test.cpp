@@ -580,8 +580,8 @@ TEST_F(BadInput, AClientDisconnectingMidResponseFreesItsSlotAndDescriptor) {
   // made the computation alone outlast the test's timeout.
   {
     const int fd = connect_loopback(port_);
-    ASSERT_TRUE(send_all(fd, post_text("/v1/refine?levels=4&max_deviation=off&primitives=off",
-                                       "model/stl", gearwheel_)));
+    ASSERT_TRUE(
+        send_all(fd, post_text("/v1/refine?levels=4&max_deviation=off", "model/stl", gearwheel_)));
     char buffer[65536];
     std::size_t got = 0;
     while (got < sizeof buffer) {
