@@ -251,6 +251,20 @@ void refine_slice_format(RefineRequest& r, const std::string& value, const Reque
   }
 }
 
+// `mesh_format`: the refined mesh's file format (`format` is the contour format of
+// /v1/slice, and refine's contour format is `slice_format`; one name per meaning on every
+// route).
+void refine_mesh_format(RefineRequest& r, const std::string& value, const RequestLimits&) {
+  if (value == "stl")
+    r.mesh_format = MeshFormat::Stl;
+  else if (value == "3mf")
+    r.mesh_format = MeshFormat::ThreeMf;
+  else
+    throw invalid("mesh_format", "unknown_value",
+                  "mesh_format = " + shown(value) + " is not one of stl, 3mf");
+  r.mesh_format_given = true;
+}
+
 // The one table (param_table.h). Rows that only slicing takes come first, so that every
 // request kind's names keep the order they have always been listed in.
 const ParamRow kParams[] = {
@@ -430,6 +444,15 @@ const ParamRow kParams[] = {
      .example = "svg",
      .default_value = "json",
      .refine = refine_slice_format},
+    {.name = "mesh_format",
+     .type = ParamType::String,
+     .description = "Refined mesh file: stl (binary STL, default) or 3mf (in millimetres, one "
+                    "object per object of the input). Without it, Accept: model/3mf asks for 3mf.",
+     .help = "Refined mesh file: stl (binary STL) or 3mf (mm, one object per input object; "
+             "also chosen by an -o name ending in .3mf)",
+     .example = "3mf",
+     .default_value = "stl",
+     .refine = refine_mesh_format},
     {.name = "adaptive_angle",
      .type = ParamType::Number,
      .description =
@@ -690,6 +713,10 @@ RefineRequest parse_refine_fields(const RawParams& params, const RequestLimits& 
     if (!has_height)
       throw invalid("slice_format", "missing_parameter",
                     "slice_format needs slice (the layer height in mm)");
+    if (request.mesh_format == MeshFormat::ThreeMf)
+      throw invalid("mesh_format", "unsupported_combination",
+                    "mesh_format=3mf is for refine alone: refine + slice answers a zip with "
+                    "the refined STL");
     request.slice->params.threads = p.threads;
     request.slice->params.max_points = limits.max_slice_points;
     request.slice->params.points_per_layer = slicer::empty_layer_points(request.slice->format);

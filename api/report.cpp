@@ -22,6 +22,13 @@ Json vec3_json(const Vec3& v) {
 Json input_json(const Ingested& in) {
   Json j;
   j["format"] = to_string(in.format);
+  j["file_format"] = to_string(in.file_format);
+  if (in.file_format == MeshFormat::ThreeMf || in.parts.size() > 1) {
+    Json objects = Json::array();
+    for (const MeshPart& p : in.parts)
+      objects.push_back({{"name", p.name}, {"triangles", p.triangle_count}});
+    j["objects"] = std::move(objects);
+  }
   j["triangles"] = in.triangles;
   j["trailing_bytes"] = in.trailing_bytes;
   j["vertices_before_weld"] = 3 * in.triangles;
@@ -33,6 +40,7 @@ Json input_json(const Ingested& in) {
                 {"scale", u.scale},
                 {"factor_to_mm", u.factor},
                 {"size_mm", vec3_json(u.size_mm)}};
+  if (u.declared) j["units"]["declared"] = *u.declared;  // the file's own unit, applied
   return j;
 }
 

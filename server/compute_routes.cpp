@@ -15,6 +15,7 @@
 #include "api/plan.h"
 #include "api/zip.h"
 #include "core/error.h"
+#include "core/io/mesh_formats.h"
 #include "core/io/stl.h"
 #include "server/admission.h"
 #include "slicer/writers.h"
@@ -49,6 +50,11 @@ void serve_compute(const RouteContext& ctx, const HttpRequest& req, CheckedReque
     std::optional<api::RefinePlan> refine_plan;
     std::optional<api::SlicePlan> slice_plan;
     std::optional<api::InfoPlan> info_plan;
+    // Accept: model/3mf chooses 3MF when the query does not name a mesh_format.
+    if (checked.refine && !checked.refine->request.mesh_format_given &&
+        req.header("Accept").find("model/3mf") != std::string::npos &&
+        !checked.refine->request.slice)
+      checked.refine->request.mesh_format = MeshFormat::ThreeMf;
     if (checked.refine)
       refine_plan = api::plan_body(std::move(*checked.refine), body);
     else if (checked.slice)
@@ -138,7 +144,9 @@ void serve_compute(const RouteContext& ctx, const HttpRequest& req, CheckedReque
         lease.reset();
         keep_answer(out.stl.size());
         res.set_header(kReportHeader, report);
-        provide(std::move(out.stl), kStlContentType);
+        const bool three_mf = refine_plan->request.mesh_format == MeshFormat::ThreeMf;
+        if (three_mf) res.set_header("Content-Disposition", "attachment; filename=\"refined.3mf\"");
+        provide(std::move(out.stl), three_mf ? k3mfContentType : kStlContentType);
       }
     } else if (slice_plan) {
       api::SliceOutcome out = api::run_slice(body, *slice_plan, {}, cancel);

@@ -115,11 +115,15 @@ std::optional<api::Problem> RouteContext::precheck(const HttpRequest& req,
   // curl --data-binary labels the body application/x-www-form-urlencoded unless told
   // otherwise. The bytes arrive unchanged and are never form-decoded, so the plain
   // `curl --data-binary @part.stl URL` a user types is accepted as raw STL.
-  if (type != "model/stl" && type != "application/octet-stream" &&
+  // The mesh formats read_mesh takes (the body is sniffed by content whatever it says).
+  const bool mesh_type = type == "model/3mf" || type == "model/obj" || type == "model/x-ply" ||
+                         type == "application/x-ply";
+  if (type != "model/stl" && type != "application/octet-stream" && !mesh_type &&
       type != "application/x-www-form-urlencoded") {
     api::Problem p = api::unsupported_media_type(
         "unsupported-media-type",
-        "Content-Type must be model/stl or application/octet-stream, not '" +
+        "Content-Type must be model/stl, model/3mf, model/obj, model/x-ply or "
+        "application/octet-stream, not '" +
             shortened(req.header("Content-Type")) + "'");
     p.field = "Content-Type";
     return p;
