@@ -197,18 +197,6 @@ class PlyReader {
       const Element& e = elements_[i];
       if (e.count > 0 && e.properties.empty())
         bad_header("element " + io_detail::quoted(e.name) + " has no property");
-      // Each instance takes at least this many bytes: a lying count ends here, not in an
-      // allocation or a loop over billions of empty instances.
-      const std::uint64_t least = min_bytes(e, encoding_);
-      // (ASCII: the last line may lack its line break.)
-      const std::uint64_t room = encoding_ == Encoding::Ascii ? body + 1 : body;
-      if (e.count > 0 && least > 0 && e.count > room / least) {
-        throw malformed("truncated", "element " + io_detail::quoted(e.name) + " announces " +
-                                         std::to_string(e.count) + " instances of at least " +
-                                         std::to_string(least) + " bytes, but only " +
-                                         std::to_string(body) + " bytes follow the header")
-            .at_byte(lines_.offset());
-      }
       if (e.name == "vertex") {
         vertex_seen = true;
         vertex_ = i;
@@ -244,6 +232,21 @@ class PlyReader {
     }
     if (!vertex_) bad_header("no vertex element");
     if (!face_) bad_header("no face element");
+    // Then the sizes: the header is sound, but do its counts fit the bytes?
+    for (const Element& e : elements_) {
+      // Each instance takes at least this many bytes: a lying count ends here, not in an
+      // allocation or a loop over billions of empty instances.
+      const std::uint64_t least = min_bytes(e, encoding_);
+      // (ASCII: the last line may lack its line break.)
+      const std::uint64_t room = encoding_ == Encoding::Ascii ? body + 1 : body;
+      if (e.count > 0 && least > 0 && e.count > room / least) {
+        throw malformed("truncated", "element " + io_detail::quoted(e.name) + " announces " +
+                                         std::to_string(e.count) + " instances of at least " +
+                                         std::to_string(least) + " bytes, but only " +
+                                         std::to_string(body) + " bytes follow the header")
+            .at_byte(lines_.offset());
+      }
+    }
   }
 
   // ---- body ------------------------------------------------------------------------------
