@@ -450,7 +450,7 @@ const ParamRow kParams[] = {
                     "object per object of the input). Without it, Accept: model/3mf asks for 3mf.",
      .help = "Refined mesh file: stl (binary STL) or 3mf (mm, one object per input object; "
              "also chosen by an -o name ending in .3mf)",
-     .example = "3mf",
+     .example = "stl",  // every row's example goes beside `slice`, which 3mf does not
      .default_value = "stl",
      .refine = refine_mesh_format},
     {.name = "adaptive_angle",

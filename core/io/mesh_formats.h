@@ -70,7 +70,8 @@ struct MeshInput {
 //!    bad_face (fewer than 3 corners), trailing_bytes (binary data after the last
 //!    element), zero_triangles, non_finite, coordinate_out_of_range, too_many_triangles;
 //!  - 3MF: not_3mf (not a readable 3MF package or model: lib3mf's message),
-//!    too_large (uncompressed parts over max_3mf_uncompressed_bytes, checked in the zip's
+//!    too_large (over kMax3mfParts parts, or parts inflating to over
+//!    kMax3mfUncompressedBytes, checked in the zip's
 //!    directory before any inflating), zero_triangles, bad_index, non_finite,
 //!    coordinate_out_of_range (after the build transforms), too_many_triangles.
 MeshInput read_mesh(std::span<const std::uint8_t> bytes, const StlReadOptions& options = {});
@@ -82,6 +83,9 @@ MeshInput read_3mf(std::span<const std::uint8_t> bytes, const StlReadOptions& op
 
 //! Most bytes a 3MF's parts may inflate to (a zip bomb is refused before lib3mf reads it).
 inline constexpr std::uint64_t kMax3mfUncompressedBytes = std::uint64_t{4} << 30;
+//! Most parts (zip entries) a 3MF may have: a model, its relationships, content types,
+//! thumbnails and a few attachments fit many times over.
+inline constexpr std::int64_t kMax3mfParts = 256;
 
 //! A mesh to write and the name its 3MF object gets.
 struct NamedMesh {

@@ -6,6 +6,7 @@
 // line reader with the line-length cap, number parsing and the coordinate checks, so that
 // every format refuses the same things with the same reasons as read_stl.
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstddef>
@@ -70,7 +71,8 @@ class LineReader {
     }
     return true;
   }
-  std::uint64_t line() const { return line_; }
+  //! The line last read (1 before any: an empty input's errors are on line 1).
+  std::uint64_t line() const { return std::max<std::uint64_t>(line_, 1); }
   //! Byte offset of what next() reads next.
   std::size_t offset() const { return pos_; }
 

@@ -494,6 +494,13 @@ TEST(ThreeMfReader, RefusesBadPackages) {
       "too_many_triangles", tight);
 }
 
+TEST(ThreeMfReader, RefusesAPackageOfTooManyParts) {
+  std::vector<std::pair<std::string, std::string>> files;
+  for (int i = 0; i <= kMax3mfParts; ++i) files.push_back({"part" + std::to_string(i), "x"});
+  const Error e = expect_refused(zip_of(files), "too_large");
+  EXPECT_TRUE(mentions(e, std::to_string(kMax3mfParts + 1) + " parts")) << e.what();
+}
+
 TEST(ThreeMfReader, RefusesAZipBombOnItsDirectory) {
   // Two parts whose directory entries announce 3 GiB each: refused before lib3mf inflates
   // anything. (Made by patching the sizes of small stored entries; nothing large is built.)
