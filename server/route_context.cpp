@@ -147,6 +147,13 @@ std::optional<api::Problem> RouteContext::precheck(const HttpRequest& req,
       checked.slice = api::parse_slice_params(raw, limits);
     else
       checked.info = api::parse_info_params(raw);
+    // A job keeps its mesh as result.stl (server/job_runner.cpp): until a job's results are
+    // named by their format, a 3MF job would be a 3MF served as model/stl.
+    if (route->kind == RouteKind::Submit &&
+        checked.refine->request.mesh_format == MeshFormat::ThreeMf)
+      throw Error(ErrorCode::InvalidParameter, "unsupported_combination",
+                  "mesh_format=3mf is answered by POST /v1/refine; a job's result is a binary STL")
+          .with_field("mesh_format");
   } catch (const Error& e) {
     return api::problem_from_error(e);
   }
