@@ -19,6 +19,7 @@
 
 #include "api/params.h"
 #include "api/pipeline.h"
+#include "api/plan.h"
 #include "core/error.h"
 #include "core/mesh/build_mesh.h"
 #include "subprocess.h"
@@ -131,6 +132,24 @@ TEST(MeshFormats, TheSamePartInEveryFormatRefinesToTheSameGeometry) {
     const auto ca = stl.mesh.corner_vertices(), cb = other.mesh.corner_vertices();
     ASSERT_TRUE(std::equal(ca.begin(), ca.end(), cb.begin(), cb.end())) << format;
   }
+}
+
+// The plan counts an OBJ's triangles (and a PLY's faces) before any work, as it counts an
+// STL's: the face budget refuses before ingest, and the memory estimate sees them.
+TEST(MeshFormats, ThePlanCountsTheFacesOfEveryTextFormat) {
+  const Indexed part = box(20);
+  api::RefineRequest request = api::parse_refine_params({{"levels", "1"}}, {});
+  EXPECT_EQ(api::plan_refine(request, bytes_of(obj_of(part))).shape.faces, 12u);
+  EXPECT_EQ(api::plan_refine(request, bytes_of(ply_of(part))).shape.faces, 12u);
+  EXPECT_EQ(api::plan_refine(request, bytes_of("o q\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+                                               "f 1 2 3 4\n  f\t1 3 4\n"))
+                .shape.faces,
+            3u);
+  request.refine.max_faces = 40;  // 12 faces -> 48 at one level
+  const api::RefinePlan plan = api::plan_refine(request, bytes_of(obj_of(part)));
+  EXPECT_THROW(api::refuse_over_face_budget(plan), Error);
+  EXPECT_GT(plan.memory.peak_bytes,
+            api::plan_refine(request, bytes_of(std::string("v 0 0 0\n"))).memory.peak_bytes);
 }
 
 TEST(MeshFormats, A3mfInMetresComesOutInMillimetresWithItsUnitReported) {
