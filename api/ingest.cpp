@@ -62,23 +62,45 @@ void refuse_collapsing_tolerance(const TriangleSoup& soup, const IndexedSoup& we
 
 }  // namespace
 
-Ingested ingest_stl(std::span<const std::uint8_t> bytes, double weld_tolerance,
-                    const StlReadOptions& options, const UnitOptions& units) {
+Ingested ingest_input(const MeshInput& input, double weld_tolerance, const UnitOptions& units,
+                      std::optional<std::size_t> part) {
   const auto start = std::chrono::steady_clock::now();
   Ingested in;
   in.weld_tolerance = weld_tolerance;
+  in.file_format = input.format;
+  in.format = input.soup.format;
+  in.trailing_bytes = input.soup.trailing_bytes;
   {
-    // Scoped: the two soups are freed as soon as the mesh exists.
-    const TriangleSoup soup = read_stl(bytes, options);
-    in.format = soup.format;
-    in.triangles = soup.triangle_count();
-    in.trailing_bytes = soup.trailing_bytes;
-    IndexedSoup welded = weld(soup, weld_tolerance);
-    refuse_collapsing_tolerance(soup, welded, weld_tolerance);
+    // Scoped: the part's soup and the welded soup are freed as soon as the mesh exists.
+    TriangleSoup selected;
+    const TriangleSoup* soup = &input.soup;
+    in.parts = input.parts;
+    if (part) {
+      const MeshPart& p = input.parts.at(*part);
+      selected.format = input.soup.format;
+      selected.name = p.name;
+      const auto first =
+          input.soup.coords.begin() + static_cast<std::ptrdiff_t>(9 * p.first_triangle);
+      selected.coords.assign(first, first + static_cast<std::ptrdiff_t>(9 * p.triangle_count));
+      soup = &selected;
+      in.parts = {MeshPart{p.name, 0, p.triangle_count}};
+    }
+    in.triangles = soup->triangle_count();
+    IndexedSoup welded = weld(*soup, weld_tolerance);
+    refuse_collapsing_tolerance(*soup, welded, weld_tolerance);
     in.welded_vertices = welded.positions.size();
     in.result = build_mesh(welded);
   }
-  in.units = apply_units(in.result.mesh, units);
+  in.units = input.unit ? apply_units(in.result.mesh, units, input.unit->name, input.unit->mm)
+                        : apply_units(in.result.mesh, units);
+  in.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return in;
+}
+
+Ingested ingest_mesh(std::span<const std::uint8_t> bytes, double weld_tolerance,
+                     const StlReadOptions& options, const UnitOptions& units) {
+  const auto start = std::chrono::steady_clock::now();
+  Ingested in = ingest_input(read_mesh(bytes, options), weld_tolerance, units);
   in.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return in;
 }

@@ -314,6 +314,20 @@ void slice_slice_format(SliceRequest& r, const std::string& value) {
   }
 }
 
+// `mesh_format`: the refined mesh's file format (`format` is the contour format of
+// /v1/slice, and refine's contour format is `slice_format`; one name per meaning on every
+// route).
+void refine_mesh_format(RefineRequest& r, const std::string& value, const RequestLimits&) {
+  if (value == "stl")
+    r.mesh_format = MeshFormat::Stl;
+  else if (value == "3mf")
+    r.mesh_format = MeshFormat::ThreeMf;
+  else
+    throw invalid("mesh_format", "unknown_value",
+                  "mesh_format = " + shown(value) + " is not one of stl, 3mf");
+  r.mesh_format_given = true;
+}
+
 // The one table (param_table.h). Rows that only slicing takes come first, so that every
 // request kind's names keep the order they have always been listed in.
 const ParamRow kParams[] = {
@@ -520,6 +534,15 @@ const ParamRow kParams[] = {
      .default_value = "json",
      .refine = refine_slice_format,
      .slice = slice_slice_format},
+    {.name = "mesh_format",
+     .type = ParamType::String,
+     .description = "Refined mesh file: stl (binary STL, default) or 3mf (in millimetres, one "
+                    "object per object of the input). Without it, Accept: model/3mf asks for 3mf.",
+     .help = "Refined mesh file: stl (binary STL) or 3mf (mm, one object per input object; "
+             "also chosen by an -o name ending in .3mf)",
+     .example = "stl",  // every row's example goes beside `slice`, which 3mf does not
+     .default_value = "stl",
+     .refine = refine_mesh_format},
     {.name = "adaptive_angle",
      .type = ParamType::Number,
      .description =
@@ -818,6 +841,10 @@ RefineRequest read_refine_fields(const RawParams& params, const RequestLimits& l
                     std::string(modifier) +
                         " slices the refined mesh and needs layer_height (mm) or heights");
     }
+    if (request.mesh_format == MeshFormat::ThreeMf)
+      throw invalid("mesh_format", "unsupported_combination",
+                    "mesh_format=3mf is for refine alone: refine + slice answers a zip with "
+                    "the refined STL");
     request.slice->params.threads = p.threads;
     request.slice->params.max_points = limits.max_slice_points;
     request.slice->params.points_per_layer = slicer::empty_layer_points(request.slice->format);

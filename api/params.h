@@ -11,6 +11,7 @@
 
 #include "api/units.h"
 #include "core/features/features.h"
+#include "core/io/mesh_formats.h"
 #include "core/io/stl.h"
 #include "core/refine.h"
 #include "primitives/post_pass.h"
@@ -101,6 +102,10 @@ struct RefineRequest {
   UnitOptions units;                                     //!< as in InfoRequest
   repair::RepairMode repair = repair::RepairMode::None;  //!< as in InfoRequest
   StlFormat output_format = StlFormat::Binary;           //!< not a parameter: the CLI's --ascii
+  //! `mesh_format`: stl (output_format says which kind) or 3mf. `mesh_format_given`: the
+  //! request named it (else the daemon follows Accept: model/3mf).
+  MeshFormat mesh_format = MeshFormat::Stl;
+  bool mesh_format_given = false;
   //! `slice` (layer height, mm) and `slice_format`: also slice the refined mesh.
   std::optional<SliceOptions> slice;
   //! `primitives`, `primitive_tol`, `max_deviation`.

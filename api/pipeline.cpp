@@ -14,6 +14,7 @@
 #include "api/report.h"
 #include "core/error.h"
 #include "core/features/features.h"
+#include "core/io/mesh_formats.h"
 #include "core/io/stl.h"
 #include "core/mesh/mesh_stats.h"
 #include "core/parallel.h"
@@ -58,7 +59,7 @@ nlohmann::ordered_json run_info(std::span<const std::uint8_t> bytes, const InfoP
 InfoOutcome run_info(std::span<const std::uint8_t> bytes, const InfoRequest& request,
                      bool curvature_csv) {
   request.features.validate();
-  Ingested in = ingest_stl(bytes, request.weld_tolerance, request.units);
+  Ingested in = ingest_mesh(bytes, request.weld_tolerance, request.units);
   repair_ingested(in, request.repair);
   const Mesh& mesh = in.result.mesh;
   const Features features = detect_features(mesh, request.features);
@@ -75,15 +76,19 @@ namespace {
 // run_refine; with `keep` and binary output, the STL is not written: the refined mesh is
 // moved to *keep and the report gives the STL's size (84 + 50 n) and no write time. `shape`:
 // the body's, from the plan (null: sniffed here when the slice's prediction needs it).
+// `input`: the file already read (then `part`, when set, is the one object refined), else
+// the body is read here.
 RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRequest& request,
                              const Scheme& scheme, const StlShape* shape,
                              const ProgressFn& progress, const std::atomic<bool>* cancel,
-                             const MemoryGrowFn& grow, Mesh* keep) {
+                             const MemoryGrowFn& grow, Mesh* keep, const MeshInput* input = nullptr,
+                             std::optional<std::size_t> part = std::nullopt) {
   const auto start = Clock::now();
   RefineTimes times;
 
   if (request.slice) request.slice->params.validate();
-  Ingested in = ingest_stl(bytes, request.weld_tolerance, request.units);
+  Ingested in = input ? ingest_input(*input, request.weld_tolerance, request.units, part)
+                      : ingest_mesh(bytes, request.weld_tolerance, request.units);
   repair_ingested(in, request.repair);
   times.ingest = in.seconds + in.repair.seconds;
   refuse_over_face_budget(in.result.mesh.num_faces(), scheme, request.refine);
@@ -212,6 +217,79 @@ RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRe
   return out;
 }
 
+// mesh_format=3mf: each object of the file refined on its own through refine_outcome (the
+// same budgets, post-pass and report as a one-part file; refining the merged mesh would
+// need every face's object carried through every scheme), then one 3MF object each, in mm.
+// The report is the first object's with the faces summed and `objects` listing each one's.
+RefineOutcome refine_3mf(std::span<const std::uint8_t> bytes, const RefineRequest& request,
+                         const Scheme& scheme, const StlShape* shape, const ProgressFn& progress,
+                         const std::atomic<bool>* cancel, const MemoryGrowFn& grow) {
+  const auto start = Clock::now();
+  const MeshInput input = read_mesh(bytes);
+  RefineRequest one = request;
+  one.output_format = StlFormat::Binary;  // the meshes are kept, never written as STL
+  const std::size_t n = input.parts.size();
+  const std::uint64_t input_bytes = sizeof(float) * std::uint64_t{input.soup.coords.capacity()};
+  std::uint64_t done_bytes = 0;  // the objects refined so far, held until the 3MF is made
+  std::vector<Mesh> meshes(n);
+  std::vector<nlohmann::ordered_json> reports;
+  for (std::size_t i = 0; i < n; ++i) {
+    MemoryGrowFn part_grow;
+    if (grow) part_grow = [&](std::uint64_t b) { return grow(b + input_bytes + done_bytes); };
+    ProgressFn part_progress;
+    if (progress)
+      part_progress = [&, i](double f, std::string_view stage) {
+        progress((static_cast<double>(i) + f) / static_cast<double>(n), stage);
+      };
+    RefineOutcome o =
+        refine_outcome(bytes, one, scheme, shape, part_progress, cancel, part_grow, &meshes[i],
+                       &input, n > 1 ? std::optional<std::size_t>(i) : std::nullopt);
+    done_bytes += mesh_bytes(meshes[i]);
+    reports.push_back(std::move(o.report));
+  }
+  std::vector<NamedMesh> named;
+  for (std::size_t i = 0; i < n; ++i)
+    named.push_back({input.parts[i].name.empty() ? "part" : input.parts[i].name, &meshes[i]});
+  const auto write_start = Clock::now();
+  RefineOutcome out;
+  out.stl = write_3mf(named, "millimeter");
+  const double write_seconds = seconds_since(write_start);
+  out.report = reports.front();
+  if (n > 1) {
+    std::uint64_t in_faces = 0, out_faces = 0, out_vertices = 0;
+    nlohmann::ordered_json objects = nlohmann::ordered_json::array();
+    for (std::size_t i = 0; i < n; ++i) {
+      in_faces += reports[i]["input"].value("faces", 0ull);
+      out_faces += reports[i]["output"].value("faces", 0ull);
+      out_vertices += reports[i]["output"].value("vertices", 0ull);
+      objects.push_back({{"name", named[i].name},
+                         {"input_faces", reports[i]["input"]["faces"]},
+                         {"output_faces", reports[i]["output"]["faces"]},
+                         {"report", std::move(reports[i])}});
+    }
+    out.report["input"]["faces"] = in_faces;
+    out.report["output"]["vertices"] = out_vertices;
+    out.report["output"]["faces"] = out_faces;
+    out.report["objects"] = std::move(objects);
+  }
+  out.report["output"]["format"] = "3mf";
+  out.report["output"]["unit"] = "millimeter";
+  out.report["output"]["objects"] = n;
+  out.report["output"]["bytes"] = out.stl.size();
+  out.report["seconds"]["write"] = write_seconds;
+  out.report["seconds"]["total"] = seconds_since(start);
+  return out;
+}
+
+// Every run_refine variant: the mesh format decides (3MF: made whole, never streamed).
+RefineOutcome refine_any(std::span<const std::uint8_t> bytes, const RefineRequest& request,
+                         const Scheme& scheme, const StlShape* shape, const ProgressFn& progress,
+                         const std::atomic<bool>* cancel, const MemoryGrowFn& grow, Mesh* keep) {
+  if (request.mesh_format == MeshFormat::ThreeMf)
+    return refine_3mf(bytes, request, scheme, shape, progress, cancel, grow);
+  return refine_outcome(bytes, request, scheme, shape, progress, cancel, grow, keep);
+}
+
 }  // namespace
 
 RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineRequest& request,
@@ -219,28 +297,28 @@ RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineReques
                          const MemoryGrowFn& grow) {
   // A bad parameter is reported before the file is read.
   const std::unique_ptr<Scheme> scheme = make_scheme(request.refine);
-  return refine_outcome(bytes, request, *scheme, nullptr, progress, cancel, grow, nullptr);
+  return refine_any(bytes, request, *scheme, nullptr, progress, cancel, grow, nullptr);
 }
 
 RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefinePlan& plan,
                          const ProgressFn& progress, const std::atomic<bool>* cancel,
                          const MemoryGrowFn& grow) {
-  return refine_outcome(bytes, plan.request, *plan.scheme, &plan.shape, progress, cancel, grow,
-                        nullptr);
+  return refine_any(bytes, plan.request, *plan.scheme, &plan.shape, progress, cancel, grow,
+                    nullptr);
 }
 
 RefineOutcome run_refine(std::span<const std::uint8_t> bytes, const RefineRequest& request,
                          const Scheme& scheme, const ProgressFn& progress,
                          const std::atomic<bool>* cancel, const MemoryGrowFn& grow) {
-  return refine_outcome(bytes, request, scheme, nullptr, progress, cancel, grow, nullptr);
+  return refine_any(bytes, request, scheme, nullptr, progress, cancel, grow, nullptr);
 }
 
 RefinedMesh run_refine_to_mesh(std::span<const std::uint8_t> bytes, const RefinePlan& plan,
                                const ProgressFn& progress, const std::atomic<bool>* cancel,
                                const MemoryGrowFn& grow) {
   RefinedMesh out;
-  out.outcome = refine_outcome(bytes, plan.request, *plan.scheme, &plan.shape, progress, cancel,
-                               grow, &out.mesh);
+  out.outcome =
+      refine_any(bytes, plan.request, *plan.scheme, &plan.shape, progress, cancel, grow, &out.mesh);
   return out;
 }
 
@@ -249,7 +327,7 @@ RefinedMesh run_refine_to_mesh(std::span<const std::uint8_t> bytes, const Refine
                                const MemoryGrowFn& grow) {
   const std::unique_ptr<Scheme> scheme = make_scheme(request.refine);
   RefinedMesh out;
-  out.outcome = refine_outcome(bytes, request, *scheme, nullptr, progress, cancel, grow, &out.mesh);
+  out.outcome = refine_any(bytes, request, *scheme, nullptr, progress, cancel, grow, &out.mesh);
   return out;
 }
 
@@ -276,7 +354,7 @@ SliceOutcome run_slice(std::span<const std::uint8_t> bytes, const SliceRequest& 
   const auto start = Clock::now();
   request.slice.params.validate();  // a bad parameter is reported before the file is read
   request.slice.writer.validate();
-  Ingested in = ingest_stl(bytes, request.weld_tolerance, request.units);
+  Ingested in = ingest_mesh(bytes, request.weld_tolerance, request.units);
   repair_ingested(in, request.repair);
   SliceOutcome out;
   slicer::SliceStats stats;

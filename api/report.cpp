@@ -25,6 +25,13 @@ Json bodies_json(const MeshStats& s);
 Json input_json(const Ingested& in) {
   Json j;
   j["format"] = to_string(in.format);
+  j["file_format"] = to_string(in.file_format);
+  if (in.file_format == MeshFormat::ThreeMf || in.parts.size() > 1) {
+    Json objects = Json::array();
+    for (const MeshPart& p : in.parts)
+      objects.push_back({{"name", p.name}, {"triangles", p.triangle_count}});
+    j["objects"] = std::move(objects);
+  }
   j["triangles"] = in.triangles;
   j["trailing_bytes"] = in.trailing_bytes;
   j["vertices_before_weld"] = 3 * in.triangles;
@@ -36,6 +43,7 @@ Json input_json(const Ingested& in) {
                 {"scale", u.scale},
                 {"factor_to_mm", u.factor},
                 {"size_mm", vec3_json(u.size_mm)}};
+  if (u.declared) j["units"]["declared"] = *u.declared;  // the file's own unit, applied
   j["repair"] = repair_json(in);
   j["bodies"] = in.stats.components;
   j["watertight"] = in.stats.watertight;

@@ -14,13 +14,15 @@ namespace {
 struct UnitRow {
   LengthUnit unit;
   const char* name;
-  double mm;  // one unit in mm
+  double mm;          // one unit in mm
+  bool given = true;  // a value of `units` (else only a file's declared unit)
 };
 
 constexpr UnitRow kUnits[] = {
-    {LengthUnit::Auto, "auto", 1.0},      {LengthUnit::Millimetre, "mm", 1.0},
-    {LengthUnit::Centimetre, "cm", 10.0}, {LengthUnit::Metre, "m", 1000.0},
-    {LengthUnit::Inch, "in", 25.4},
+    {LengthUnit::Auto, "auto", 1.0},        {LengthUnit::Millimetre, "mm", 1.0},
+    {LengthUnit::Centimetre, "cm", 10.0},   {LengthUnit::Metre, "m", 1000.0},
+    {LengthUnit::Inch, "in", 25.4},         {LengthUnit::Micrometre, "um", 0.001, false},
+    {LengthUnit::Foot, "ft", 304.8, false},
 };
 
 const UnitRow& row_of(LengthUnit unit) {
@@ -52,7 +54,7 @@ std::optional<LengthUnit> likely_unit(double largest) {
 
 LengthUnit parse_length_unit(std::string_view text) {
   for (const UnitRow& row : kUnits)
-    if (text == row.name) return row.unit;
+    if (row.given && text == row.name) return row.unit;
   throw Error(ErrorCode::InvalidParameter, "unknown_value",
               "units = '" + std::string(text.substr(0, 64)) + "' is not one of auto, mm, cm, m, in")
       .with_field("units");
@@ -62,12 +64,11 @@ const char* to_string(LengthUnit unit) {
   return row_of(unit).name;
 }
 
-UnitsReport apply_units(Mesh& mesh, const UnitOptions& options) {
-  UnitsReport report;
-  report.assumed = options.units == LengthUnit::Auto;
-  report.units = report.assumed ? LengthUnit::Millimetre : options.units;
-  report.scale = options.scale;
-  report.factor = row_of(report.units).mm * options.scale;
+namespace {
+
+// Scales the mesh by report.factor and fills in the size and the plausibility warning;
+// `given` says how the numbers were read, for the message.
+void convert_and_check(Mesh& mesh, UnitsReport& report, const std::string& given) {
   if (report.factor != 1.0)
     for (Vec3& p : mesh.mutable_positions()) p = p * report.factor;
 
@@ -79,10 +80,6 @@ UnitsReport apply_units(Mesh& mesh, const UnitOptions& options) {
   }
   report.size_mm = hi - lo;
   const double largest = std::max({report.size_mm.x, report.size_mm.y, report.size_mm.z});
-  const std::string given = report.assumed
-                                ? std::string("read as mm (units=auto)")
-                                : std::string("in mm after units=") + to_string(report.units) +
-                                      (options.scale != 1 ? " and scale" : "");
   if (largest < kSmallestPlausibleMm) {
     std::string what = "the part is " + size_text(report.size_mm) + " " + given +
                        ": every extent is under " + num(kSmallestPlausibleMm) + " mm";
@@ -99,6 +96,41 @@ UnitsReport apply_units(Mesh& mesh, const UnitOptions& options) {
     report.warning = "the part is " + size_text(report.size_mm) + " " + given + ": over " +
                      num(kLargestPlausibleMm / 1000) +
                      " m across; if its numbers are not mm, give units= or scale=";
+  }
+}
+
+}  // namespace
+
+UnitsReport apply_units(Mesh& mesh, const UnitOptions& options) {
+  UnitsReport report;
+  report.assumed = options.units == LengthUnit::Auto;
+  report.units = report.assumed ? LengthUnit::Millimetre : options.units;
+  report.scale = options.scale;
+  report.factor = row_of(report.units).mm * options.scale;
+  convert_and_check(mesh, report,
+                    report.assumed ? std::string("read as mm (units=auto)")
+                                   : std::string("in mm after units=") + to_string(report.units) +
+                                         (options.scale != 1 ? " and scale" : ""));
+  return report;
+}
+
+UnitsReport apply_units(Mesh& mesh, const UnitOptions& options, const std::string& declared_name,
+                        double declared_mm) {
+  UnitsReport report;
+  report.assumed = false;
+  report.declared = declared_name;
+  report.units = LengthUnit::Millimetre;
+  for (const UnitRow& row : kUnits)
+    if (row.unit != LengthUnit::Auto && row.mm == declared_mm) report.units = row.unit;
+  report.scale = options.scale;
+  report.factor = declared_mm * options.scale;
+  convert_and_check(mesh, report,
+                    "in mm after the file's unit (" + declared_name + ")" +
+                        (options.scale != 1 ? " and scale" : ""));
+  if (options.units != LengthUnit::Auto && options.units != report.units) {
+    const std::string ignored = std::string("units=") + to_string(options.units) +
+                                " is ignored: the file declares its unit, " + declared_name;
+    report.warning = report.warning ? ignored + "; " + *report.warning : ignored;
   }
   return report;
 }

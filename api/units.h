@@ -16,7 +16,8 @@
 
 namespace stlrefine::api {
 
-enum class LengthUnit { Auto, Millimetre, Centimetre, Metre, Inch };
+//! Micrometre and Foot come only from a 3MF's declared unit (not values of `units`).
+enum class LengthUnit { Auto, Millimetre, Centimetre, Metre, Inch, Micrometre, Foot };
 
 //! `units` and `scale` of a request.
 struct UnitOptions {
@@ -42,12 +43,22 @@ struct UnitsReport {
   double scale = 1.0;                         //!< the `scale` applied
   double factor = 1.0;                        //!< input number -> output mm
   Vec3 size_mm;                               //!< the part's extents in mm, after conversion
-  //! Set when the size is implausible for mm: says why and what to give instead.
+  //! The unit the file declares (a 3MF's "micron" ... "meter"): it is the one applied,
+  //! whatever `units` says.
+  std::optional<std::string> declared;
+  //! Set when the size is implausible for mm: says why and what to give instead; also
+  //! when `units` disagrees with the unit the file declares.
   std::optional<std::string> warning;
 };
 
 //! Converts `mesh` to mm (multiplies every position by the unit's factor times `scale`;
 //! nothing when that is 1) and checks the result's size.
 UnitsReport apply_units(Mesh& mesh, const UnitOptions& options);
+
+//! The same for a file that declares its unit (3MF: `declared_name`, `declared_mm` mm per
+//! unit): that unit is authoritative (converted without `units=`, reported); a `units`
+//! that says otherwise is ignored with a warning. `scale` applies as always.
+UnitsReport apply_units(Mesh& mesh, const UnitOptions& options, const std::string& declared_name,
+                        double declared_mm);
 
 }  // namespace stlrefine::api

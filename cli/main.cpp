@@ -32,6 +32,7 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -297,6 +298,14 @@ int run_info(const CLI::App& cmd, const InfoOptions& o) {
   }
 }
 
+// A file name ending in .3mf (any case).
+bool ends_with_3mf(const std::string& name) {
+  if (name.size() < 4) return false;
+  std::string end = name.substr(name.size() - 4);
+  for (char& c : end) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return end == ".3mf";
+}
+
 int run_refine(const CLI::App& cmd, const RefineOptions& o) {
   const api::RawParams raw = given_params(cmd, api::RequestKind::Refine, o.params);
   check_stdout_outputs({{"-o", &o.output}, {"--slice-out", &o.slice_out}, {"--report", &o.report}});
@@ -317,6 +326,16 @@ int run_refine(const CLI::App& cmd, const RefineOptions& o) {
   try {
     api::RefineRequest request = api::parse_refine_fields(raw, limits);
     request.output_format = o.ascii ? stlrefine::StlFormat::Ascii : stlrefine::StlFormat::Binary;
+    // -o part.3mf asks for 3MF as --mesh-format 3mf does (an explicit --mesh-format wins).
+    if (!request.mesh_format_given && ends_with_3mf(o.output)) {
+      if (request.slice)
+        throw Failure{kExitUsage,
+                      "-o " + o.output +
+                          ": refine with --slice writes an STL; 3MF output is for refine alone"};
+      request.mesh_format = stlrefine::MeshFormat::ThreeMf;
+    }
+    if (request.mesh_format == stlrefine::MeshFormat::ThreeMf && o.ascii)
+      throw Failure{kExitUsage, "--ascii writes an ASCII STL; it does not go with 3MF output"};
     if (request.slice) request.slice->writer.label = label_of(o.input);
     // Planned (validated, the scheme made) before the file is read. The CLI has no memory
     // budget: the body's shape and the memory estimate are not needed.
@@ -474,7 +493,9 @@ int main(int argc, char** argv) {
 
   InfoOptions info;
   CLI::App* info_cmd = app.add_subcommand("info", "Print a JSON report on an STL file");
-  info_cmd->add_option("input", info.input, "STL file (binary or ASCII); - reads stdin")
+  info_cmd
+      ->add_option("input", info.input,
+                   "Mesh file: STL (binary or ASCII), OBJ, PLY or 3MF, by content; - reads stdin")
       ->required();
   add_param_options(*info_cmd, api::RequestKind::Info, info.params);
   info_cmd->add_option("--curvature", info.curvature,
@@ -483,9 +504,14 @@ int main(int argc, char** argv) {
 
   RefineOptions refine;
   CLI::App* refine_cmd = app.add_subcommand("refine", "Refine an STL file");
-  refine_cmd->add_option("input", refine.input, "STL file (binary or ASCII); - reads stdin")
+  refine_cmd
+      ->add_option("input", refine.input,
+                   "Mesh file: STL (binary or ASCII), OBJ, PLY or 3MF, by content; - reads stdin")
       ->required();
-  refine_cmd->add_option("-o,--output", refine.output, "Output STL file; - writes stdout")
+  refine_cmd
+      ->add_option("-o,--output", refine.output,
+                   "Output file: binary STL, or 3MF when --mesh-format 3mf or the name ends in "
+                   ".3mf; - writes stdout")
       ->required();
   add_param_options(*refine_cmd, api::RequestKind::Refine, refine.params);
   refine_cmd->add_flag("--ascii", refine.ascii, "Write ASCII STL instead of binary");
@@ -521,7 +547,9 @@ int main(int argc, char** argv) {
   SliceCliOptions slice;
   CLI::App* slice_cmd =
       app.add_subcommand("slice", "Slice an STL file into layers of closed, oriented contours");
-  slice_cmd->add_option("input", slice.input, "STL file (binary or ASCII); - reads stdin")
+  slice_cmd
+      ->add_option("input", slice.input,
+                   "Mesh file: STL (binary or ASCII), OBJ, PLY or 3MF, by content; - reads stdin")
       ->required();
   slice_cmd->add_option("-o,--output", slice.output, "Contour file; - writes stdout")->required();
   add_param_options(*slice_cmd, api::RequestKind::Slice, slice.params);

@@ -4,7 +4,7 @@
 #
 #   fuzz/run.sh [--build-dir DIR] [--seconds N] [--work DIR] [NAME...] [-- libFuzzer flags]
 #
-# NAME: fuzz_stl_binary fuzz_stl_ascii fuzz_query fuzz_pipeline (default: all).
+# NAME: fuzz_stl_binary fuzz_stl_ascii fuzz_query fuzz_pipeline fuzz_mesh_formats (default: all).
 # New inputs go to WORK/corpus/NAME (default WORK: BUILD_DIR/fuzz-work), crashes, leaks and
 # timeouts to WORK/artifacts/NAME/; the seeds in the repository are only read. A harness
 # that finds something stops there and names the input that reproduces it; the others still
@@ -29,7 +29,7 @@ while [ $# -gt 0 ]; do
   esac
 done
 [ -n "$work" ] || work=$build_dir/fuzz-work
-[ ${#names[@]} -gt 0 ] || names=(fuzz_stl_binary fuzz_stl_ascii fuzz_query fuzz_pipeline)
+[ ${#names[@]} -gt 0 ] || names=(fuzz_stl_binary fuzz_stl_ascii fuzz_query fuzz_pipeline fuzz_mesh_formats)
 
 # Per harness: libFuzzer options, then the seed directories (read only). Parsers: inputs
 # up to 16 KiB (binary: 326 facets; ASCII: ~60 facets), a 10 s timeout where one input
@@ -42,6 +42,7 @@ options() {
     fuzz_stl_ascii) echo "-max_len=16384 -timeout=10 -use_value_profile=1 -dict=$here/dict/stl_ascii.dict" ;;
     fuzz_query) echo "-max_len=2048 -timeout=10 -use_value_profile=1 -dict=$here/dict/query.dict" ;;
     fuzz_pipeline) echo "-max_len=16384 -timeout=60 -rss_limit_mb=3072" ;;
+    fuzz_mesh_formats) echo "-max_len=16384 -timeout=10 -use_value_profile=1 -dict=$here/dict/mesh_formats.dict" ;;
     *) echo "unknown harness $1" >&2; return 1 ;;
   esac
 }
@@ -50,12 +51,15 @@ seeds() {
     fuzz_stl_binary) echo "$here/corpus/stl_binary $here/corpus/shared_meshes $here/corpus/regressions $root/tests/data/core $root/tests/data/malformed" ;;
     fuzz_stl_ascii) echo "$here/corpus/stl_ascii" ;;
     fuzz_query) echo "$here/corpus/query" ;;
+    fuzz_mesh_formats) echo "$here/corpus/mesh_formats $here/corpus/stl_ascii" ;;
     fuzz_pipeline) echo "$here/corpus/stl_binary $here/corpus/stl_ascii $here/corpus/shared_meshes $here/corpus/regressions $root/tests/data/core $root/tests/data/malformed" ;;
   esac
 }
 
 # Stack traces for UBSan reports too (ASan prints them anyway).
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1}
+# lib3mf 1.8.1 leaks its zip entries (scripts/lsan.supp says why).
+export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$root/scripts/lsan.supp}
 
 for name in "${names[@]}"; do
   [ -x "$build_dir/bin/$name" ] || { echo "fuzz/run.sh: $build_dir/bin/$name is missing (cmake --build --preset fuzz)" >&2; exit 2; }

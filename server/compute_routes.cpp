@@ -15,6 +15,7 @@
 #include "api/plan.h"
 #include "api/zip.h"
 #include "core/error.h"
+#include "core/io/mesh_formats.h"
 #include "core/io/stl.h"
 #include "server/admission.h"
 #include "server/http_upload.h"
@@ -58,6 +59,11 @@ void serve_compute(const RouteContext& ctx, const HttpRequest& req, CheckedReque
     if (checked.refine && checked.refine->request.slice)
       checked.refine->request.slice->writer.label = stem;
     if (checked.slice) checked.slice->slice.writer.label = stem;
+    // Accept: model/3mf chooses 3MF when the query does not name a mesh_format.
+    if (checked.refine && !checked.refine->request.mesh_format_given &&
+        req.header("Accept").find("model/3mf") != std::string::npos &&
+        !checked.refine->request.slice)
+      checked.refine->request.mesh_format = MeshFormat::ThreeMf;
     if (checked.refine)
       refine_plan = api::plan_body(std::move(*checked.refine), body);
     else if (checked.slice)
@@ -146,7 +152,8 @@ void serve_compute(const RouteContext& ctx, const HttpRequest& req, CheckedReque
         lease.reset();
         keep_answer(out.stl.size());
         res.set_header(kReportHeader, report);
-        provide(std::move(out.stl), kStlContentType);
+        const bool three_mf = refine_plan->request.mesh_format == MeshFormat::ThreeMf;
+        provide(std::move(out.stl), three_mf ? k3mfContentType : kStlContentType);
       }
       // part.stl -> part_refined.stl (or .zip: named by what is sent).
       res.set_header(

@@ -77,12 +77,17 @@ Json query_parameters(const std::vector<std::string_view>& names, api::RequestKi
 Json stl_body() {
   return {{"required", true},
           {"description",
-           "An STL file, binary or ASCII, sent with a Content-Length: as the body, or as the one "
-           "part named `file` of a multipart/form-data body (curl -F file=@part.stl; the part's "
-           "filename names the downloads). Other form fields are refused (400 naming them): "
-           "parameters go in the query string."},
+           "A mesh file, sent with a Content-Length: STL (binary or ASCII), OBJ, PLY (ASCII or "
+           "binary) or 3MF, told apart by content (a 3MF's unit is applied); as the body, or as "
+           "the one part named `file` of a multipart/form-data body (curl -F file=@part.stl; "
+           "the part's filename names the downloads). Other form fields are refused (400 naming "
+           "them): parameters go in the query string."},
           {"content",
            {{"model/stl", {{"schema", {{"type", "string"}, {"format", "binary"}}}}},
+            {"model/3mf", {{"schema", {{"type", "string"}, {"format", "binary"}}}}},
+            {"model/obj", {{"schema", {{"type", "string"}, {"format", "binary"}}}}},
+            {"model/x-ply", {{"schema", {{"type", "string"}, {"format", "binary"}}}}},
+            {"application/x-ply", {{"schema", {{"type", "string"}, {"format", "binary"}}}}},
             {"application/octet-stream", {{"schema", {{"type", "string"}, {"format", "binary"}}}}},
             {"multipart/form-data",
              {{"schema",
@@ -238,13 +243,15 @@ Json build() {
     if (p == "/v1/refine" || p == "/v1/jobs") {
       Json op = operation(
           p == "/v1/refine" ? "Refine an STL (and optionally slice it)" : "Queue a refinement job",
-          common_errors(p == "/v1/refine"
-                            ? Json{{"200", binary_response("The refined STL (a zip with "
-                                                           "contours and report when sliced).",
-                                                           {"model/stl", "application/zip"})}}
-                            : Json{{"202", json_response("The queued job; "
-                                                         "Location names it.")}},
-                        true));
+          common_errors(
+              p == "/v1/refine"
+                  ? Json{{"200", binary_response("The refined mesh: binary STL, or 3MF with "
+                                                 "mesh_format=3mf or Accept: model/3mf (a zip "
+                                                 "with contours and report when sliced).",
+                                                 {"model/stl", "model/3mf", "application/zip"})}}
+                  : Json{{"202", json_response("The queued job; "
+                                               "Location names it.")}},
+              true));
       if (p == "/v1/refine") {
         op["responses"]["200"]["headers"]["X-Stlrefine-Report"] =
             header("The refine report (JSON, one line).");

@@ -11,6 +11,7 @@
 namespace stlrefine::server {
 
 inline constexpr const char* kStlContentType = "model/stl";
+inline constexpr const char* k3mfContentType = "model/3mf";
 inline constexpr const char* kJsonContentType = "application/json";
 inline constexpr const char* kZipContentType = "application/zip";
 //! The report of a refine or slice answer, compact ASCII JSON.
