@@ -54,9 +54,13 @@ constexpr Coefficients kC{
     .repair_face = 200,
 };
 
-// What repair=fill_holes adds while it runs, on top of ingest.
+// What repair=fill_holes adds while it runs, on top of ingest: the copies of the input, and
+// the faces refining holes may add at most (HoleFillOptions::max_added_faces; the flat
+// triangulations add fewer faces than the rims have edges, within the input's 3F).
 double repair_bytes(repair::RepairMode mode, std::uint64_t faces) {
-  return mode == repair::RepairMode::FillHoles ? kC.repair_face * double(faces) : 0.0;
+  if (mode != repair::RepairMode::FillHoles) return 0.0;
+  const double added = double(repair::HoleFillOptions{}.max_added_faces) + 3.0 * double(faces);
+  return kC.repair_face * (double(faces) + added);
 }
 
 // Bytes of one contour point in each format (measured 40-43, 38-41, 37-41 and 8.0-8.4).

@@ -89,7 +89,7 @@ RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRe
   if (request.slice) request.slice->params.validate();
   Ingested in = input ? ingest_input(*input, request.weld_tolerance, request.units, part)
                       : ingest_mesh(bytes, request.weld_tolerance, request.units);
-  repair_ingested(in, request.repair);
+  repair_ingested(in, request.repair, cancel);
   times.ingest = in.seconds + in.repair.seconds;
   refuse_over_face_budget(in.result.mesh.num_faces(), scheme, request.refine);
   // The layer budget on the input's bounds, before any refinement work. (Refinement moves
@@ -262,6 +262,8 @@ RefineOutcome refine_3mf(std::span<const std::uint8_t> bytes, const RefineReques
       in_faces += reports[i]["input"].value("faces", 0ull);
       out_faces += reports[i]["output"].value("faces", 0ull);
       out_vertices += reports[i]["output"].value("vertices", 0ull);
+      // The first 10 objects only: the report may travel in a header.
+      if (i >= 10) continue;
       objects.push_back({{"name", named[i].name},
                          {"input_faces", reports[i]["input"]["faces"]},
                          {"output_faces", reports[i]["output"]["faces"]},
@@ -355,7 +357,7 @@ SliceOutcome run_slice(std::span<const std::uint8_t> bytes, const SliceRequest& 
   request.slice.params.validate();  // a bad parameter is reported before the file is read
   request.slice.writer.validate();
   Ingested in = ingest_mesh(bytes, request.weld_tolerance, request.units);
-  repair_ingested(in, request.repair);
+  repair_ingested(in, request.repair, cancel);
   SliceOutcome out;
   slicer::SliceStats stats;
   out.contours = slice_to_string(in.result.mesh, request.slice, &stats, progress, cancel);

@@ -27,10 +27,13 @@ Json input_json(const Ingested& in) {
   j["format"] = to_string(in.format);
   j["file_format"] = to_string(in.file_format);
   if (in.file_format == MeshFormat::ThreeMf || in.parts.size() > 1) {
+    // The first 10 only: the report may travel in a header (a 3MF can have 100k objects).
+    constexpr std::size_t kListed = 10;
     Json objects = Json::array();
-    for (const MeshPart& p : in.parts)
-      objects.push_back({{"name", p.name}, {"triangles", p.triangle_count}});
+    for (std::size_t i = 0; i < in.parts.size() && i < kListed; ++i)
+      objects.push_back({{"name", in.parts[i].name}, {"triangles", in.parts[i].triangle_count}});
     j["objects"] = std::move(objects);
+    j["object_count"] = in.parts.size();
   }
   j["triangles"] = in.triangles;
   j["trailing_bytes"] = in.trailing_bytes;
@@ -115,6 +118,7 @@ Json repair_json(const Ingested& in) {
   j["holes"] = r.holes;
   j["filled"] = r.filled;
   j["fairing_failed"] = r.fairing_failed;
+  j["flat"] = r.flat;
   j["left_open"] = r.left_open;
   j["largest_hole_edges"] = r.largest_hole_edges;
   j["faces_added"] = r.faces_added;

@@ -110,10 +110,11 @@ std::string version_document() {
 std::string process_metrics() {
   std::ostringstream out;
   const BuildInfo& b = build_info();
-  out << "# HELP stlrefine_build_info The build: version, API version, compiler, build "
-         "type (always 1).\n# TYPE stlrefine_build_info gauge\nstlrefine_build_info{version=\""
-      << label(b.version) << "\",api=\"" << label(b.api) << "\",compiler=\"" << label(b.compiler)
-      << "\",build_type=\"" << label(b.build_type) << "\"} 1\n";
+  // No compiler here: /metrics needs no key, and the compiler only helps fingerprinting
+  // (GET /v1/version, behind the key, has it).
+  out << "# HELP stlrefine_build_info The build: version and API version (always 1).\n"
+         "# TYPE stlrefine_build_info gauge\nstlrefine_build_info{version=\""
+      << label(b.version) << "\",api=\"" << label(b.api) << "\"} 1\n";
 
   // /proc/self/stat (proc(5)): utime 14, stime 15, starttime 22, vsize 23, rss 24, counted
   // from 1 with the pid; stat_fields() starts at field 3.

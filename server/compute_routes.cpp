@@ -123,7 +123,8 @@ void serve_compute(const RouteContext& ctx, const HttpRequest& req, CheckedReque
           std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(),
           out.report["input"].value("faces", 0ull), out.report["output"].value("faces", 0ull));
       // The report header is compact ASCII JSON (no CR/LF can reach a header).
-      const std::string report = out.report.dump(-1, ' ', true);
+      const std::string report =
+          out.report.dump(-1, ' ', true, nlohmann::json::error_handler_t::replace);
       if (out.contours) {
         // Refine + slice: one zip with the refined STL, the contours and the report.
         const slicer::SliceFormat format = refine_plan->request.slice->format;
@@ -163,7 +164,8 @@ void serve_compute(const RouteContext& ctx, const HttpRequest& req, CheckedReque
       api::SliceOutcome out = api::run_slice(body, *slice_plan, {}, cancel);
       lease.reset();
       keep_answer(out.contours.size());
-      res.set_header(kReportHeader, out.report.dump(-1, ' ', true));
+      res.set_header(kReportHeader,
+                     out.report.dump(-1, ' ', true, nlohmann::json::error_handler_t::replace));
       provide(std::move(out.contours), slicer::media_type(slice_plan->request.slice.format));
       res.set_header(
           "Content-Disposition",
@@ -173,7 +175,8 @@ void serve_compute(const RouteContext& ctx, const HttpRequest& req, CheckedReque
       const nlohmann::ordered_json report = api::run_info(body, *info_plan);
       lease.reset();
       keep_answer(0);
-      res.set_content(report.dump(2, ' ', true) + "\n", kJsonContentType);
+      res.set_content(report.dump(2, ' ', true, nlohmann::json::error_handler_t::replace) + "\n",
+                      kJsonContentType);
     }
     res.status = api::http::kOk;
   } catch (const MemoryBudgetError& e) {

@@ -89,9 +89,19 @@ bool special_address(const sockaddr* sa) {
                               (std::uint32_t{b[14]} << 8) | b[15];
       return special_v4(a);
     }
+    // Prefixes that carry an IPv4 address to somewhere else: NAT64 (64:ff9b::/96 and the
+    // local-use 64:ff9b:1::/48), 6to4 (2002::/16), Teredo (2001::/32), IPv4-translated
+    // (::ffff:0:0:0/96): refused whatever the embedded address, as is anything the
+    // allow-list does not name by address.
+    const bool nat64 = b[0] == 0x00 && b[1] == 0x64 && b[2] == 0xff && b[3] == 0x9b;
+    const bool six_to_four = b[0] == 0x20 && b[1] == 0x02;
+    const bool teredo = b[0] == 0x20 && b[1] == 0x01 && b[2] == 0x00 && b[3] == 0x00;
+    const bool translated = std::all_of(b, b + 8, [](unsigned char x) { return x == 0; }) &&
+                            b[8] == 0xff && b[9] == 0xff && b[10] == 0 && b[11] == 0;
     return IN6_IS_ADDR_UNSPECIFIED(&v6->sin6_addr) || IN6_IS_ADDR_LOOPBACK(&v6->sin6_addr) ||
            IN6_IS_ADDR_LINKLOCAL(&v6->sin6_addr) || IN6_IS_ADDR_SITELOCAL(&v6->sin6_addr) ||
-           IN6_IS_ADDR_MULTICAST(&v6->sin6_addr) || (b[0] & 0xFE) == 0xFC;  // fc00::/7
+           IN6_IS_ADDR_MULTICAST(&v6->sin6_addr) || (b[0] & 0xFE) == 0xFC ||  // fc00::/7
+           nat64 || six_to_four || teredo || translated;
   }
   return true;  // not an IP address at all
 }
@@ -142,7 +152,11 @@ std::optional<api::Problem> check_callback_url(const CallbackPolicy& policy, con
   for (const std::string& e : policy.allow) {
     std::string host;
     int port = 0;
-    if (split_host_port(e, host, port) && host == t.host && (port == 0 || port == t.port)) {
+    // An entry without a port allows the scheme's default port only (80 / 443), not every
+    // service on that host.
+    const int default_port = t.scheme == "https" ? 443 : 80;
+    if (split_host_port(e, host, port) && host == t.host &&
+        (port == 0 ? t.port == default_port : port == t.port)) {
       entry = &e;
       break;
     }
@@ -210,6 +224,14 @@ CallbackSender::~CallbackSender() {
 void CallbackSender::send(std::string url, std::string body) {
   {
     std::lock_guard lock(mutex_);
+    // Bounded: a receiver that never answers must not grow the daemon's memory. Past the
+    // bound the newest callback is dropped and logged (the job's state is still served).
+    constexpr std::size_t kMaxPending = 10000;
+    if (queue_.size() >= kMaxPending) {
+      log_line("stlrefined: callback to " + shortened(url) +
+               " dropped: " + std::to_string(kMaxPending) + " callbacks already pending");
+      return;
+    }
     queue_.push_back({std::move(url), std::move(body), 0, std::chrono::steady_clock::now()});
   }
   wake_.notify_all();

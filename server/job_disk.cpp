@@ -119,7 +119,8 @@ void JobStore::persist(const Job& job) const {
   if (job.problem) j["problem"] = *job.problem;
   j["results"] = job.results;
   j["result_bytes"] = job.result_bytes;
-  write_atomically(job.dir / kJobFile, j.dump(2) + "\n");
+  write_atomically(job.dir / kJobFile,
+                   j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
 }
 
 void JobStore::persist_or_log(const Job& job) const {

@@ -126,7 +126,8 @@ void serve_job_list(const RouteContext& ctx, const HttpRequest& req, HttpAnswer&
     links["next"] = page(list_cursor(jobs.back()));
   }
   j["links"] = links;
-  res.set_content(j.dump(2) + "\n", kJsonContentType);
+  res.set_content(j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n",
+                  kJsonContentType);
 }
 
 void serve_job_submit(const RouteContext& ctx, const HttpRequest& req, api::RefinePlan parameters,
@@ -185,7 +186,9 @@ void serve_job_submit(const RouteContext& ctx, const HttpRequest& req, api::Refi
     }
     res.status = api::http::kAccepted;
     res.set_header("Location", "/v1/jobs/" + job->id);
-    res.set_content(job_json(*job).dump(2) + "\n", kJsonContentType);
+    res.set_content(
+        job_json(*job).dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n",
+        kJsonContentType);
   } catch (const Error& e) {
     ctx.respond(res, api::problem_from_error(e));
   }
@@ -227,7 +230,8 @@ void serve_job_item(const RouteContext& ctx, const HttpRequest& req, HttpAnswer&
       // A running job stops at its next cancellation check and then reads "cancelled".
       j["cancel"] = "cancelled";
     }
-    res.set_content(j.dump(2) + "\n", kJsonContentType);
+    res.set_content(j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n",
+                    kJsonContentType);
     return;
   }
   if (found == JobStore::Lookup::Expired && (req.method != "DELETE" && !file.empty())) {
@@ -237,7 +241,9 @@ void serve_job_item(const RouteContext& ctx, const HttpRequest& req, HttpAnswer&
   if (file == "events") return serve_job_events(ctx, req, id, res);
   if (file.empty()) {
     if (found == JobStore::Lookup::Expired && req.method != "DELETE") res.status = api::http::kGone;
-    res.set_content(job_json(job).dump(2) + "\n", kJsonContentType);
+    res.set_content(
+        job_json(job).dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n",
+        kJsonContentType);
     return;
   }
   if (job.state != JobState::Done) {

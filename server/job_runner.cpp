@@ -157,7 +157,8 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
       results.push_back(name);
       bytes += out.contours->size();
     }
-    const std::string report_text = report.dump(2) + "\n";
+    const std::string report_text =
+        report.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
     write_atomically(job->dir / "report.json", report_text);
     results.push_back("report.json");
     bytes += report_text.size();

@@ -97,7 +97,8 @@ std::vector<JobView> JobStore::list(const std::string& owner, std::optional<JobS
 
 void JobStore::notify_ended(const JobView& job) {
   if (callbacks_ && !job.callback_url.empty())
-    callbacks_->send(job.callback_url, job_json(job).dump());
+    callbacks_->send(job.callback_url,
+                     job_json(job).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
 }
 
 void JobStore::release_disk(Job& job) {

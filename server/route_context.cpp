@@ -39,9 +39,12 @@ bool same_secret(std::string_view a, std::string_view b) {
 }
 
 // The key of "Authorization: Bearer KEY", or nothing.
+// The scheme name is case-insensitive (RFC 9110 11.1): "bearer KEY" too.
 std::optional<std::string_view> bearer_token(std::string_view header) {
-  constexpr std::string_view kBearer = "Bearer ";
-  if (header.size() <= kBearer.size() || !header.starts_with(kBearer)) return std::nullopt;
+  constexpr std::string_view kBearer = "bearer ";
+  if (header.size() <= kBearer.size()) return std::nullopt;
+  for (std::size_t i = 0; i < kBearer.size(); ++i)
+    if (std::tolower(static_cast<unsigned char>(header[i])) != kBearer[i]) return std::nullopt;
   return header.substr(kBearer.size());
 }
 

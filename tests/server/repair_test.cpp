@@ -8,7 +8,9 @@
 #include <gtest/gtest.h>
 #include <httplib.h>
 
+#include <atomic>
 #include <cmath>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <string>
@@ -71,16 +73,15 @@ std::vector<Triangle> box(Corner o, float s, int skip = 0) {
 
 Mesh mesh_of(const std::vector<Triangle>& triangles) {
   IndexedSoup soup;
+  std::map<Corner, std::uint32_t> ids;  // exact welding
   for (const Triangle& t : triangles) {
-    std::array<std::uint32_t, 3> ids{};
+    std::array<std::uint32_t, 3> face{};
     for (int k = 0; k < 3; ++k) {
-      const Vec3 p{t[k][0], t[k][1], t[k][2]};
-      std::uint32_t id = 0;
-      while (id < soup.positions.size() && !(soup.positions[id] == p)) ++id;
-      if (id == soup.positions.size()) soup.positions.push_back(p);
-      ids[k] = id;
+      const auto [it, added] = ids.try_emplace(t[k], std::uint32_t(soup.positions.size()));
+      if (added) soup.positions.push_back({t[k][0], t[k][1], t[k][2]});
+      face[k] = it->second;
     }
-    soup.triangles.push_back(ids);
+    soup.triangles.push_back(face);
   }
   return build_mesh(soup).mesh;
 }
@@ -132,6 +133,52 @@ TEST(FillHoles, LeavesAClosedMeshAsItIsAndALongRimOpen) {
   EXPECT_EQ(report.left_open, 1u);
   EXPECT_EQ(report.filled, 0u);
   EXPECT_EQ(kept.mesh.num_faces(), open.num_faces());
+}
+
+// An open tube: n segments around, radius r, height h, both ends open (two rims of n edges).
+std::vector<Triangle> open_tube(int n, float r, float h) {
+  std::vector<Triangle> out;
+  const auto p = [&](int j, float z) -> Corner {
+    const double phi = 2 * std::numbers::pi * (j % n) / n;
+    return {float(r * std::cos(phi)), float(r * std::sin(phi)), z};
+  };
+  for (int j = 0; j < n; ++j) {
+    out.push_back({p(j, 0), p(j + 1, 0), p(j + 1, h)});
+    out.push_back({p(j, 0), p(j + 1, h), p(j, h)});
+  }
+  return out;
+}
+
+// The review's attack: a 200 KB file with a 4,000-edge rim made CGAL add 758k faces (2.8 GB)
+// when every hole was refined. Long rims are now closed flat, and refining stops at a total.
+TEST(FillHoles, LongRimsAreClosedFlatAndTheAddedFacesAreBounded) {
+  const Mesh tube = mesh_of(open_tube(4000, 50, 10));
+  repair::HoleFillReport report;
+  const IngestResult filled = repair::fill_holes(tube, {}, report);
+  EXPECT_EQ(report.holes, 2u);
+  EXPECT_EQ(report.filled, 2u);
+  EXPECT_EQ(report.flat, 2u);
+  EXPECT_EQ(report.vertices_added, 0u);
+  EXPECT_EQ(report.faces_added, 2u * (4000 - 2));
+  EXPECT_TRUE(compute_stats(filled.mesh).watertight);
+
+  // Short rims, but more refining than the budget allows: the rest are flat.
+  repair::HoleFillOptions tight;
+  tight.max_added_faces = 100;  // one 24-edge cap is estimated at 139
+  const Mesh open = mesh_of(uv_sphere({0, 0, 0}, 10, 12, 24, 2));
+  repair::fill_holes(open, tight, report);
+  EXPECT_EQ(report.filled, 1u);
+  EXPECT_EQ(report.flat, 1u);
+  EXPECT_EQ(report.faces_added, 22u);
+
+  // A cancel between holes stops it.
+  std::atomic<bool> cancel{true};
+  try {
+    repair::fill_holes(tube, {}, report, &cancel);
+    ADD_FAILURE() << "a cancelled fill went on";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::Cancelled);
+  }
 }
 
 TEST(MeshStats, ListsTheLargestBodiesEachWithItsOwnFigures) {

@@ -15,6 +15,7 @@
 #include <string>
 
 #include "core/schemes/registry.h"
+#include "http_test_client.h"
 #include "in_process_daemon.h"
 #include "server/daemon.h"
 #include "test_stl.h"
@@ -72,6 +73,12 @@ TEST(ApiKey, XApiKeyWorksLikeBearerAndNamesTheSameTenant) {
                octahedron(), "model/stl");
     ASSERT_TRUE(same);
     EXPECT_EQ(same->status, 200);
+    // The scheme name is case-insensitive.
+    auto lower =
+        c.Post("/v1/refine?levels=1", {{"Authorization", std::string("bearer ") + kKeyOne}},
+               octahedron(), "model/stl");
+    ASSERT_TRUE(lower);
+    EXPECT_EQ(lower->status, 200);
     // A malformed Authorization does not fall back to X-Api-Key.
     auto basic = c.Post("/v1/refine?levels=1",
                         {{"Authorization", "Basic dXNlcjpwYXNz"}, {"X-Api-Key", kKeyOne}},
@@ -226,6 +233,40 @@ TEST(Cors, RefusesWhatIsNotAnOrigin) {
     config.cors_origins = {bad};
     EXPECT_THROW(Daemon{config}, std::invalid_argument) << bad;
   }
+}
+
+// The review's finding: a raw (not percent-encoded) non-UTF-8 byte in the target reached the
+// job record and its JSON, and nlohmann's strict dump made a 500. Now replaced, never a 500.
+TEST(HostileInput, NonUtf8BytesInTheTargetNeverMakeA500) {
+  const fs::path dir = fs::temp_directory_path() / ("stlrefine-utf8-" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  {
+    DaemonConfig config;
+    config.compute_slots = 1;
+    config.jobs.data_dir = dir;
+    test::InProcessDaemon d(config);
+    for (const char* target : {"/v1/jobs?levels=1&filename=a\xff\xfe"
+                               "b.stl",
+                               "/v1/refine?levels=1&filename=a\xff\xfe"
+                               "b.stl",
+                               "/v1/jobs?levels=1&filename=%ff%fe.stl"}) {
+      const std::string raw =
+          test::exchange(d.port(), test::post_text(target, "model/stl", octahedron()));
+      const std::vector<test::RawResponse> answers = test::parse_responses(raw);
+      ASSERT_EQ(answers.size(), 1u) << target;
+      EXPECT_NE(answers[0].status, 500) << target << "\n" << answers[0].body;
+      if (answers[0].status == 202) {
+        httplib::Client c = d.client();
+        auto job = c.Get(answers[0].header("location").c_str());
+        ASSERT_TRUE(job);
+        EXPECT_EQ(job->status, 200) << job->body;
+        auto list = c.Get("/v1/jobs");
+        ASSERT_TRUE(list);
+        EXPECT_EQ(list->status, 200) << list->body;
+      }
+    }
+  }
+  fs::remove_all(dir);
 }
 
 // The value of a sample line "name value" or "name{labels} value" on the page, or -1.
