@@ -193,6 +193,10 @@ MemoryEstimate estimate_refine_memory(std::span<const std::uint8_t> bytes, const
       peak = std::max(peak, base + stl + contours + kC.zip_growth * zipped);
       e.answer_bytes = std::uint64_t(zipped);
     }
+  } else if (sink == ResultSink::Answer && request.report_in_zip) {
+    // report=zip: the STL string, then the zip made from it (growing by doubling).
+    peak = std::max(peak, base + stl + kC.zip_growth * stl);
+    e.answer_bytes = std::uint64_t(stl);
   } else if (sink == ResultSink::Answer) {
     e.answer_bytes = std::uint64_t(stl);
   }
@@ -246,9 +250,12 @@ MemoryEstimate estimate_slice_memory(std::span<const std::uint8_t> bytes, const 
   e.contour_points = contour_points(count_crossings(bytes, shape, params), params);
   const double contours = point_bytes(request.slice.format) * double(e.contour_points);
   e.answer_bytes = std::uint64_t(contours);
-  e.peak_bytes = std::uint64_t(
-      kC.fixed + double(shape.bytes) + kC.slice_input_face * double(shape.faces) +
-      std::max(repair_bytes(request.repair, shape.faces), kC.contour_growth * contours));
+  // report=zip: the contours, then the zip made from them.
+  const double answer =
+      request.report_in_zip ? (1 + kC.zip_growth) * contours : kC.contour_growth * contours;
+  e.peak_bytes =
+      std::uint64_t(kC.fixed + double(shape.bytes) + kC.slice_input_face * double(shape.faces) +
+                    std::max(repair_bytes(request.repair, shape.faces), answer));
   if (kC.contour_growth * contours > 0.5 * double(e.peak_bytes))
     e.field = params.heights.empty() ? "layer_height" : "heights";
   return e;

@@ -47,6 +47,8 @@ struct ParamRow {
   bool exclusive_minimum = false;
   //! Read by the CLI only (`threads`: the daemon decides threads itself).
   bool cli_only = false;
+  //! Read by the daemon only (`report`: the CLI writes its report with --report FILE).
+  bool http_only = false;
   //! A scheme's option (declared in its registry row): read into
   //! RefineParams::scheme_options; `refine` is then null.
   const SchemeOptionSpec* scheme_option = nullptr;

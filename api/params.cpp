@@ -300,6 +300,13 @@ repair::RepairMode parse_repair_mode(const std::string& value) {
                 "repair = " + shown(value) + " is not one of none, fill_holes");
 }
 
+bool parse_report_place(const std::string& value) {
+  if (value == "header") return false;
+  if (value == "zip") return true;
+  throw invalid("report", "unknown_value",
+                "report = " + shown(value) + " is not one of header, zip");
+}
+
 // A request may only lower the default cap.
 std::size_t max_layers_value(const std::string& v) {
   return static_cast<std::size_t>(
@@ -477,6 +484,21 @@ const ParamRow kParams[] = {
                   const RequestLimits&) { r.units.scale = parse_scale(v); },
      .slice = [](SliceRequest& r, const std::string& v) { r.units.scale = parse_scale(v); },
      .info = [](InfoRequest& r, const std::string& v) { r.units.scale = parse_scale(v); }},
+    {.name = "report",
+     .type = ParamType::String,
+     .description =
+         "Where the synchronous answer's report goes: header (default: the X-Stlrefine-Report "
+         "header, compact JSON) or zip (an application/zip with the result and report.json, "
+         "for clients that cannot read response headers). A sliced refinement is always a "
+         "zip with report.json.",
+     .help = "(HTTP only) header or zip",
+     .example = "zip",
+     .default_value = "header",
+     .http_only = true,
+     .refine = [](RefineRequest& r, const std::string& v,
+                  const RequestLimits&) { r.report_in_zip = parse_report_place(v); },
+     .slice = [](SliceRequest& r,
+                 const std::string& v) { r.report_in_zip = parse_report_place(v); }},
     {.name = "repair",
      .type = ParamType::String,
      .description =
@@ -659,7 +681,9 @@ double read_scheme_option(const SchemeOptionSpec& spec, std::string_view text) {
 std::vector<std::string_view> names_of(RequestKind kind, bool with_cli_only) {
   std::vector<std::string_view> names;
   for (const ParamRow& row : all_rows())
-    if (row.takes(kind) && (with_cli_only || !row.cli_only)) names.push_back(row.name);
+    // with_cli_only: the CLI's names (its own rows, not the daemon's).
+    if (row.takes(kind) && (with_cli_only ? !row.http_only : !row.cli_only))
+      names.push_back(row.name);
   return names;
 }
 

@@ -62,6 +62,7 @@ struct SliceOptions {
 //! What `slice` needs besides the STL bytes.
 struct SliceRequest {
   SliceOptions slice;
+  bool report_in_zip = false;                            //!< `report`, as in RefineRequest
   double weld_tolerance = 0;                             //!< as in InfoRequest
   UnitOptions units;                                     //!< as in InfoRequest
   repair::RepairMode repair = repair::RepairMode::None;  //!< as in InfoRequest
@@ -106,6 +107,10 @@ struct RefineRequest {
   //! request named it (else the daemon follows Accept: model/3mf).
   MeshFormat mesh_format = MeshFormat::Stl;
   bool mesh_format_given = false;
+  //! `report`: header (default: X-Stlrefine-Report) or zip (the answer is a zip with the
+  //! result and report.json, for clients that cannot read headers). Sliced answers are
+  //! always zips with report.json.
+  bool report_in_zip = false;
   //! `slice` (layer height, mm) and `slice_format`: also slice the refined mesh.
   std::optional<SliceOptions> slice;
   //! `primitives`, `primitive_tol`, `max_deviation`.

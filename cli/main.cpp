@@ -12,7 +12,8 @@
 //                    [--alpha A] [--alpha-features A]
 //                    [--kappa K] [--ramp-steps N]
 //                    [--report R.json]
-//                    [--layer-height H --slice-out CONTOURS [--slice-format json|svg|cli|cli-binary]]
+//                    [--layer-height H --slice-out CONTOURS [--slice-format
+//                    json|svg|cli|cli-binary]]
 //   stlrefine spectrum --scheme S --valence N|A..B [--format lines|table] [--count K]
 //                      [--kappa K] [--alpha A] [--alpha-features A] [--unmodified] [--curve]
 //                      [--markdown] [-o OUT]
@@ -266,7 +267,7 @@ std::string scheme_list() {
 // One option per parameter of the table `kind` takes, its help the table's.
 void add_param_options(CLI::App& cmd, api::RequestKind kind, ParamValues& values) {
   for (const api::ParamRow& row : api::param_table()) {
-    if (!row.takes(kind)) continue;
+    if (!row.takes(kind) || row.http_only) continue;
     std::string help = api::cli_help(row);
     if (row.name == "scheme") help = "Subdivision scheme: " + scheme_list() + " (butterfly)";
     cmd.add_option(api::cli_option(row.name), values[row.name], help);
@@ -278,7 +279,7 @@ void add_param_options(CLI::App& cmd, api::RequestKind kind, ParamValues& values
 api::RawParams given_params(const CLI::App& cmd, api::RequestKind kind, const ParamValues& values) {
   api::RawParams raw;
   for (const api::ParamRow& row : api::param_table())
-    if (row.takes(kind) && cmd.get_option(api::cli_option(row.name))->count() > 0)
+    if (row.takes(kind) && !row.http_only && cmd.get_option(api::cli_option(row.name))->count() > 0)
       raw.emplace_back(std::string(row.name), values.at(row.name));
   return raw;
 }
@@ -516,7 +517,8 @@ int main(int argc, char** argv) {
   add_param_options(*refine_cmd, api::RequestKind::Refine, refine.params);
   refine_cmd->add_flag("--ascii", refine.ascii, "Write ASCII STL instead of binary");
   refine_cmd->add_option("--report", refine.report, "Also write the JSON report to this file");
-  refine_cmd->add_option("--slice-out", refine.slice_out, "Contour file (with --layer-height or --heights)");
+  refine_cmd->add_option("--slice-out", refine.slice_out,
+                         "Contour file (with --layer-height or --heights)");
 
   SpectrumOptions spectrum;
   CLI::App* spectrum_cmd = app.add_subcommand(

@@ -113,8 +113,10 @@ void serve_compute(const RouteContext& ctx, const HttpRequest& req, CheckedReque
       // only as it is made); it stops the moment it would pass the budget.
       // Refine + slice answers one zip, made in memory; an STL answer is made from the
       // refined mesh as it is sent.
+      // report=zip: the result and report.json in one zip, made in memory too.
+      const bool zip_answer = refine_plan->request.slice || refine_plan->request.report_in_zip;
       api::RefinedMesh refined =
-          refine_plan->request.slice
+          zip_answer
               ? api::RefinedMesh{api::run_refine(body, *refine_plan, {}, cancel, reserve), {}}
               : api::run_refine_to_mesh(body, *refine_plan, {}, cancel, reserve);
       api::RefineOutcome& out = refined.outcome;
@@ -132,6 +134,15 @@ void serve_compute(const RouteContext& ctx, const HttpRequest& req, CheckedReque
                                          {std::string("slices") + slicer::file_extension(format),
                                           *out.contours, format != slicer::SliceFormat::CliBinary},
                                          {"report.json", report, true}});
+        lease.reset();
+        keep_answer(zip.size());
+        res.set_header(kReportHeader, report);
+        provide(std::move(zip), kZipContentType);
+      } else if (zip_answer) {
+        const bool three_mf = refine_plan->request.mesh_format == MeshFormat::ThreeMf;
+        std::string zip = api::make_zip({{three_mf ? "refined.3mf" : "refined.stl", out.stl, false},
+                                         {"report.json", report, true}});
+        out.stl = std::string();
         lease.reset();
         keep_answer(zip.size());
         res.set_header(kReportHeader, report);
@@ -164,13 +175,25 @@ void serve_compute(const RouteContext& ctx, const HttpRequest& req, CheckedReque
       api::SliceOutcome out = api::run_slice(body, *slice_plan, {}, cancel);
       lease.reset();
       keep_answer(out.contours.size());
-      res.set_header(kReportHeader,
-                     out.report.dump(-1, ' ', true, nlohmann::json::error_handler_t::replace));
-      provide(std::move(out.contours), slicer::media_type(slice_plan->request.slice.format));
-      res.set_header(
-          "Content-Disposition",
-          content_disposition(stem, std::string("_slices") +
-                                        slicer::file_extension(slice_plan->request.slice.format)));
+      const std::string report =
+          out.report.dump(-1, ' ', true, nlohmann::json::error_handler_t::replace);
+      res.set_header(kReportHeader, report);
+      const slicer::SliceFormat format = slice_plan->request.slice.format;
+      if (slice_plan->request.report_in_zip) {
+        std::string zip = api::make_zip({{std::string("slices") + slicer::file_extension(format),
+                                          out.contours, format != slicer::SliceFormat::CliBinary},
+                                         {"report.json", report, true}});
+        out.contours = std::string();
+        keep_answer(zip.size());
+        provide(std::move(zip), kZipContentType);
+      } else {
+        provide(std::move(out.contours), slicer::media_type(format));
+      }
+      res.set_header("Content-Disposition",
+                     content_disposition(
+                         stem, std::string("_slices") + (slice_plan->request.report_in_zip
+                                                             ? std::string(".zip")
+                                                             : slicer::file_extension(format))));
     } else {
       const nlohmann::ordered_json report = api::run_info(body, *info_plan);
       lease.reset();

@@ -176,12 +176,6 @@ Json binary_response(const char* description, const char* type) {
 }
 
 // The media types of the slice formats (slicer/writers.cpp), without parameters.
-std::initializer_list<const char*> contour_types() {
-  static constexpr std::initializer_list<const char*> kTypes = {
-      "application/json", "image/svg+xml", "text/plain", "application/octet-stream"};
-  return kTypes;
-}
-
 Json json_response(const char* description) {
   return {{"description", description},
           {"content", {{"application/json", {{"schema", {{"type", "object"}}}}}}}};
@@ -322,7 +316,10 @@ Json build() {
       Json op = operation(
           "Slice an STL into layer contours",
           common_errors(
-              {{"200", binary_response("The contours, in the format asked for.", contour_types())}},
+              {{"200", binary_response("The contours, in the format asked for (report=zip: a zip "
+                                       "with them and report.json).",
+                                       {"application/json", "image/svg+xml", "text/plain",
+                                        "application/octet-stream", "application/zip"})}},
               true));
       op["responses"]["200"]["headers"]["X-Stlrefine-Report"] =
           header("The slice report (JSON, one line).");

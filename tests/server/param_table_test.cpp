@@ -50,6 +50,10 @@ TEST(ParamTable, EveryRowIsAnOptionInTheCliHelp) {
     ASSERT_EQ(r.exit_code, 0) << k.subcommand;
     for (const ParamRow& row : api::param_table()) {
       if (!row.takes(k.kind)) continue;
+      if (row.http_only) {  // the CLI has its own --report FILE
+        EXPECT_EQ(row.name, "report");
+        continue;
+      }
       // "--slice TEXT", not the prefix of "--slice-format".
       EXPECT_NE(r.out.find(api::cli_option(row.name) + " "), std::string::npos)
           << k.subcommand << " " << row.name;
@@ -75,7 +79,11 @@ TEST(ParamTable, EveryRowIsAcceptedByTheQueryParser) {
       api::RawParams raw = {{name, value}};
       if (name != "slice" && name != "layer_height" && name != "heights")
         raw.emplace_back("layer_height", "0.5");
-      EXPECT_NO_THROW(api::parse_refine_params(raw, cli)) << name;
+      if (row.http_only) {
+        EXPECT_THROW(api::parse_refine_params(raw, cli), Error) << name;
+      } else {
+        EXPECT_NO_THROW(api::parse_refine_params(raw, cli)) << name;
+      }
       if (row.cli_only) {
         EXPECT_THROW(api::parse_refine_params(raw, daemon), Error) << name;
       } else {
@@ -83,7 +91,11 @@ TEST(ParamTable, EveryRowIsAcceptedByTheQueryParser) {
       }
     }
     if (row.takes(RequestKind::Slice)) {
-      EXPECT_NO_THROW(api::parse_slice_params({{name, value}}, cli)) << name;
+      if (row.http_only) {
+        EXPECT_THROW(api::parse_slice_params({{name, value}}, cli), Error) << name;
+      } else {
+        EXPECT_NO_THROW(api::parse_slice_params({{name, value}}, cli)) << name;
+      }
       if (!row.cli_only) {
         EXPECT_NO_THROW(api::parse_slice_params({{name, value}}, daemon)) << name;
       }
@@ -210,11 +222,14 @@ TEST(ParamTable, EveryRangeIsTheOneItsReaderEnforces) {
 TEST(ParamTable, EveryDefaultIsAcceptedAndIsTheDefault) {
   api::RequestLimits cli;
   cli.accept_threads = true;
+  const api::RequestLimits daemon;
   const api::RefineRequest none = api::parse_refine_params({}, cli);
   for (const ParamRow& row : api::param_table()) {
     const std::string value = api::default_text(row);
     if (value.empty()) continue;
     const api::RawParams raw = {{std::string(row.name), value}};
+    // The daemon's rows with the daemon's limits (the CLI does not take them).
+    const api::RequestLimits& limits = row.http_only ? daemon : cli;
     if (row.takes(RequestKind::Refine)) {
       api::RawParams refine_raw = raw;
       // The slicing modifiers need a layer height.
@@ -222,7 +237,7 @@ TEST(ParamTable, EveryDefaultIsAcceptedAndIsTheDefault) {
           row.name == "z_max")
         refine_raw.emplace_back("layer_height", "0.5");
       api::RefineRequest given;
-      ASSERT_NO_THROW(given = api::parse_refine_params(refine_raw, cli)) << row.name;
+      ASSERT_NO_THROW(given = api::parse_refine_params(refine_raw, limits)) << row.name;
       // The refinement is made the same way with and without it.
       if (!row.scheme_option) {
         EXPECT_EQ(given.refine.scheme, none.refine.scheme) << row.name;
@@ -242,7 +257,7 @@ TEST(ParamTable, EveryDefaultIsAcceptedAndIsTheDefault) {
       }
     }
     if (row.takes(RequestKind::Slice)) {
-      const api::SliceRequest given = api::parse_slice_params(raw, cli);
+      const api::SliceRequest given = api::parse_slice_params(raw, limits);
       const api::SliceRequest absent = api::parse_slice_params({}, cli);
       EXPECT_EQ(given.slice.params.layer_height, absent.slice.params.layer_height) << row.name;
       EXPECT_EQ(given.slice.params.max_layers, absent.slice.params.max_layers) << row.name;

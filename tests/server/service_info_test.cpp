@@ -19,6 +19,7 @@
 #include "in_process_daemon.h"
 #include "server/daemon.h"
 #include "test_stl.h"
+#include "test_zip.h"
 
 namespace stlrefine::server {
 namespace {
@@ -267,6 +268,44 @@ TEST(HostileInput, NonUtf8BytesInTheTargetNeverMakeA500) {
     }
   }
   fs::remove_all(dir);
+}
+
+// Issue 19 item 6: the report without reading a header. report=zip answers a zip with the
+// result and report.json, on /v1/refine and /v1/slice; the CLI keeps its --report FILE.
+TEST(ReportZip, TheResultAndItsReportInOneZip) {
+  DaemonConfig config;
+  config.compute_slots = 1;
+  test::InProcessDaemon d(config);
+  httplib::Client c = d.client();
+  auto refined =
+      c.Post("/v1/refine?levels=1&report=zip&filename=part.stl", octahedron(), "model/stl");
+  ASSERT_TRUE(refined);
+  ASSERT_EQ(refined->status, 200) << refined->body;
+  EXPECT_EQ(refined->get_header_value("Content-Type"), "application/zip");
+  EXPECT_NE(refined->get_header_value("Content-Disposition").find("part_refined.zip"),
+            std::string::npos);
+  const auto entries = test::unzip(refined->body);
+  ASSERT_EQ(entries.size(), 2u);
+  ASSERT_TRUE(entries.count("refined.stl"));
+  EXPECT_EQ(test::read_binary_stl(entries.at("refined.stl")).size(), 32u);  // 8 faces x 4
+  const Json report = Json::parse(entries.at("report.json"));
+  EXPECT_EQ(report["output"]["faces"], 32);
+  EXPECT_EQ(Json::parse(refined->get_header_value("X-Stlrefine-Report")), report);
+
+  auto sliced =
+      c.Post("/v1/slice?layer_height=0.5&slice_format=svg&report=zip", octahedron(), "model/stl");
+  ASSERT_TRUE(sliced);
+  ASSERT_EQ(sliced->status, 200) << sliced->body;
+  EXPECT_EQ(sliced->get_header_value("Content-Type"), "application/zip");
+  const auto slices = test::unzip(sliced->body);
+  ASSERT_TRUE(slices.count("slices.svg"));
+  EXPECT_NE(slices.at("slices.svg").find("<svg"), std::string::npos);
+  EXPECT_EQ(Json::parse(slices.at("report.json"))["slice"]["layers"], 4);
+
+  auto bad = c.Post("/v1/refine?report=inline", octahedron(), "model/stl");
+  ASSERT_TRUE(bad);
+  EXPECT_EQ(bad->status, 400);
+  EXPECT_EQ(Json::parse(bad->body)["field"], "report");
 }
 
 // The value of a sample line "name value" or "name{labels} value" on the page, or -1.
