@@ -449,7 +449,11 @@ std::uint64_t peak_rss_bytes(pid_t pid) {
 #define STLREFINE_UNDER_ASAN 1
 #endif
 
-TEST(Attack, TheWorstAdaptiveRequestOfEveryHostStaysInsideTheMemoryBudget) {
+// One request per test (each takes 2-6 s alone; five in one test passed ctest's 60 s under
+// CI's parallel load).
+class WorstAdaptiveRequestOfEveryHost : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(WorstAdaptiveRequestOfEveryHost, StaysInsideTheMemoryBudget) {
 #ifdef STLREFINE_UNDER_ASAN
   // ASan's shadow memory and quarantine are RSS the budget does not model (the load test is
   // left out of the asan preset for the same reason); the Release run is the check.
@@ -459,12 +463,8 @@ TEST(Attack, TheWorstAdaptiveRequestOfEveryHostStaysInsideTheMemoryBudget) {
   Child child(daemon_argv({"--compute-slots", "1", "--memory-budget", "640M"}));
   const int port = start(child);
   ASSERT_GT(port, 0);
-  for (const std::string& query :
-       {std::string("scheme=sqrt3-interp&adaptive_tol=1e-9&max_level=6"),
-        std::string("scheme=sqrt3&adaptive_tol=1e-9&max_level=6"),
-        std::string("scheme=butterfly&adaptive_tol=1e-9&max_level=8"),
-        std::string("scheme=lsf&adaptive_tol=1e-9&max_level=8"),
-        std::string("scheme=butterfly&adaptive_angle=0.01&max_level=8")}) {
+  {
+    const std::string query = GetParam();
     const auto started = std::chrono::steady_clock::now();
     const RawResponse r =
         one_response(port, post_text("/v1/refine?" + query, "model/stl", fandisk()), 120s);
@@ -477,11 +477,18 @@ TEST(Attack, TheWorstAdaptiveRequestOfEveryHostStaysInsideTheMemoryBudget) {
       EXPECT_EQ(r.header("content-type"), "application/problem+json");
       EXPECT_NE(r.body.find("\"field\""), std::string::npos) << r.body;
     }
-    EXPECT_LT(seconds, 60.0);
+    EXPECT_LT(seconds, 50.0);
     EXPECT_LT(peak_rss_bytes(child.pid()), kBudget) << r.body.substr(0, 400);
   }
   EXPECT_EQ(one_response(port, get_text("/healthz")).status, 200);
 }
+
+INSTANTIATE_TEST_SUITE_P(Attack, WorstAdaptiveRequestOfEveryHost,
+                         ::testing::Values("scheme=sqrt3-interp&adaptive_tol=1e-9&max_level=6",
+                                           "scheme=sqrt3&adaptive_tol=1e-9&max_level=6",
+                                           "scheme=butterfly&adaptive_tol=1e-9&max_level=8",
+                                           "scheme=lsf&adaptive_tol=1e-9&max_level=8",
+                                           "scheme=butterfly&adaptive_angle=0.01&max_level=8"));
 
 // ---------------------------------------------------------------------------------------
 // 5. Slow uploads and slow readers pin neither the budget nor the workers.
