@@ -461,7 +461,7 @@ TEST(ThreeMfReader, RoundTripsThroughTheWriter) {
 
 TEST(ThreeMfReader, RefusesBadPackages) {
   // Zip magic, then garbage; a zip without a model; a model that is not XML.
-  expect_refused(std::string("PK\x03\x04 this is no zip at all", 28), "not_3mf");
+  expect_refused(std::string("PK\x03\x04 this is no zip at all"), "not_3mf");
   expect_refused(zip_of({{"hello.txt", "hi"}}), "not_3mf");
   expect_refused(package_3mf("not xml <<<"), "not_3mf");
   // No build item; a build of a mesh without triangles.
