@@ -70,6 +70,10 @@ Json warnings_json(const Ingested& in) {
                           "as a solid";
     if (in.repair_mode == repair::RepairMode::None)
       message += "; repair=fill_holes closes them";
+    else if (in.repair.skipped)
+      message +=
+          "; repair=fill_holes could not run on this mesh: it has non-manifold edges "
+          "cut apart at ingest";
     else if (in.repair.left_open > 0)
       message += "; " + std::to_string(in.repair.left_open) +
                  " were left open by repair=fill_holes (rim over 10000 edges, or no Delaunay "
@@ -117,6 +121,7 @@ Json repair_json(const Ingested& in) {
   const repair::HoleFillReport& r = in.repair;
   j["holes"] = r.holes;
   j["filled"] = r.filled;
+  if (r.skipped) j["skipped"] = "edges cut apart at ingest (non-manifold input): not repaired";
   j["fairing_failed"] = r.fairing_failed;
   j["flat"] = r.flat;
   j["left_open"] = r.left_open;

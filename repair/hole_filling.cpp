@@ -8,6 +8,7 @@
 
 #include <chrono>
 #include <iterator>
+#include <optional>
 #include <vector>
 
 #include "core/error.h"
@@ -21,8 +22,10 @@ using Point = Kernel::Point_3;
 using SurfaceMesh = CGAL::Surface_mesh<Point>;
 using Halfedge = SurfaceMesh::Halfedge_index;
 
-// Our mesh as a CGAL Surface_mesh with the same vertex and face indices.
-SurfaceMesh to_surface_mesh(const Mesh& mesh) {
+// Our mesh as a CGAL Surface_mesh with the same vertex and face indices, or nothing when a
+// face does not fit: build_mesh cuts a non-manifold edge into two boundary edges between
+// the same two vertices, which a Surface_mesh cannot hold without another vertex.
+std::optional<SurfaceMesh> to_surface_mesh(const Mesh& mesh) {
   SurfaceMesh sm;
   sm.reserve(static_cast<SurfaceMesh::size_type>(mesh.num_vertices()),
              static_cast<SurfaceMesh::size_type>(mesh.num_halfedges() / 2 + mesh.num_faces()),
@@ -33,12 +36,20 @@ SurfaceMesh to_surface_mesh(const Mesh& mesh) {
     const SurfaceMesh::Face_index added =
         sm.add_face(SurfaceMesh::Vertex_index(a.idx), SurfaceMesh::Vertex_index(b.idx),
                     SurfaceMesh::Vertex_index(c.idx));
-    // build_mesh made an oriented manifold: every face fits.
-    if (added == SurfaceMesh::null_face())
-      throw Error(ErrorCode::Internal, "repair_face_misfit",
-                  "fill_holes: face " + std::to_string(f) + " does not fit an oriented manifold");
+    if (added == SurfaceMesh::null_face()) return std::nullopt;
   }
   return sm;
+}
+
+// The mesh as it is (a copy through its soup), for a repair that could not run.
+IngestResult unchanged(const Mesh& mesh) {
+  IndexedSoup soup;
+  soup.positions.assign(mesh.positions().begin(), mesh.positions().end());
+  for (std::uint32_t f = 0; f < mesh.num_faces(); ++f) {
+    const auto [a, b, c] = mesh.face_vertices(FaceId(f));
+    soup.triangles.push_back({a.idx, b.idx, c.idx});
+  }
+  return build_mesh(soup);
 }
 
 // One border half-edge per boundary loop, with the loop's length.
@@ -68,7 +79,12 @@ IngestResult fill_holes(const Mesh& mesh, const HoleFillOptions& options, HoleFi
   const auto start = std::chrono::steady_clock::now();
   report = HoleFillReport{};
   std::size_t predicted_added = 0;
-  SurfaceMesh sm = to_surface_mesh(mesh);
+  std::optional<SurfaceMesh> converted = to_surface_mesh(mesh);
+  if (!converted) {
+    report.skipped = true;
+    return unchanged(mesh);
+  }
+  SurfaceMesh& sm = *converted;
   const std::size_t faces_before = sm.number_of_faces();
   const std::size_t vertices_before = sm.number_of_vertices();
   for (const auto& [border, length] : boundary_loops(sm)) {

@@ -39,6 +39,9 @@ struct HoleFillReport {
   std::size_t flat = 0;       //!< closed by the rim's own triangulation (long rim or budget spent)
   std::size_t left_open = 0;  //!< rim longer than max_hole_edges, or no triangulation found
   std::size_t largest_hole_edges = 0;
+  //! Not run: the mesh has edges cut apart by ingest (two boundary edges between the same
+  //! two vertices), which CGAL's Surface_mesh cannot hold; every hole stays open.
+  bool skipped = false;
   std::size_t faces_added = 0;
   std::size_t vertices_added = 0;
   double seconds = 0;

@@ -263,6 +263,27 @@ TEST(RepairReport, WarnsAndRepairsThroughTheApi) {
   EXPECT_NE(std::find(bodies.begin(), bodies.end(), "several_bodies"), bodies.end());
 }
 
+// Found by fuzz_pipeline: ingest cuts a non-manifold edge into two boundary edges between
+// the same two vertices, which a CGAL Surface_mesh cannot hold. The repair says so and
+// leaves the mesh as it is (it was an Internal error: a 500).
+TEST(RepairReport, AMeshWithCutEdgesIsLeftAsItIsAndSaysWhy) {
+  const std::string bytes = read_file(STLREFINE_TEST_DATA_DIR "/repair/cut_non_manifold_edges.stl");
+  ASSERT_FALSE(bytes.empty());
+  const api::InfoRequest info = api::parse_info_params({{"repair", "fill_holes"}});
+  const Json report = Json::parse(api::run_info(bytes_of(bytes), info).dump());
+  EXPECT_TRUE(report["input"]["repair"].contains("skipped")) << report["input"]["repair"].dump();
+  EXPECT_EQ(report["input"]["repair"]["faces_added"], 0);
+  EXPECT_EQ(report["mesh"]["faces"], 4);
+  bool said = false;
+  for (const Json& w : report["warnings"])
+    said |= w["code"] == "open_boundaries" &&
+            w["message"].get<std::string>().find("could not run") != std::string::npos;
+  EXPECT_TRUE(said) << report["warnings"].dump();
+  const api::RefineRequest refine =
+      api::parse_refine_params({{"repair", "fill_holes"}, {"levels", "1"}}, {});
+  EXPECT_NO_THROW(api::run_refine(bytes_of(bytes), refine));
+}
+
 TEST(RepairReport, RefusesAnUnknownRepairNamingTheField) {
   for (const char* bad : {"fill", "", "FILL_HOLES", "none,fill_holes"}) {
     try {
