@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <span>
 #include <string_view>
 
 #include "core/error.h"
@@ -31,12 +32,25 @@ inline void check_refusal(const Error& e) {
   check(!e.reason().empty(), "error without a reason slug:", e.what());
 }
 
-//! A MalformedStl error must name one of read_stl's documented reasons and locate the
-//! problem: a byte offset inside the input (binary) or a line (ASCII).
-inline void check_stl_refusal(const Error& e, std::size_t input_size) {
+//! A reader's refusal: a MalformedStl error with one of `reasons` that locates the problem,
+//! a byte offset inside the input (binary) or a line (text).
+inline void check_located_refusal(const Error& e, std::size_t input_size,
+                                  std::span<const std::string_view> reasons) {
   check_refusal(e);
+  check(e.code() == ErrorCode::MalformedStl, "a reader threw a non-MalformedStl error:", e.what());
+  check(std::find(reasons.begin(), reasons.end(), e.reason()) != reasons.end(),
+        "undocumented reason:", e.reason().c_str());
+  check(e.byte_offset().has_value() != e.line().has_value(),
+        "a MalformedStl error needs exactly one of byte offset and line:", e.what());
+  if (e.byte_offset()) check(*e.byte_offset() <= input_size, "byte offset past the end:", e.what());
+  if (e.line())
+    check(*e.line() >= 1 && *e.line() <= input_size + 1, "line out of range:", e.what());
+}
+
+//! A MalformedStl error must name one of read_stl's documented reasons and locate the
+//! problem.
+inline void check_stl_refusal(const Error& e, std::size_t input_size) {
   if (e.code() == ErrorCode::InvalidParameter) fail("read_stl refused its own options:", e.what());
-  check(e.code() == ErrorCode::MalformedStl, "read_stl threw a non-MalformedStl error:", e.what());
   static constexpr std::string_view kReasons[] = {"too_small",
                                                   "truncated",
                                                   "count_mismatch",
@@ -49,13 +63,7 @@ inline void check_stl_refusal(const Error& e, std::size_t input_size) {
                                                   "name_too_long",
                                                   "syntax",
                                                   "not_stl"};
-  check(std::find(std::begin(kReasons), std::end(kReasons), e.reason()) != std::end(kReasons),
-        "undocumented reason:", e.reason().c_str());
-  check(e.byte_offset().has_value() != e.line().has_value(),
-        "a MalformedStl error needs exactly one of byte offset and line:", e.what());
-  if (e.byte_offset()) check(*e.byte_offset() <= input_size, "byte offset past the end:", e.what());
-  if (e.line())
-    check(*e.line() >= 1 && *e.line() <= input_size + 1, "line out of range:", e.what());
+  check_located_refusal(e, input_size, kReasons);
 }
 
 }  // namespace stlrefine::fuzz

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <limits>
 #include <numeric>
+#include <span>
 
 namespace stlrefine {
 
@@ -29,6 +30,7 @@ void grow_box(Vec3& lo, Vec3& hi, const Vec3& p) {
 // The per-body figures of the `max_bodies` largest components. `parent` is the face
 // union-find, compressed to roots by the caller; the scratch is one slot per face.
 std::vector<BodyStats> body_stats(const Mesh& mesh, std::vector<std::uint32_t>& parent,
+                                  std::span<const std::uint32_t> loop_starts,
                                   std::size_t max_bodies) {
   const std::uint32_t faces = static_cast<std::uint32_t>(mesh.num_faces());
   // Faces per root, counted in the slot array (reused below for the list index).
@@ -86,16 +88,10 @@ std::vector<BodyStats> body_stats(const Mesh& mesh, std::vector<std::uint32_t>& 
       ++bodies[b].edges;
     }
   }
-  std::vector<std::uint8_t> seen(mesh.num_halfedges(), 0);
-  for (std::uint32_t h = 0; h < mesh.num_halfedges(); ++h) {
-    if (seen[h] || !mesh.is_boundary(HalfedgeId(h))) continue;
+  // A loop belongs to the body of its first half-edge's face.
+  for (const std::uint32_t h : loop_starts) {
     const std::uint32_t b = body_of_face(h / 3);
     if (b != kNotListed) ++bodies[b].boundary_loops;
-    for (HalfedgeId g(h); g.valid() && !seen[g.idx];) {
-      seen[g.idx] = 1;
-      g = mesh.halfedge(mesh.to(g));
-      if (!mesh.is_boundary(g)) break;
-    }
   }
   for (BodyStats& s : bodies) {
     s.watertight = s.boundary_edges == 0;
@@ -151,9 +147,11 @@ MeshStats compute_stats(const Mesh& mesh, std::size_t max_bodies) {
 
   // Boundary loops: follow each boundary half-edge to the next one around its end vertex.
   std::vector<std::uint8_t> seen(mesh.num_halfedges(), 0);
+  std::vector<std::uint32_t> loop_starts;  // one half-edge of each loop, for the bodies
   for (std::uint32_t h = 0; h < mesh.num_halfedges(); ++h) {
     if (seen[h] || !mesh.is_boundary(HalfedgeId(h))) continue;
     ++s.boundary_loops;
+    loop_starts.push_back(h);
     HalfedgeId g(h);
     while (g.valid() && !seen[g.idx]) {
       seen[g.idx] = 1;
@@ -166,7 +164,7 @@ MeshStats compute_stats(const Mesh& mesh, std::size_t max_bodies) {
   s.euler_characteristic = static_cast<long long>(s.vertices) - static_cast<long long>(s.edges) +
                            static_cast<long long>(s.faces);
   for (std::uint32_t f = 0; f < s.faces; ++f) parent[f] = find_root(parent, f);
-  s.bodies = body_stats(mesh, parent, max_bodies);
+  s.bodies = body_stats(mesh, parent, loop_starts, max_bodies);
   s.watertight = s.boundary_edges == 0;
   if (s.watertight) {
     // Each closed orientable component has chi = 2 - 2g.
