@@ -71,6 +71,10 @@ struct JobsConfig {
   //! Where and how `callback_url`s are called (job_callbacks.h); without a secret and an
   //! allow-list, a job with one is refused.
   CallbackPolicy callbacks;
+  //! Event streams (GET /v1/jobs/{id}/events) open at once, in all and per tenant (per
+  //! client address without API keys): one more is refused (429 + Retry-After).
+  std::size_t max_event_streams = 256;
+  std::size_t max_event_streams_per_tenant = 32;
 };
 
 //! What a client sees of a job (a copy, taken under the store's lock).
@@ -84,6 +88,7 @@ struct JobView {
   std::string query;         //!< the parameters as submitted
   std::string name;          //!< the uploaded file's name (http_upload.h's upload_name), or empty
   std::string callback_url;  //!< POSTed the job's JSON when it ends; empty: none
+  std::string tenant;        //!< its owner (never shown: it signs the callback)
   std::chrono::system_clock::time_point created, started, finished;
   nlohmann::ordered_json report;                  //!< the refine report once done
   std::optional<nlohmann::ordered_json> problem;  //!< RFC 9457 body once failed/cancelled
@@ -201,6 +206,17 @@ class JobStore {
   std::vector<JobView> list(const std::string& owner, std::optional<JobState> state,
                             const std::optional<ListCursor>& after, std::size_t limit,
                             bool* more) const;
+  //! A place among the open event streams, held by a stream while it is open (released
+  //! when the last copy goes). Empty when `who` holds max_event_streams_per_tenant already
+  //! (`*whole` false) or max_event_streams are open (`*whole` true). Its own lock: never
+  //! waits for the store's.
+  using StreamPlace = std::shared_ptr<void>;
+  StreamPlace open_stream(const std::string& who, bool* whole);
+  //! find() for a stream polled on the event loop: nullopt instead of waiting when the
+  //! store's lock is held (a job being recorded); `*on_disk` when the job is not this
+  //! replica's and was read from its job.json.
+  std::optional<Lookup> try_find(const std::string& id, const std::string& owner, JobView* out,
+                                 bool* on_disk) const;
   //! Path of a result file of a done job (name from JobView::results).
   std::filesystem::path result_path(const std::string& id, const std::string& name) const;
 
@@ -267,6 +283,13 @@ class JobStore {
   std::thread janitor_;
   RequestWatch watch_;                         // deadlines of running jobs
   std::unique_ptr<CallbackSender> callbacks_;  // when callbacks are configured
+  struct StreamCounts {
+    std::mutex mutex;
+    std::size_t total = 0;
+    std::map<std::string, std::size_t> by_who;
+  };
+  // Shared with the places handed out: a stream may outlive the store.
+  std::shared_ptr<StreamCounts> streams_ = std::make_shared<StreamCounts>();
 };
 
 }  // namespace stlrefine::server
