@@ -31,6 +31,9 @@ struct ArchiveLimits {
 struct ArchivePart {
   std::string name;  //!< its path in the archive
   std::string bytes;
+  //! An object of a 3MF written as a binary STL in mm (its unit already applied): refined
+  //! with units=mm (server/job_parts.cpp).
+  bool in_mm = false;
 };
 
 //! A refusal of an archive that names the entry (empty when the archive as a whole):

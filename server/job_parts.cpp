@@ -10,6 +10,7 @@
 
 #include "api/pipeline.h"
 #include "core/error.h"
+#include "core/io/mesh_formats.h"
 #include "core/io/stl.h"
 #include "server/http_upload.h"
 #include "server/job_progress.h"
@@ -46,6 +47,7 @@ std::string base_name(const std::string& entry) {
 // The part's plan: the job's parameters on its bytes; its contours labelled with its name.
 api::RefinePlan plan_part(const api::RefinePlan& parameters, const api::ArchivePart& part) {
   api::RefinePlan p = parameters;
+  if (part.in_mm) p.request.units.units = api::LengthUnit::Millimetre;  // applied already
   if (p.request.slice) p.request.slice->writer.label = download_stem(base_name(part.name));
   try {
     return api::plan_body(std::move(p), span_of(part.bytes), api::ResultSink::JobFiles);
@@ -75,9 +77,42 @@ api::Problem archive_problem(const api::ArchiveError& e) {
   return p;
 }
 
-api::RefinePlan plan_parts_job(const api::RefinePlan& parameters, std::span<const std::uint8_t> zip,
-                               const api::ArchiveLimits& limits, std::uint64_t* result_bytes) {
-  const std::vector<api::ArchivePart> parts = api::read_part_archive(zip, limits);
+std::optional<std::vector<api::ArchivePart>> job_parts(std::span<const std::uint8_t> bytes,
+                                                       const api::RefineRequest& request,
+                                                       const api::ArchiveLimits& limits) {
+  if (api::is_part_archive(bytes)) return api::read_part_archive(bytes, limits);
+  if (request.mesh_format == MeshFormat::ThreeMf || sniff_mesh_format(bytes) != MeshFormat::ThreeMf)
+    return std::nullopt;
+  const MeshInput input = read_mesh(bytes);
+  if (input.parts.size() < 2) return std::nullopt;
+  const float mm = static_cast<float>(input.unit ? input.unit->mm : 1.0);
+  std::vector<api::ArchivePart> parts;
+  for (std::size_t k = 0; k < input.parts.size(); ++k) {
+    const MeshPart& object = input.parts[k];
+    api::ArchivePart part;
+    part.name = object.name.empty() ? "object" + std::to_string(k + 1) : object.name;
+    part.in_mm = true;
+    // Binary STL: 80-byte header, count, then per facet a zero normal, 3 corners, 2 bytes.
+    std::string& out = part.bytes;
+    out.assign(80, '\0');
+    const auto count = static_cast<std::uint32_t>(object.triangle_count);
+    out.append(reinterpret_cast<const char*>(&count), 4);
+    out.reserve(84 + 50 * std::size_t{count});
+    const float* c = input.soup.coords.data() + 9 * object.first_triangle;
+    for (std::size_t t = 0; t < object.triangle_count; ++t, c += 9) {
+      float facet[12] = {};
+      for (int i = 0; i < 9; ++i) facet[3 + i] = c[i] * mm;
+      out.append(reinterpret_cast<const char*>(facet), sizeof facet);
+      out.append(2, '\0');
+    }
+    parts.push_back(std::move(part));
+  }
+  return parts;
+}
+
+api::RefinePlan plan_parts_job(const api::RefinePlan& parameters,
+                               const std::vector<api::ArchivePart>& parts,
+                               std::uint64_t* result_bytes) {
   std::optional<api::RefinePlan> largest;
   std::uint64_t inputs = 0, results = 0;
   for (const api::ArchivePart& part : parts) {
@@ -97,13 +132,13 @@ api::RefinePlan plan_parts_job(const api::RefinePlan& parameters, std::span<cons
   return std::move(*largest);
 }
 
-nlohmann::ordered_json run_parts_job(const api::RefinePlan& plan, std::span<const std::uint8_t> zip,
-                                     const api::ArchiveLimits& limits, const fs::path& dir,
-                                     const std::atomic<bool>* cancel, const MemoryGrowFn& grow,
+nlohmann::ordered_json run_parts_job(const api::RefinePlan& plan,
+                                     const std::vector<api::ArchivePart>& parts,
+                                     const fs::path& dir, const std::atomic<bool>* cancel,
+                                     const MemoryGrowFn& grow,
                                      const std::function<void(double, const std::string&)>& publish,
                                      std::vector<std::string>& results, std::uint64_t& bytes) {
   const auto start = std::chrono::steady_clock::now();
-  const std::vector<api::ArchivePart> parts = api::read_part_archive(zip, limits);
   std::vector<api::RefinePlan> plans;
   double total_work = 0;
   for (const api::ArchivePart& part : parts) {
@@ -179,7 +214,8 @@ nlohmann::ordered_json run_parts_job(const api::RefinePlan& plan, std::span<cons
     if (cancel && *cancel) throw Error(ErrorCode::Cancelled, "cancelled", "cancelled");
   }
   nlohmann::ordered_json report;
-  report["input"] = {{"format", "zip"}, {"parts", n}, {"faces", in_faces}};
+  report["input"] = {
+      {"format", parts.front().in_mm ? "3mf" : "zip"}, {"parts", n}, {"faces", in_faces}};
   report["output"] = {{"parts", n}, {"faces", out_faces}};
   report["parts"] = std::move(listed);
   const std::string report_text =

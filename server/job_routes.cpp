@@ -170,12 +170,13 @@ void serve_job_submit(const RouteContext& ctx, const HttpRequest& req, api::Refi
     // A job that could never get its memory is refused now, not when its turn comes.
     const auto bytes = std::span(reinterpret_cast<const std::uint8_t*>(body.data()), body.size());
     // A zip of mesh files is one job with one result per part (job_parts.h).
+    // A 3MF of several objects refined to STL likewise, one part per object.
     std::uint64_t result_bytes = 0;
+    const std::optional<std::vector<api::ArchivePart>> parts =
+        job_parts(bytes, parameters.request, job_archive_limits(ctx.config.max_body_bytes));
     api::RefinePlan plan =
-        api::is_part_archive(bytes)
-            ? plan_parts_job(parameters, bytes, job_archive_limits(ctx.config.max_body_bytes),
-                             &result_bytes)
-            : api::plan_body(std::move(parameters), bytes, api::ResultSink::JobFiles);
+        parts ? plan_parts_job(parameters, *parts, &result_bytes)
+              : api::plan_body(std::move(parameters), bytes, api::ResultSink::JobFiles);
     const api::MemoryEstimate& predicted = plan.memory;
     if (predicted.peak_bytes > ctx.memory.capacity())
       return ctx.respond(res, api::memory_budget_problem(predicted, ctx.memory.capacity()));

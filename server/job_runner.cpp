@@ -130,18 +130,19 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
       }
       return true;
     };
-    if (api::is_part_archive(input_bytes)) {
-      // A zip of mesh files: each part on its own (job_parts.h). Its content was checked
-      // against the body limit at submit.
+    // A zip of mesh files, or a 3MF's objects refined to STL: each part on its own
+    // (job_parts.h). A zip's content was checked against the body limit at submit.
+    const std::optional<std::vector<api::ArchivePart>> parts = job_parts(
+        input_bytes, plan.request, job_archive_limits(std::numeric_limits<std::uint64_t>::max()));
+    if (parts) {
       const auto publish_parts = [&](double fraction, const std::string& stage) {
         cancel_noted(*job);  // from another replica
         std::lock_guard lock(mutex_);
         job->progress = std::max(job->progress, std::min(fraction, 0.995));
         job->stage = stage;
       };
-      report = run_parts_job(plan, input_bytes,
-                             job_archive_limits(std::numeric_limits<std::uint64_t>::max()),
-                             job->dir, &ticket->cancel, grow, publish_parts, results, bytes);
+      report = run_parts_job(plan, *parts, job->dir, &ticket->cancel, grow, publish_parts, results,
+                             bytes);
     } else {
       api::RefinedMesh refined =
           api::run_refine_to_mesh(input_bytes, plan, progress, &ticket->cancel, grow);

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 #include <httplib.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <map>
@@ -25,6 +26,7 @@
 #include "job_parts_fixtures.h"
 #include "server/daemon.h"
 #include "server/job_progress.h"
+#include "test_stl.h"
 #include "test_zip.h"
 
 namespace stlrefine::test {
@@ -77,6 +79,41 @@ TEST(JobParts, AMultiObject3mfJobGivesPartRefined3mfWithItsObjectsAndUnit) {
   ASSERT_TRUE(sliced);
   EXPECT_EQ(sliced->status, 400);
   EXPECT_EQ(Json::parse(sliced->body)["field"], "mesh_format");
+}
+
+// Refined to STL, a 3MF's objects are the job's parts: one STL each, in mm.
+TEST(JobParts, A3mfOfSeveralObjectsRefinedToStlGivesOneResultPerObject) {
+  const auto dir = fresh_job_dir("3mf-parts");
+  InProcessDaemon d(jobs_config(dir));
+  httplib::Client c = d.client();
+  // In metres: 10 mm cubes.
+  const std::string file = three_mf({{"left", box(0.01f)}, {"", box(0.01f, 0.03f)}}, "meter");
+  auto r = c.Post("/v1/jobs?levels=1", form_file("pair.3mf", file), form_type().c_str());
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 202) << r->body;
+  const Json job = wait_job(c, r->get_header_value("Location"));
+  ASSERT_EQ(job["state"], "done") << job.dump();
+  ASSERT_EQ(job["parts"].size(), 2u) << job.dump();
+  EXPECT_EQ(job["parts"][0]["name"], "left");
+  EXPECT_EQ(job["parts"][1]["name"], "object 2");  // the reader names an unnamed object
+  EXPECT_EQ(job["report"]["input"]["format"], "3mf");
+  for (int k = 0; k < 2; ++k) {
+    EXPECT_EQ(job["parts"][k]["faces"], 48);
+    auto stl = c.Get(job["parts"][k]["links"]["result"].get<std::string>().c_str());
+    ASSERT_TRUE(stl);
+    ASSERT_EQ(stl->status, 200);
+    const std::vector<Triangle> tris = read_binary_stl(stl->body);
+    ASSERT_EQ(tris.size(), 48u);
+    float lo = 1e9f, hi = -1e9f;
+    for (const Triangle& t : tris)
+      for (const Corner& p : t) lo = std::min(lo, p[0]), hi = std::max(hi, p[0]);
+    EXPECT_NEAR(hi - lo, 10.0f, 1e-3f) << k;  // mm, not 0.01
+    EXPECT_NEAR(lo, k == 0 ? 0.0f : 30.0f, 1e-3f) << k;
+    EXPECT_EQ(job["report"]["parts"][k]["report"]["warnings"].size(), 0u) << job.dump();
+  }
+  EXPECT_EQ(c.Get((r->get_header_value("Location") + "/part1.stl").c_str())
+                ->get_header_value("Content-Disposition"),
+            "attachment; filename=\"left_refined.stl\"");
 }
 
 // refine_3mf reports object i's fraction f as (i + f) / n and ends each object with "done":
