@@ -372,14 +372,15 @@ Json build() {
                "job: result.zip and each part's part<k>.stl|3mf and part<k>.contours.<ext> (the "
                "job's `parts` links)"},
               {"pattern",
-               "^(result\\.(stl|3mf|zip)|report\\.json|contours\\.(json|svg|cli)|part[1-9][0-9]{0,5}"
+               "^(result\\.(stl|3mf|zip)|report\\.json|contours\\.(json|svg|cli)|"
+               "part[1-9][0-9]{0,5}"
                "\\.(stl|3mf|contours\\.(json|svg|cli)))$"}}}}});
       item["parameters"] = params;
       Json download = operation(
           "Download a result of a done job",
-          {{"200", binary_response("The file.", {"model/stl", "model/3mf", "application/zip",
-                                                 "application/json", "image/svg+xml",
-                                                 "text/plain", "application/octet-stream"})},
+          {{"200", binary_response("The file.",
+                                   {"model/stl", "model/3mf", "application/zip", "application/json",
+                                    "image/svg+xml", "text/plain", "application/octet-stream"})},
            {"206",
             binary_response("One byte range of the file (Range).", "application/octet-stream")},
            {"416", problem_response("The Range starts past the end.")},
