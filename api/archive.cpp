@@ -190,6 +190,11 @@ std::vector<ArchivePart> read_part_archive(std::span<const std::uint8_t> bytes,
   }
   if (entries.empty())
     refuse(ErrorCode::MalformedStl, "no_parts", "", "has no mesh file (.stl, .obj, .ply, .3mf)");
+  if (limits.reserve && !limits.reserve(total))
+    refuse(ErrorCode::BudgetExceeded, "memory_budget", "",
+           "inflates to " + std::to_string(total) +
+               " bytes, more than the memory budget has "
+               "free now");
 
   std::vector<ArchivePart> parts;
   for (const Entry& e : entries) {

@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <span>
 #include <string>
 #include <vector>
@@ -25,6 +26,9 @@ struct ArchiveLimits {
   //! Inflated size over compressed size of one entry at most (zip bombs reach 1000:1; mesh
   //! files deflate 2-10:1).
   double max_ratio = 100;
+  //! Called with the declared total before anything is inflated (the daemon reserves it
+  //! in its memory budget); false refuses the archive (reason memory_budget).
+  std::function<bool(std::uint64_t bytes)> reserve;
 };
 
 //! One mesh file of the archive.
@@ -39,7 +43,7 @@ struct ArchivePart {
 //! A refusal of an archive that names the entry (empty when the archive as a whole):
 //! Error(MalformedStl) with reason bad_archive, encrypted, unsafe_name, duplicate_name,
 //! nested_archive, not_a_mesh or no_parts; Error(BudgetExceeded) with reason
-//! too_many_entries, archive_too_large or compression_ratio. Field "file".
+//! too_many_entries, archive_too_large, compression_ratio or memory_budget. Field "file".
 class ArchiveError : public Error {
  public:
   ArchiveError(ErrorCode code, std::string reason, const std::string& message, std::string entry)

@@ -17,6 +17,7 @@
 #include "core/error.h"
 #include "server/http_upload.h"
 #include "server/job_parts.h"
+#include "server/memory_budget.h"
 #include "slicer/writers.h"
 
 namespace stlrefine::server {
@@ -172,8 +173,27 @@ void serve_job_submit(const RouteContext& ctx, const HttpRequest& req, api::Refi
     // A zip of mesh files is one job with one result per part (job_parts.h).
     // A 3MF of several objects refined to STL likewise, one part per object.
     std::uint64_t result_bytes = 0;
-    const std::optional<std::vector<api::ArchivePart>> parts =
-        job_parts(bytes, parameters.request, job_archive_limits(ctx.config.max_body_bytes));
+    // The inflated parts are held while the job is submitted: reserved first, beside the
+    // body (503 while the budget is busy, 422 beyond it).
+    api::ArchiveLimits limits = job_archive_limits(ctx.config.max_body_bytes);
+    std::optional<MemoryBudget::Reservation> inflated;
+    std::uint64_t wanted = 0;
+    limits.reserve = [&](std::uint64_t total) {
+      wanted = total;
+      if (total > ctx.memory.capacity()) return false;
+      std::optional<MemoryBudget::Reservation> r = ctx.memory.try_reserve(total);
+      if (!r) return false;
+      inflated.emplace(std::move(*r));
+      return true;
+    };
+    std::optional<std::vector<api::ArchivePart>> parts;
+    try {
+      parts = job_parts(bytes, parameters.request, limits);
+    } catch (const api::ArchiveError& e) {
+      if (e.reason() == "memory_budget" && wanted <= ctx.memory.capacity())
+        return ctx.respond(res, ctx.memory_busy_problem(wanted));
+      throw;
+    }
     api::RefinePlan plan =
         parts ? plan_parts_job(parameters, *parts, &result_bytes)
               : api::plan_body(std::move(parameters), bytes, api::ResultSink::JobFiles);

@@ -301,3 +301,31 @@ TEST(JobParts, HostileZipsAreRefusedNamingTheEntry) {
 
 }  // namespace
 }  // namespace stlrefine::test
+
+namespace stlrefine::test {
+namespace {
+
+// The parts a zip inflates to are reserved in the memory budget before anything is
+// inflated: beyond it a 422 (reason memory_budget), never an allocation the budget did not
+// allow.
+TEST(JobParts, AZipInflatingPastTheMemoryBudgetIsRefusedBeforeInflating) {
+  const auto dir = fresh_job_dir("zip-memory");
+  server::DaemonConfig config = jobs_config(dir);
+  config.memory_budget = std::uint64_t{128} << 20;  // 64 MiB for work beside the daemon's 64
+  InProcessDaemon d(config);
+  httplib::Client c = d.client();
+  // 1 MiB of noise claiming to inflate to 80 MiB (80:1 passes the ratio check).
+  std::string noise(1 << 20, '\0');
+  std::uint32_t x = 12345;
+  for (char& ch : noise) ch = static_cast<char>((x = x * 1103515245u + 12345u) >> 24);
+  auto r = c.Post("/v1/jobs?levels=1", raw_zip({{"big.stl", noise, false, 80u << 20}}),
+                  "application/zip");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 422) << r->body;
+  const Json p = Json::parse(r->body);
+  EXPECT_EQ(p.value("reason", ""), "memory_budget") << r->body;
+  EXPECT_EQ(p.value("field", ""), "file");
+}
+
+}  // namespace
+}  // namespace stlrefine::test
