@@ -438,21 +438,24 @@ constexpr double kRelaxDamping = 0.03;
 
 void relax_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guard, int rounds) {
   const std::size_t nv = m.num_vertices();
-  auto relaxed = [&](std::size_t i) {
+  // Rings between even and a fan or zipper (spokes 3x to 12x apart): a hull's or a fillet's.
+  // Even rings (a scan's) keep their normals bit for bit; on fans and zippers the face sums
+  // (or the plane that rules them) are kept as the anchors the others relax against (relaxed
+  // too, the rounded box's worst seeds went from 0.5 to 0.8 of the input). Only these
+  // vertices are listed and get a slot for their next normal: none on a scan.
+  std::vector<std::uint32_t> relaxed;
+  for (std::size_t i = 0; i < nv; ++i) {
     const VertexId v(static_cast<std::uint32_t>(i));
-    // Rings between even and a fan or zipper (spokes 3x to 12x apart): a hull's or a
-    // fillet's. Even rings (a scan's) keep their normals bit for bit; on fans and zippers
-    // the face sums (or the plane that rules them) are kept as the anchors the others relax
-    // against (relaxed too, the rounded box's worst seeds went from 0.5 to 0.8 of the input).
-    return f.kind(v) == VertexKind::Smooth && guard[i].one_sector &&
-           guard[i].spokes == GuardVertex::kNotEven && m.halfedge(v).valid();
-  };
-  std::vector<Vec3> current(nv), next(nv);
-  for (std::size_t i = 0; i < nv; ++i) current[i] = guard[i].normal;
-  for (int round = 0; round < rounds; ++round) {
-    parallel_for_each_index(nv, [&](std::size_t i) {
-      next[i] = current[i];
-      if (!relaxed(i)) return;
+    if (f.kind(v) == VertexKind::Smooth && guard[i].one_sector &&
+        guard[i].spokes == GuardVertex::kNotEven && m.halfedge(v).valid())
+      relaxed.push_back(static_cast<std::uint32_t>(i));
+  }
+  std::vector<Vec3> next(relaxed.size());
+  for (int round = 0; round < rounds && !relaxed.empty(); ++round) {
+    parallel_for_each_index(relaxed.size(), [&](std::size_t k) {
+      const std::size_t i = relaxed[k];
+      const Vec3 own = guard[i].normal;
+      next[k] = own;
       const VertexId v(static_cast<std::uint32_t>(i));
       const Vec3 p = m.position(v);
       // Normal equations of sum_k (n . u_k + n_k . u_k)^2 + damping |n - n_old|^2.
@@ -465,7 +468,8 @@ void relax_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guar
         if (!(l2 > 0)) return;
         const Vec3 u = (1.0 / std::sqrt(l2)) * c;
         const VertexId w = m.to(s);
-        const Vec3 nw = guard[w.idx].one_sector ? current[w.idx] : sector_normal(m, f, m.twin(s));
+        const Vec3 nw =
+            guard[w.idx].one_sector ? guard[w.idx].normal : sector_normal(m, f, m.twin(s));
         const double rhs = -dot(nw, u);
         a00 += u.x * u.x, a01 += u.x * u.y, a02 += u.x * u.z;
         a11 += u.y * u.y, a12 += u.y * u.z, a22 += u.z * u.z;
@@ -475,7 +479,7 @@ void relax_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guar
       if (count == 0) return;
       const double d = kRelaxDamping * count;
       a00 += d, a11 += d, a22 += d;
-      b += d * current[i];
+      b += d * own;
       // Symmetric 3x3 by cofactors (positive definite with the damping).
       const double c00 = a11 * a22 - a12 * a12, c01 = a02 * a12 - a01 * a22,
                    c02 = a01 * a12 - a02 * a11, c11 = a00 * a22 - a02 * a02,
@@ -484,12 +488,10 @@ void relax_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guar
       if (!(det > 0)) return;
       const Vec3 n((c00 * b.x + c01 * b.y + c02 * b.z), (c01 * b.x + c11 * b.y + c12 * b.z),
                    (c02 * b.x + c12 * b.y + c22 * b.z));
-      if (dot(n, n) > 0) next[i] = normalized(n);
+      if (dot(n, n) > 0) next[k] = normalized(n);
     });
-    std::swap(current, next);
+    for (std::size_t k = 0; k < relaxed.size(); ++k) guard[relaxed[k]].normal = next[k];
   }
-  for (std::size_t i = 0; i < nv; ++i)
-    if (relaxed(i)) guard[i].normal = current[i];
 }
 
 Vec3 guarded_edge_point(const GuardNormals& normal_of, EdgeId e, const Vec3& lower_estimate,
