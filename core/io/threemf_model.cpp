@@ -232,7 +232,9 @@ struct ThreeMfModel::Impl : XmlHandler {
     if (!element) {
       if (parent == Kind::None) {
         std::string m = "the root element is <";
-        throw xml.error(m.append(name).append(">, not a 3MF <model>"));
+        m.append(name).append(">");
+        if (!ns.empty()) m.append(" in namespace ").append(quoted(ns));
+        throw xml.error(m.append(", not a 3MF <model> (namespace ").append(kCoreNs) + ")");
       }
       ++ignored_depth;  // metadata, extensions: nothing of the geometry
       return;

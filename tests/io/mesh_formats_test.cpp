@@ -633,6 +633,8 @@ TEST(ThreeMfReader, RefusesHostileXml) {
   EXPECT_FALSE(probe.refused());
   // Not a model at all.
   expect_refused_saying(package_3mf("<svg/>"), "not_3mf", "root element is <svg>");
+  expect_refused_saying(package_3mf("<model xmlns=\"urn:other\"/>"), "not_3mf",
+                        "root element is <model> in namespace 'urn:other', not a 3MF <model>");
 }
 
 TEST(ThreeMfReader, RefusesBadObjectsAndReferences) {

@@ -72,13 +72,22 @@ const jobUrl = (id, file = '') => `v1/jobs/${encodeURIComponent(id)}${file ? `/$
 
 // ---- the worker (preview.js) ----------------------------------------------------------------
 
-const workers = new Set();
+const workers = new Map(); // worker -> 'before' | 'after'
 
-// One task in a fresh module worker; rejects with a Problem. resetResults() ends them all.
-function inWorker(message, transfer = []) {
+// Ends the workers of one side (a new file, a new job), whose answers nobody waits for.
+function endWorkers(side) {
+  for (const [w, s] of workers) {
+    if (s !== side) continue;
+    w.terminate();
+    workers.delete(w);
+  }
+}
+
+// One task in a fresh module worker for `side`; rejects with a Problem.
+function inWorker(side, message, transfer = []) {
   return new Promise((resolve, reject) => {
     const worker = new Worker(new URL('preview.js', import.meta.url), { type: 'module' });
-    workers.add(worker);
+    workers.set(worker, side);
     const done = () => {
       worker.terminate();
       workers.delete(worker);
@@ -213,6 +222,7 @@ async function chooseFile(file) {
   input.format = sniff(input.bytes);
   $('file-info').textContent = `${file.name}, ${file.size.toLocaleString()} bytes (${input.format.toUpperCase()})`;
   resetResults();
+  endWorkers('before');
   if (!view) return;
   view.remove(0);
   if (input.format !== 'stl') {
@@ -224,7 +234,7 @@ async function chooseFile(file) {
     if (84 + 50 * binary === input.bytes.byteLength && binary > PREVIEW_TRIANGLES) {
       $('view-info').textContent = `Before: ${binary.toLocaleString()} triangles, preparing a preview...`;
       const chosen = input;
-      const p = await inWorker({ kind: 'mesh', buffer: input.bytes, cap: PREVIEW_TRIANGLES });
+      const p = await inWorker('before', { kind: 'mesh', buffer: input.bytes, cap: PREVIEW_TRIANGLES });
       if (input !== chosen) return; // another file was chosen meanwhile
       view.showPositions(0, p.positions);
       $('view-info').textContent = `Before: ${previewText(p)}.`;
@@ -264,8 +274,7 @@ function showPart(report) {
 
 function resetResults() {
   job = null;
-  for (const w of workers) w.terminate();
-  workers.clear();
+  endWorkers('after');
   if (view) view.remove(1);
   delete $('view3d').dataset.after;
   delete $('view3d').dataset.shown;
@@ -368,7 +377,7 @@ async function finished(j, q) {
   // The refined part, read and (when large) decimated in the worker.
   if (view && results.includes('result.stl')) {
     $('view-info').textContent = 'Reading the refined part...';
-    const p = await inWorker({ kind: 'mesh', url: absolute(jobUrl(j.id, 'result.stl')), cap: PREVIEW_TRIANGLES });
+    const p = await inWorker('after', { kind: 'mesh', url: absolute(jobUrl(j.id, 'result.stl')), cap: PREVIEW_TRIANGLES });
     if (job !== j) return; // a new job started meanwhile
     view.showPositions(1, p.positions);
     const before = report.input ? report.input.faces : undefined;
@@ -387,7 +396,7 @@ async function finished(j, q) {
     layers.clear('The job wrote no contour file.');
   } else {
     layers.clear(`Reading ${contours}...`);
-    const doc = await inWorker({ kind: 'contours', url: absolute(jobUrl(j.id, contours)), name: contours });
+    const doc = await inWorker('after', { kind: 'contours', url: absolute(jobUrl(j.id, contours)), name: contours });
     if (job !== j) return;
     layers.load(doc);
     $('layer-canvas').dataset.source = doc.format;
