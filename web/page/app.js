@@ -352,36 +352,54 @@ async function run() {
   }
 }
 
+const baseName = (href) => href.slice(href.lastIndexOf('/') + 1);
+
+function downloadItem(j, name, description) {
+  const a = document.createElement('a');
+  a.href = jobUrl(j.id, name);
+  a.download = name;
+  a.textContent = name;
+  if ($('api-key').value.trim()) a.addEventListener('click', (e) => downloadWithKey(e, a)); // a plain link cannot send it
+  const li = document.createElement('li');
+  li.append(a, ` — ${description}`);
+  return li;
+}
+
 async function finished(j, q) {
   const report = j.report || {};
   $('report').textContent = JSON.stringify(report, null, 2);
+  // Every file of the job; a job of several parts (a zip, a multi-object 3MF) lists each
+  // part's files under parts[] and links.result is then result.zip.
   const list = $('downloads');
   list.replaceChildren();
-  const key = $('api-key').value.trim();
-  for (const name of Object.keys(DESCRIPTIONS)) {
-    if (!Object.values(j.links || {}).some((href) => href.endsWith(`/${name}`))) continue;
-    const a = document.createElement('a');
-    a.href = jobUrl(j.id, name);
-    a.download = name;
-    a.textContent = name;
-    if (key) a.addEventListener('click', (e) => downloadWithKey(e, a)); // a plain link cannot send it
-    const li = document.createElement('li');
-    li.append(a, ` — ${DESCRIPTIONS[name]}`);
-    list.append(li);
+  for (const [key, href] of Object.entries(j.links || {})) {
+    if (key === 'self') continue;
+    const name = baseName(href);
+    list.append(downloadItem(j, name, DESCRIPTIONS[name] || (name === 'result.zip' ? 'every part\'s files and the report (zip)' : key)));
+  }
+  const parts = Array.isArray(j.parts) ? j.parts : [];
+  for (const part of parts) {
+    for (const [key, href] of Object.entries(part.links || {})) {
+      list.append(downloadItem(j, baseName(href), `${part.name}: ${key === 'result' ? 'refined part' : 'layer contours'}`));
+    }
   }
 
-  showPart(report);
-  // The job's files, by the names its links end in.
-  const results = Object.values(j.links || {}).map((href) => href.slice(href.lastIndexOf('/') + 1));
+  // The part drawn: the job's, or the first of its parts (said on the page).
+  const shown = parts.length ? parts[0] : null;
+  const partReport = (shown && Array.isArray(report.parts) && report.parts[0]) || report;
+  showPart(partReport);
+  const results = Object.values((shown || j).links || {}).map(baseName);
+  const resultName = results.find((n) => n.endsWith('.stl') && n !== 'report.json');
+  const which = shown ? `Part 1 of ${parts.length} (${shown.name}). ` : '';
 
   // The refined part, read and (when large) decimated in the worker.
-  if (view && results.includes('result.stl')) {
+  if (view && resultName) {
     $('view-info').textContent = 'Reading the refined part...';
-    const p = await inWorker('after', { kind: 'mesh', url: absolute(jobUrl(j.id, 'result.stl')), cap: PREVIEW_TRIANGLES });
+    const p = await inWorker('after', { kind: 'mesh', url: absolute(jobUrl(j.id, resultName)), cap: PREVIEW_TRIANGLES });
     if (job !== j) return; // a new job started meanwhile
     view.showPositions(1, p.positions);
-    const before = report.input ? report.input.faces : undefined;
-    $('view-info').textContent = `Before: ${before != null ? before.toLocaleString() : '?'} triangles. After: ${previewText(p)}.`;
+    const before = partReport.input ? partReport.input.faces : undefined;
+    $('view-info').textContent = `${which}Before: ${before != null ? before.toLocaleString() : '?'} triangles. After: ${previewText(p)}.`;
     $('view3d').dataset.after = String(p.triangles);
     $('view3d').dataset.shown = String(p.shown);
   } else if (view) {
@@ -389,14 +407,16 @@ async function finished(j, q) {
   }
 
   // The job's own contour file, in the format it was asked for.
-  const contours = CONTOUR_FILES.find((name) => results.includes(name));
+  // (A part's contour file is part<k>.contours.<ext>: read by its extension.)
+  const contourFile = results.find((n) => CONTOUR_FILES.some((c) => n.endsWith(c.slice('contours'.length)) && n.includes('contours')));
+  const contours = contourFile && CONTOUR_FILES.find((c) => contourFile.endsWith(c.slice('contours'.length)));
   if (!q.has('layer_height')) {
     layers.clear('Slicing was not asked for.');
   } else if (!contours) {
     layers.clear('The job wrote no contour file.');
   } else {
-    layers.clear(`Reading ${contours}...`);
-    const doc = await inWorker('after', { kind: 'contours', url: absolute(jobUrl(j.id, contours)), name: contours });
+    layers.clear(`Reading ${contourFile}...`);
+    const doc = await inWorker('after', { kind: 'contours', url: absolute(jobUrl(j.id, contourFile)), name: contours });
     if (job !== j) return;
     layers.load(doc);
     $('layer-canvas').dataset.source = doc.format;
