@@ -279,6 +279,24 @@ async function main() {
     log(`${r.name}: ${await page.textContent('#view-info')}`);
   }
 
+  // A 3MF (the torus in metres, as the daemon writes it): not drawn before, drawn after, its
+  // declared unit said.
+  const threeMf = await fetch(`${base}/v1/refine?levels=0&mesh_format=3mf&units=mm`, {
+    method: 'POST', headers: { 'Content-Type': 'model/stl' }, body: mesh,
+  });
+  check(threeMf.status === 200, `the daemon writes the torus as 3MF (${threeMf.status})`);
+  await page.setInputFiles('#file', { name: 'torus.3mf', mimeType: 'model/3mf', buffer: Buffer.from(await threeMf.arrayBuffer()) });
+  await page.waitForFunction(() => document.getElementById('file-info').textContent.startsWith('torus.3mf'));
+  const before3mf = await page.textContent('#view-info');
+  await page.fill('#levels', '1');
+  await page.check('#slice-on');
+  await page.selectOption('#slice_format', 'json');
+  await page.click('#submit');
+  await page.waitForSelector('#view3d[data-after]', { timeout: 30_000 });
+  const part3mf = await page.textContent('#part-info');
+  check(before3mf.includes('3MF file is drawn here only once refined') && /After: 4,096 triangles/.test(await page.textContent('#view-info')) &&
+    part3mf.includes('declared by the file (millimeter)'), `a 3MF: "${before3mf}", then drawn; "${part3mf}"`);
+
   // A 1 M triangle part refined one level into 4 M triangles. (Not a 4 M triangle upload:
   // playwright copies every request body the page sends into one string, and 200 MB is over
   // node's string limit.)
