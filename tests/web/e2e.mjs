@@ -279,7 +279,7 @@ async function main() {
     log(`${r.name}: ${await page.textContent('#view-info')}`);
   }
 
-  // A 3MF (the torus in metres, as the daemon writes it): not drawn before, drawn after, its
+  // A 3MF (the torus, as the daemon writes it): not drawn before, drawn after, its
   // declared unit said.
   const threeMf = await fetch(`${base}/v1/refine?levels=0&mesh_format=3mf&units=mm`, {
     method: 'POST', headers: { 'Content-Type': 'model/stl' }, body: mesh,
