@@ -85,8 +85,9 @@ MeshInput read_obj(std::span<const std::uint8_t> bytes, const StlReadOptions& op
 MeshInput read_ply(std::span<const std::uint8_t> bytes, const StlReadOptions& options = {});
 MeshInput read_3mf(std::span<const std::uint8_t> bytes, const StlReadOptions& options = {});
 
-//! Most bytes a 3MF's parts may inflate to: declared (refused before inflating) and as
-//! really inflated (counted while streaming; the XML is never held whole).
+//! Most bytes a 3MF's parts may inflate to (and see kMax3mfInflateRatio): declared (refused
+//! before inflating) and as really inflated (counted while streaming; the XML is never
+//! held whole).
 inline constexpr std::uint64_t kMax3mfUncompressedBytes = std::uint64_t{4} << 30;
 //! Most parts (zip entries) a 3MF may have: a model, its relationships, content types,
 //! thumbnails and a few attachments fit many times over.

@@ -168,10 +168,10 @@ std::string model_part_name(zip_t* archive, std::uint64_t& budget) {
 MeshInput read_3mf(std::span<const std::uint8_t> bytes, const StlReadOptions& options) {
   options.validate();
   const auto archive = open_zip(bytes);
-  check_directory(archive.get(), kMax3mfUncompressedBytes);
   const std::uint64_t limit =
       std::min(kMax3mfUncompressedBytes,
                std::max(kMax3mfInflateFloor, kMax3mfInflateRatio * std::uint64_t{bytes.size()}));
+  check_directory(archive.get(), limit);
   std::uint64_t budget = limit;
   const std::string part = model_part_name(archive.get(), budget);
   io_detail::ThreeMfModel model(options, part);

@@ -519,7 +519,8 @@ TEST(ThreeMfReader, RefusesAZipBombOnItsDirectory) {
   AllocationProbe probe(64 << 20);
   const Error e = expect_refused(zip, "too_large");
   EXPECT_FALSE(probe.refused());
-  EXPECT_TRUE(mentions(e, std::to_string(kMax3mfUncompressedBytes))) << e.what();
+  EXPECT_TRUE(mentions(e, "inflate to more than " + std::to_string(kMax3mfInflateFloor)))
+      << e.what();
 }
 
 // ---- 3MF: hostile packages (the reader is ours since lib3mf leaked) -----------------------
@@ -587,9 +588,20 @@ TEST(ThreeMfReader, RefusesAPartThatInflatesPastWhatItsDirectoryDeclares) {
   EXPECT_TRUE(mentions(e, "_rels/.rels inflates to more than 1048576 bytes")) << e.what();
 }
 
+//! Every entry of `zip` declared `size` bytes inflated (local headers and directory).
+void understate_sizes(std::string& zip, std::uint32_t size) {
+  for (std::size_t at = zip.find("PK\x03\x04"); at != std::string::npos;
+       at = zip.find("PK\x03\x04", at + 1))
+    std::memcpy(zip.data() + at + 22, &size, 4);
+  for (std::size_t at = zip.find("PK\x01\x02"); at != std::string::npos;
+       at = zip.find("PK\x01\x02", at + 1))
+    std::memcpy(zip.data() + at + 24, &size, 4);
+}
+
 TEST(ThreeMfReader, RefusesABombOnWhatItReallyInflatesTo) {
-  // 80 MiB of blanks in the model deflate to ~80 KiB, honestly declared: over 100 times the
-  // package's size (and the 64 MiB floor), refused while inflating.
+  // 80 MiB of blanks in the model deflate to ~80 KiB. Honestly declared: over 100 times the
+  // package's size (and the 64 MiB floor), refused on the directory. Declared as 1000
+  // bytes: refused while inflating.
   const std::string model =
       model_xml("millimeter", kCubeObject + std::string(80 << 20, ' '), "<item objectid=\"1\"/>");
   const std::string rels = zip_of(
@@ -601,8 +613,12 @@ TEST(ThreeMfReader, RefusesABombOnWhatItReallyInflatesTo) {
        {"3D/3dmodel.model", model}},
       true);
   ASSERT_LT(rels.size(), 1u << 20);
+  const Error honest = expect_refused(rels, "too_large");
+  EXPECT_TRUE(mentions(honest, "parts inflate to more than 67108864 bytes")) << honest.what();
+  std::string lying = rels;
+  understate_sizes(lying, 1000);
   AllocationProbe probe(std::size_t{16} << 20);
-  const Error e = expect_refused(rels, "too_large");
+  const Error e = expect_refused(lying, "too_large");
   EXPECT_FALSE(probe.refused());
   EXPECT_TRUE(mentions(e, "3D/3dmodel.model inflates to more than 67108864 bytes")) << e.what();
 }
