@@ -386,7 +386,8 @@ async function finished(j, q) {
 
   // The part drawn: the job's, or the first of its parts (said on the page).
   const shown = parts.length ? parts[0] : null;
-  const partReport = (shown && Array.isArray(report.parts) && report.parts[0]) || report;
+  // (report.parts[k].report is part k's own report, with its input's size and units.)
+  const partReport = (shown && Array.isArray(report.parts) && report.parts[0] && report.parts[0].report) || report;
   showPart(partReport);
   const results = Object.values((shown || j).links || {}).map(baseName);
   const resultName = results.find((n) => n.endsWith('.stl') && n !== 'report.json');
