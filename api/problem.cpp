@@ -69,7 +69,9 @@ CodeInfo info_for(ErrorCode code) {
     case ErrorCode::InvalidParameter:
       return {"invalid-parameter", "Invalid parameter"};
     case ErrorCode::MalformedStl:
-      return {"malformed-stl", "Malformed STL"};
+      // The type stays "malformed-stl" (clients match on it); since OBJ, PLY, 3MF and zips
+      // arrived the title names what it covers.
+      return {"malformed-stl", "Malformed mesh file"};
     case ErrorCode::NotTriangleMesh:
       return {"not-triangle-mesh", "Not a triangle mesh"};
     case ErrorCode::BudgetExceeded:

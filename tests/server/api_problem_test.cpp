@@ -37,6 +37,8 @@ TEST(ApiProblem, StlErrorCarriesItsLocation) {
   Problem p = problem_from_error(Error(ErrorCode::MalformedStl, "non_finite", "NaN").at_byte(150));
   nlohmann::json j = nlohmann::json::parse(problem_body(p));
   EXPECT_EQ(j.at("status"), 422);
+  EXPECT_EQ(j.at("type"), std::string(kProblemTypePrefix) + "malformed-stl");
+  EXPECT_EQ(j.at("title"), "Malformed mesh file");  // OBJ, PLY, 3MF and zips share it
   EXPECT_EQ(j.at("byte_offset"), 150);
   EXPECT_FALSE(j.contains("field"));
 
