@@ -22,7 +22,8 @@ packages=(build-essential cmake pkg-config curl ca-certificates
   libgtest-dev libgmock-dev libbenchmark-dev libopenmesh-dev libzip-dev libssl-dev
   lib3mf-dev  # 3MF in and out (core/io/threemf_*.cpp)
   clang-14 libclang-rt-14-dev
-  libjson-validator-perl)  # the OpenAPI validator of tests/server/openapi_validator_test.cpp
+  libjson-validator-perl  # the OpenAPI validator of tests/server/openapi_validator_test.cpp
+  libhiredis-dev redis-server)  # --queue redis:// (server/queue_*), and its tests
 # The web page (web/) needs node and npm at build time (npm ci fetches three.js), and its
 # browser test (tests/web/) chromium. Checked by command, not by package: nodejs from
 # elsewhere (NodeSource) bundles npm and conflicts with Debian's npm package.
