@@ -173,6 +173,9 @@ DaemonConfig checked(DaemonConfig c) {
     throw std::invalid_argument("the job queue length must be in [1, 100000]");
   if (!c.jobs.data_dir.empty() && c.jobs.retention.count() < 1)
     throw std::invalid_argument("job retention must be at least 1 s");
+  if (!c.jobs.run_jobs && c.jobs.queue.empty())
+    throw std::invalid_argument(
+        "--role api needs --queue: without a shared queue its jobs would never run");
   if (!c.jobs.queue.empty()) {
     if (c.jobs.data_dir.empty())
       throw std::invalid_argument(
