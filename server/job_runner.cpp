@@ -257,6 +257,7 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
     }
     done = view(*job);
   }
+  if (redis_ && done.state == JobState::Cancelled && hand_back(*job)) return;  // runs elsewhere
   if (on_finished_)
     on_finished_(done, std::chrono::duration<double>(done.finished - done.started).count());
   notify_ended(done);

@@ -284,7 +284,8 @@ class JobStore {
   void record_queued(const Job& job) const;
   //! A cancel from another replica, seen just before a runner records the job's end.
   bool cancel_arrived(Job& job);  // under mutex_
-  //! Queue mode: a job stopped by a shutdown before it computed goes back to the queue.
+  //! Queue mode: a job stopped by a shutdown (before or while it computed) goes back to the
+  //! queue for another replica, instead of ending cancelled.
   bool hand_back(Job& job);
   void run_entry(RedisConnection& c, const QueueEntry& entry);
   bool finish_queued(RedisConnection& c, Job& job);

@@ -299,8 +299,10 @@ bool JobStore::cancel_arrived(Job& job) {
 
 bool JobStore::hand_back(Job& job) {
   {
+    // Only what a shutdown stopped (not a client's cancel, nor a run another replica took
+    // over): the job is not the client's to submit again.
     std::lock_guard lock(mutex_);
-    if (!stopping_ || job.cancel_reason == CancelReason::Client) return false;
+    if (!stopping_ || job.superseded || job.cancel_reason == CancelReason::Client) return false;
     job.handed_back = true;
   }
   try {

@@ -111,7 +111,8 @@ class QueueMode : public ::testing::Test {
     fs::remove_all(dir_, ignored);
   }
 
-  Replica& start_replica(const std::string& name, std::vector<std::string> extra = {}) {
+  Replica& start_replica(const std::string& name, std::vector<std::string> extra = {},
+                         const std::string& grace = "1") {
     std::vector<std::string> argv{STLREFINED,
                                   "--port",
                                   "0",
@@ -126,7 +127,7 @@ class QueueMode : public ::testing::Test {
                                   "--lease-seconds",
                                   "2",
                                   "--shutdown-grace",
-                                  "1"};
+                                  grace};
     argv.insert(argv.end(), extra.begin(), extra.end());
     Replica r;
     r.name = name;
@@ -297,12 +298,29 @@ TEST_F(QueueMode, CancelThroughAReplicaThatDoesNotRunTheJob) {
   EXPECT_EQ(wait_ended(api, busy, 10s).value("state", ""), "cancelled");
 }
 
+TEST_F(QueueMode, SigtermHandsRunningAndQueuedJobsToAnotherReplica) {
+  const Replica& api = start_replica("api", {"--role", "api"});
+  Replica& a = start_replica("a", {}, "0");
+  const std::string running = submit(api, kLongJob, long_mesh());
+  const std::string queued = submit(api, kLongJob, long_mesh());
+  ASSERT_EQ(wait_running(api, running), "a");
+  // No grace: the run stops at once, and the job goes back to the queue.
+  a.child->signal(SIGTERM);
+  EXPECT_EQ(a.child->wait(20s), 0) << a.child->stderr_text();
+  EXPECT_EQ(job(api, running).value("state", ""), "queued") << job(api, running).dump();
+  start_replica("b");
+  for (const std::string& id : {running, queued}) {
+    const Json j = wait_ended(api, id, 60s);
+    EXPECT_EQ(j.value("state", ""), "done") << j.dump();
+    EXPECT_EQ(j.value("worker", ""), "b");
+  }
+}
+
 TEST_F(QueueMode, RedisRestartedMidRunLosesNoJob) {
   const Replica& a = start_replica("a");
   start_replica("b");
   std::vector<std::string> ids;
-  for (int i = 0; i < 6; ++i)
-    ids.push_back(submit(a, "scheme=butterfly&levels=7", long_mesh()));
+  for (int i = 0; i < 6; ++i) ids.push_back(submit(a, "scheme=butterfly&levels=7", long_mesh()));
   ASSERT_FALSE(wait_running(a, ids.front()).empty());
   redis_->kill();
   // Away: submissions 503 with Retry-After and a problem body; the job routes too.
