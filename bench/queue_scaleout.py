@@ -36,6 +36,24 @@ def octahedron():
 MESH = octahedron()
 
 
+def split4(stl):
+    # Each facet in four (midpoints): 32 facets, so that levels=8 makes 2 M faces.
+    n = struct.unpack_from("<I", stl, 80)[0]
+    out = []
+    for k in range(n):
+        c = [struct.unpack_from("<3f", stl, 84 + 50 * k + 12 + 12 * i) for i in range(3)]
+        m = lambda a, b: tuple((x + y) / 2 for x, y in zip(a, b))
+        ab, bc, ca = m(c[0], c[1]), m(c[1], c[2]), m(c[2], c[0])
+        out += [(c[0], ab, ca), (ab, c[1], bc), (ca, bc, c[2]), (ab, bc, ca)]
+    b = b"\0" * 80 + struct.pack("<I", len(out))
+    for t in out:
+        b += struct.pack("<3f", 0, 0, 0) + b"".join(struct.pack("<3f", *p) for p in t) + b"\0\0"
+    return b
+
+
+LONG_MESH = split4(MESH)
+
+
 def http(method, url, body=None):
     req = urllib.request.Request(url, data=body, method=method)
     if body is not None:
@@ -64,9 +82,9 @@ class Stack:
         time.sleep(0.1)
         return "unix://" + sock
 
-    def daemon(self, name, extra):
+    def daemon(self, name, extra, slots=1):
         argv = [f"{self.build}/bin/stlrefined", "--port", "0", "--data-dir", f"{self.tmp}/data",
-                "--instance", name, "--compute-slots", "1", "--job-queue", "10000"] + extra
+                "--instance", name, "--compute-slots", str(slots), "--job-queue", "10000"] + extra
         if self.queue:
             argv += ["--queue", self.queue]
         p = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
@@ -133,7 +151,14 @@ def main():
     ap.add_argument("--levels", type=int, default=5)
     a = ap.parse_args()
     query = f"scheme=loop&levels={a.levels}"
-    rows = []
+    print("| setup | what | figure | load avg |")
+    print("|---|---|---|---|", flush=True)
+
+    class Rows:
+        def append(self, row):
+            print(row, flush=True)
+
+    rows = Rows()
     load = lambda: "%.1f" % os.getloadavg()[0]
 
     # Embedded store: one daemon, its compute slots 1, 2, 3.
@@ -141,7 +166,7 @@ def main():
         tmp = tempfile.mkdtemp(prefix="stlrefine-qbench-")
         s = Stack(a.build, tmp, None)
         try:
-            _, base = s.daemon("embedded", ["--compute-slots", str(slots)])
+            _, base = s.daemon("embedded", [], slots)
             if slots == 1:
                 med, p90, mx = latency(base, 30, query)
                 rows.append(f"| embedded | submit -> start, median / p90 / max | {med:.1f} / {p90:.1f} / {mx:.1f} ms | {load()} |")
@@ -182,16 +207,19 @@ def main():
                 procs[w], _ = s.daemon(w, ["--role", "worker", "--lease-seconds", str(lease)])
             time.sleep(0.3)
             long_query = "scheme=butterfly&levels=8"
-            _, j = http("POST", f"{api}/v1/jobs?{long_query}", MESH)
+            _, j = http("POST", f"{api}/v1/jobs?{long_query}", LONG_MESH)
             ref = wait_done(api, [j["id"]])[j["id"]]
             run = ref["timings"]["run_seconds"]
-            _, j = http("POST", f"{api}/v1/jobs?{long_query}", MESH)
+            _, j = http("POST", f"{api}/v1/jobs?{long_query}", LONG_MESH)
             jid = j["id"]
-            while True:
+            end = time.time() + 60
+            while time.time() < end:
                 _, j = http("GET", f"{api}/v1/jobs/{jid}")
                 if j["state"] == "running" and j.get("worker") and "level" in j["stage"]:
                     break
                 time.sleep(0.01)
+            else:
+                raise RuntimeError("the job never ran")
             victim = j["worker"]
             t0 = time.time()
             procs[victim].kill()
@@ -202,10 +230,6 @@ def main():
             s.stop()
             shutil.rmtree(tmp, ignore_errors=True)
 
-    print("| setup | what | figure | load avg |")
-    print("|---|---|---|---|")
-    for r in rows:
-        print(r)
 
 
 if __name__ == "__main__":
