@@ -38,6 +38,7 @@ constexpr StatusText kStatusTexts[] = {
     {http::kRangeNotSatisfiable, "Range Not Satisfiable", "Range not satisfiable"},
     {http::kExpectationFailed, nullptr, "Expectation failed"},
     {http::kUnprocessableContent, "Unprocessable Content", "Unprocessable content"},
+    {http::kTooManyRequests, "Too Many Requests", "Too many requests"},
     {http::kHeaderFieldsTooLarge, "Request Header Fields Too Large",
      "Request header fields too large"},
     {http::kInternalServerError, "Internal Server Error", "Internal server error"},
@@ -156,6 +157,7 @@ STLREFINE_NAMED_PROBLEM(range_not_satisfiable, http::kRangeNotSatisfiable)
 STLREFINE_NAMED_PROBLEM(header_fields_too_large, http::kHeaderFieldsTooLarge)
 STLREFINE_NAMED_PROBLEM(server_error, http::kInternalServerError)
 STLREFINE_NAMED_PROBLEM(service_unavailable, http::kServiceUnavailable)
+STLREFINE_NAMED_PROBLEM(too_many_requests, http::kTooManyRequests)
 STLREFINE_NAMED_PROBLEM(gateway_timeout, http::kGatewayTimeout)
 STLREFINE_NAMED_PROBLEM(insufficient_storage, http::kInsufficientStorage)
 #undef STLREFINE_NAMED_PROBLEM

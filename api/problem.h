@@ -40,6 +40,7 @@ inline constexpr int kUnsupportedMediaType = 415;
 inline constexpr int kRangeNotSatisfiable = 416;
 inline constexpr int kExpectationFailed = 417;
 inline constexpr int kUnprocessableContent = 422;
+inline constexpr int kTooManyRequests = 429;
 inline constexpr int kHeaderFieldsTooLarge = 431;
 //! Not sent: what the access log records for a client that closed before the answer.
 inline constexpr int kClientClosed = 499;
@@ -109,6 +110,7 @@ Problem range_not_satisfiable(std::string slug, std::string detail);
 Problem header_fields_too_large(std::string slug, std::string detail);
 Problem server_error(std::string slug, std::string detail);
 Problem service_unavailable(std::string slug, std::string detail);
+Problem too_many_requests(std::string slug, std::string detail);
 Problem gateway_timeout(std::string slug, std::string detail);
 Problem insufficient_storage(std::string slug, std::string detail);
 //! The 500 of a failure whose text is for the log only: "an internal error occurred".

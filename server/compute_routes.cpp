@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "api/archive.h"
 #include "api/pipeline.h"
 #include "api/plan.h"
 #include "api/zip.h"
@@ -29,6 +30,16 @@ void serve_compute(const RouteContext& ctx, const HttpRequest& req, CheckedReque
   Upload upload;
   if (std::optional<api::Problem> bad = read_upload(req, upload)) return ctx.respond(res, *bad);
   const std::string_view raw_body = upload.bytes;
+  // A zip of mesh files has one result per part: a job's (POST /v1/jobs), not one answer.
+  if (api::is_part_archive(
+          std::span(reinterpret_cast<const std::uint8_t*>(raw_body.data()), raw_body.size()))) {
+    api::Problem p = api::problem_from_error(
+        Error(ErrorCode::MalformedStl, "archive_needs_job",
+              "a zip of mesh files is refined part by part as one job: POST it to /v1/jobs "
+              "(each part gets its own result, and result.zip bundles them)")
+            .with_field("file"));
+    return ctx.respond(res, p);
+  }
   const std::string stem = download_stem(upload.name);
   if (ctx.config.test_hook) ctx.config.test_hook(checked.route->path);
   if (ctx.config.test_faults) {

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <ctime>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -26,6 +27,7 @@
 #include "server/http.h"
 #include "server/http_adapter.h"
 #include "server/http_upload.h"
+#include "server/job_parts.h"
 #include "server/job_routes.h"
 #include "server/metrics.h"
 #include "server/page.h"
@@ -209,7 +211,8 @@ Daemon::Impl::Impl(DaemonConfig c)
     jc.memory = &memory;
     jc.deadline = config.request_deadline;
     jc.runner_nice = config.compute_nice;
-    // Queue mode: a job taken from the queue is planned as POST /v1/jobs planned it.
+    // Queue mode: a job taken from the queue is planned as POST /v1/jobs planned it
+    // (server/job_routes.cpp; an Accept: model/3mf comes as mesh_format=3mf).
     jc.plan_job = [this](const std::string& query, const std::string& name,
                          std::string_view input) {
       api::RawParams raw = api::parse_query(query);
@@ -219,7 +222,13 @@ Daemon::Impl::Impl(DaemonConfig c)
       if (plan.request.slice) plan.request.slice->writer.label = download_stem(name);
       const auto bytes =
           std::span(reinterpret_cast<const std::uint8_t*>(input.data()), input.size());
-      return api::plan_body(std::move(plan), bytes, api::ResultSink::JobFiles);
+      // A zip, or a 3MF of several objects to STL: a parts job (its content was checked
+      // against the body limit at submit).
+      const std::optional<std::vector<api::ArchivePart>> parts = job_parts(
+          bytes, plan.request, job_archive_limits(std::numeric_limits<std::uint64_t>::max()));
+      std::uint64_t result_bytes = 0;
+      return parts ? plan_parts_job(plan, *parts, &result_bytes)
+                   : api::plan_body(std::move(plan), bytes, api::ResultSink::JobFiles);
     };
     jobs = std::make_unique<JobStore>(jc, slots, [this](const JobView& job, double seconds) {
       const auto& r = job.report;

@@ -253,6 +253,10 @@ void FrontEnd::on_readable(Connection& c) {
     if (n <= 0) {
       // EOF or reset. A client that hangs up before its request is complete gets nothing;
       // one that half-closes while its answer is written still gets it.
+      // An event stream's client that hangs up is gone (SSE clients never half-close): its
+      // place among the open streams is given back now, not at a write 15 s later.
+      if (n == 0 && c.state == Connection::State::Answer && c.out.stream)
+        return finish_answer(c, AnswerEnd::Outcome::ClientGone);
       if (n == 0 && c.state == Connection::State::Answer) {
         c.read_closed = true;  // EPOLLIN would report the EOF again and again
         return update_events(c);

@@ -191,18 +191,36 @@ std::optional<api::Problem> check_callback_url(const CallbackPolicy& policy, con
   return std::nullopt;
 }
 
-std::string callback_signature(const std::string& secret, const std::string& body) {
+namespace {
+
+std::string hmac_hex(std::string_view key, std::string_view message) {
   unsigned char mac[EVP_MAX_MD_SIZE];
   unsigned int size = 0;
-  if (!HMAC(EVP_sha256(), secret.data(), static_cast<int>(secret.size()),
-            reinterpret_cast<const unsigned char*>(body.data()), body.size(), mac, &size))
+  if (!HMAC(EVP_sha256(), key.data(), static_cast<int>(key.size()),
+            reinterpret_cast<const unsigned char*>(message.data()), message.size(), mac, &size))
     throw std::runtime_error("HMAC-SHA256 failed");
   static constexpr char kHex[] = "0123456789abcdef";
-  std::string out = "sha256=";
+  std::string out;
   for (unsigned int i = 0; i < size; ++i) {
     out.push_back(kHex[mac[i] >> 4]);
     out.push_back(kHex[mac[i] & 15]);
   }
+  return out;
+}
+
+}  // namespace
+
+std::string tenant_callback_key(const std::string& secret, const std::string& tenant) {
+  return hmac_hex(secret, tenant);
+}
+
+std::string callback_signature(const std::string& key, std::int64_t timestamp,
+                               const std::string& body) {
+  std::string message = std::to_string(timestamp);
+  message.push_back('.');
+  message.append(body);
+  std::string out = "sha256=";
+  out.append(hmac_hex(key, message));
   return out;
 }
 
@@ -221,7 +239,8 @@ CallbackSender::~CallbackSender() {
     log_line("stlrefined: callback to " + shortened(d.url) + " dropped at shutdown");
 }
 
-void CallbackSender::send(std::string url, std::string body) {
+void CallbackSender::send(std::string url, std::string body, const std::string& tenant) {
+  std::string key = tenant_callback_key(policy_.secret, tenant);
   {
     std::lock_guard lock(mutex_);
     // Bounded: a receiver that never answers must not grow the daemon's memory. Past the
@@ -232,7 +251,8 @@ void CallbackSender::send(std::string url, std::string body) {
                " dropped: " + std::to_string(kMaxPending) + " callbacks already pending");
       return;
     }
-    queue_.push_back({std::move(url), std::move(body), 0, std::chrono::steady_clock::now()});
+    queue_.push_back(
+        {std::move(url), std::move(body), std::move(key), 0, std::chrono::steady_clock::now()});
   }
   wake_.notify_all();
 }
@@ -285,7 +305,12 @@ bool CallbackSender::deliver(const Delivery& d) {
   client.set_read_timeout(seconds);
   client.set_write_timeout(seconds);
   client.set_follow_location(false);
-  httplib::Headers headers = {{"X-Stlrefine-Signature", callback_signature(policy_.secret, d.body)},
+  // Signed as sent: each attempt carries its own time, so a receiver can refuse old ones.
+  const std::int64_t now = std::chrono::duration_cast<std::chrono::seconds>(
+                               std::chrono::system_clock::now().time_since_epoch())
+                               .count();
+  httplib::Headers headers = {{"X-Stlrefine-Timestamp", std::to_string(now)},
+                              {"X-Stlrefine-Signature", callback_signature(d.key, now, d.body)},
                               {"User-Agent", "stlrefined"}};
   const httplib::Result r = client.Post(t.path, headers, d.body, "application/json");
   if (r && r->status / 100 == 2) return true;  // any 2xx

@@ -5,6 +5,8 @@
 // a long job, holds a connection and no thread.
 #include <chrono>
 #include <memory>
+#include <optional>
+#include <string>
 
 #include "server/job_routes.h"
 
@@ -14,9 +16,11 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// The store is asked at most this often per stream (a job of another replica is read from
-// disk).
+// The store is asked at most this often per stream, without waiting for its lock (a busy
+// store is asked again at the next pull); a job of another replica is read from its
+// job.json, on the event loop, so that only once a second.
 constexpr auto kPollEvery = std::chrono::milliseconds(100);
+constexpr auto kPollDiskEvery = std::chrono::seconds(1);
 // A comment line this often keeps proxies and clients from timing an idle stream out.
 constexpr auto kKeepAlive = std::chrono::seconds(15);
 // Without a request deadline, a stream still ends after this long (the client reconnects).
@@ -24,11 +28,13 @@ constexpr auto kLongestStream = std::chrono::hours(1);
 
 struct EventStream {
   JobStore* store;
+  JobStore::StreamPlace place;  // its place among the open streams, given back with it
   std::string id, owner;
   Clock::time_point ends;
   Clock::time_point next_poll{}, last_write = Clock::now();
   std::string last;  // state, progress and stage of the last event
   bool first = true;
+  bool retry_sent = false;
 
   static void event(std::string& out, const char* name, const nlohmann::ordered_json& job) {
     out.append("event: ").append(name).append("\ndata: ");
@@ -39,7 +45,8 @@ struct EventStream {
 
   bool operator()(std::string& out) {
     const auto now = Clock::now();
-    if (first) out.append("retry: 2000\n\n");
+    if (!retry_sent) out.append("retry: 2000\n\n");
+    retry_sent = true;
     if (now < next_poll) {
       if (now - last_write >= kKeepAlive) {
         out.append(": keep-alive\n\n");
@@ -47,20 +54,24 @@ struct EventStream {
       }
       return true;
     }
-    next_poll = now + kPollEvery;
     JobView job;
-    const JobStore::Lookup found = store->find(id, owner, &job);
-    if (found == JobStore::Lookup::Unknown) return false;  // removed meanwhile
-    const nlohmann::ordered_json j = job_json(job);
+    bool on_disk = false;
+    const std::optional<JobStore::Lookup> found = store->try_find(id, owner, &job, &on_disk);
+    if (!found) return true;  // the store is busy: asked again at the next pull
+    next_poll = now + (on_disk ? std::chrono::duration_cast<Clock::duration>(kPollDiskEvery)
+                               : std::chrono::duration_cast<Clock::duration>(kPollEvery));
+    if (*found == JobStore::Lookup::Unknown) return false;  // removed meanwhile
     const bool ended = job.state == JobState::Done || job.state == JobState::Failed ||
                        job.state == JobState::Cancelled;
     if (ended) {
-      event(out, "end", j);
+      event(out, "end", job_json(job));
       return false;
     }
-    std::string key = j["state"].dump() + j["progress"].dump() + j["stage"].dump();
+    // The JSON is made only for an event: most polls see nothing new.
+    std::string key =
+        std::string(to_string(job.state)) + " " + std::to_string(job.progress) + " " + job.stage;
     if (first || key != last) {
-      event(out, "progress", j);
+      event(out, "progress", job_json(job));
       last = std::move(key);
       last_write = now;
     } else if (now - last_write >= kKeepAlive) {
@@ -86,6 +97,24 @@ void serve_job_events(const RouteContext& ctx, const HttpRequest& req, const std
   stream->store = ctx.jobs;
   stream->id = id;
   stream->owner = ctx.tenant(req);
+  // Capped in all and per tenant (per client address without API keys): each open stream is
+  // a connection and a poll on the event loop.
+  bool whole = false;
+  const bool keyed = !ctx.config.api_keys.empty();
+  stream->place = ctx.jobs->open_stream(keyed ? stream->owner : req.remote_addr, &whole);
+  if (!stream->place) {
+    const JobsConfig& limits = ctx.jobs->config();
+    api::Problem p = api::too_many_requests(
+        "too-many-streams",
+        whole ? "all " + std::to_string(limits.max_event_streams) +
+                    " event streams of this server are open; retry later or poll the job"
+              : std::string(keyed ? "this API key" : "this client address") + " has " +
+                    std::to_string(limits.max_event_streams_per_tenant) +
+                    " event streams open already; close one, or poll the job");
+    p.extensions["reason"] = whole ? "max_event_streams" : "max_event_streams_per_tenant";
+    p.extensions["limit"] = whole ? limits.max_event_streams : limits.max_event_streams_per_tenant;
+    return ctx.respond(res, p);
+  }
   stream->ends =
       Clock::now() + (ctx.config.request_deadline.count() > 0
                           ? std::chrono::duration_cast<Clock::duration>(ctx.config.request_deadline)

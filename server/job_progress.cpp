@@ -58,6 +58,10 @@ void JobProgress::enter(Stage stage) {
 void JobProgress::on_core(double fraction, std::string_view core_stage) {
   if (core_stage == "slice") return set(Stage::Slice, fraction, "slicing");
   // refine() ends with 1 "done": the refinement is over, the post-pass comes next.
+  // A multi-object 3MF refines its objects one after another and scales each one's fraction
+  // to its share ((i + f) / n): an object's "done" below 1 is only that object's end, and the
+  // next object's levels carry on from there.
+  if (core_stage == "done" && fraction < 1) return set(Stage::Refine, fraction, "refining");
   if (core_stage == "done") return set(Stage::PostPass, 0, "post-pass");
   set(Stage::Refine, fraction, std::string(core_stage));  // "level 2/3", "adaptive level 1/4"
 }

@@ -66,6 +66,15 @@ struct JobStore::Job {
 struct JobStore::QueueFigures {
   std::atomic<bool> reachable{false};
   std::atomic<std::uint64_t> depth{0}, pending{0}, reclaims{0}, attempts{0};
+  //! The jobs event streams follow (key: id and owner), as the keeper last read them: a
+  //! stream polls on the event loop, which never waits for Redis.
+  struct Watched {
+    std::optional<Lookup> found;  // empty until first read
+    JobView view;
+    std::chrono::steady_clock::time_point asked;
+  };
+  std::mutex watch_mutex;
+  std::map<std::pair<std::string, std::string>, Watched> watched;
 };
 
 struct JobStore::Leftovers {
@@ -143,6 +152,15 @@ class DirLock {
 //! The data directory's tenant secret, read or made (first start).
 std::array<unsigned char, kTenantKeyBytes> load_tenant_key(const std::filesystem::path& data_dir);
 std::string read_file(const std::filesystem::path& path);
+//! A tenant id: HMAC-SHA256 of the API key under the data directory's secret, 32 hex digits
+//! (server/job_callback_keys.cpp).
+std::string tenant_id(const std::array<unsigned char, kTenantKeyBytes>& tenant_key,
+                      std::string_view api_key);
+//! The refined mesh's file: result.3mf for mesh_format=3mf (its objects and unit kept), else
+//! result.stl.
+inline const char* job_result_name(const api::RefineRequest& request) {
+  return request.mesh_format == MeshFormat::ThreeMf ? "result.3mf" : "result.stl";
+}
 //! "stlrefined: <line>" on stderr in one write.
 void log_line(const std::string& line);
 

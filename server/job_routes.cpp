@@ -12,9 +12,12 @@
 #include <set>
 #include <span>
 
+#include "api/archive.h"
 #include "api/plan.h"
 #include "core/error.h"
 #include "server/http_upload.h"
+#include "server/job_parts.h"
+#include "server/memory_budget.h"
 #include "slicer/writers.h"
 
 namespace stlrefine::server {
@@ -23,7 +26,8 @@ namespace {
 
 // Result files a job may have.
 bool job_file_name(const std::string& name) {
-  return name == "result.stl" || name == "report.json" || name == "contours.json" ||
+  return name == "result.stl" || name == "result.3mf" || name == "result.zip" ||
+         part_file_name(name) || name == "report.json" || name == "contours.json" ||
          name == "contours.svg" || name == "contours.cli";
 }
 
@@ -159,16 +163,46 @@ void serve_job_submit(const RouteContext& ctx, const HttpRequest& req, api::Refi
   if (ctx.config.test_hook) ctx.config.test_hook("/v1/jobs");
   // The contours carry the file's name (SVG title, CLI $$LABEL, JSON name).
   if (parameters.request.slice) parameters.request.slice->writer.label = download_stem(upload.name);
+  // Accept: model/3mf chooses 3MF when the query names no mesh_format, as on /v1/refine.
+  if (!parameters.request.mesh_format_given && !parameters.request.slice &&
+      req.header("Accept").find("model/3mf") != std::string::npos)
+    parameters.request.mesh_format = MeshFormat::ThreeMf;
   try {
     // A job that could never get its memory is refused now, not when its turn comes.
     const auto bytes = std::span(reinterpret_cast<const std::uint8_t*>(body.data()), body.size());
-    api::RefinePlan plan = api::plan_body(std::move(parameters), bytes, api::ResultSink::JobFiles);
+    // A zip of mesh files is one job with one result per part (job_parts.h).
+    // A 3MF of several objects refined to STL likewise, one part per object.
+    std::uint64_t result_bytes = 0;
+    // The inflated parts are held while the job is submitted: reserved first, beside the
+    // body (503 while the budget is busy, 422 beyond it).
+    api::ArchiveLimits limits = job_archive_limits(ctx.config.max_body_bytes);
+    std::optional<MemoryBudget::Reservation> inflated;
+    std::uint64_t wanted = 0;
+    limits.reserve = [&](std::uint64_t total) {
+      wanted = total;
+      if (total > ctx.memory.capacity()) return false;
+      std::optional<MemoryBudget::Reservation> r = ctx.memory.try_reserve(total);
+      if (!r) return false;
+      inflated.emplace(std::move(*r));
+      return true;
+    };
+    std::optional<std::vector<api::ArchivePart>> parts;
+    try {
+      parts = job_parts(bytes, parameters.request, limits);
+    } catch (const api::ArchiveError& e) {
+      if (e.reason() == "memory_budget" && wanted <= ctx.memory.capacity())
+        return ctx.respond(res, ctx.memory_busy_problem(wanted));
+      throw;
+    }
+    api::RefinePlan plan =
+        parts ? plan_parts_job(parameters, *parts, &result_bytes)
+              : api::plan_body(std::move(parameters), bytes, api::ResultSink::JobFiles);
     const api::MemoryEstimate& predicted = plan.memory;
     if (predicted.peak_bytes > ctx.memory.capacity())
       return ctx.respond(res, api::memory_budget_problem(predicted, ctx.memory.capacity()));
     const std::size_t q = req.target.find('?');
     std::string query = q == std::string::npos ? "" : req.target.substr(q + 1);
-    const std::uint64_t result_bytes = predicted_result_bytes(plan.request, predicted);
+    if (result_bytes == 0) result_bytes = predicted_result_bytes(plan.request, predicted);
     const SubmitResult submitted =
         ctx.stopping
             ? SubmitResult::refused(SubmitResult::Status::ShuttingDown)
@@ -189,6 +223,8 @@ void serve_job_submit(const RouteContext& ctx, const HttpRequest& req, api::Refi
     res.set_content(
         job_json(*job).dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n",
         kJsonContentType);
+  } catch (const api::ArchiveError& e) {
+    ctx.respond(res, archive_problem(e));
   } catch (const Error& e) {
     ctx.respond(res, api::problem_from_error(e));
   }
@@ -264,21 +300,26 @@ void serve_job_item(const RouteContext& ctx, const HttpRequest& req, HttpAnswer&
   }
   res.large.file = fd;
   res.large.file_length = static_cast<std::uint64_t>(st.st_size);
-  const char* type = file == "result.stl"      ? kStlContentType
-                     : file == "report.json"   ? kJsonContentType
-                     : file == "contours.json" ? slicer::media_type(slicer::SliceFormat::Json)
-                     : file == "contours.svg"  ? slicer::media_type(slicer::SliceFormat::Svg)
-                                               : "application/octet-stream";
+  const std::size_t dot = file.rfind('.');
+  const std::string ext = file.substr(dot);
+  const char* type = ext == ".stl"    ? kStlContentType
+                     : ext == ".3mf"  ? k3mfContentType
+                     : ext == ".zip"  ? kZipContentType
+                     : ext == ".json" ? kJsonContentType
+                     : ext == ".svg"  ? slicer::media_type(slicer::SliceFormat::Svg)
+                                      : "application/octet-stream";
   res.set_header("Content-Type", type);
   // result.stl -> part_refined.stl, contours.cli -> part_slices.cli, report.json ->
-  // part_report.json.
-  const std::size_t dot = file.rfind('.');
-  const std::string kind = file.substr(0, dot);
+  // part_report.json; a zip's part3.stl -> bracket_refined.stl (the part's own name).
+  const bool part = part_file_name(file);
+  const std::string kind =
+      part ? (file.find(".contours.") != std::string::npos ? "contours" : "result")
+           : file.substr(0, dot);
   const std::string suffix = kind == "result"     ? "_refined"
                              : kind == "contours" ? "_slices"
                                                   : "_" + kind;
-  res.set_header("Content-Disposition",
-                 content_disposition(download_stem(job.name), suffix + file.substr(dot)));
+  const std::string stem = download_stem(part ? part_of_file(job.report, file) : job.name);
+  res.set_header("Content-Disposition", content_disposition(stem, suffix + ext));
 }
 
 }  // namespace stlrefine::server

@@ -5,12 +5,14 @@
 #include <malloc.h>
 
 #include <algorithm>
+#include <limits>
 #include <thread>
 
 #include "api/pipeline.h"
 #include "core/error.h"
 #include "core/io/stl.h"
 #include "server/admission.h"
+#include "server/job_parts.h"
 #include "server/job_progress.h"
 #include "server/job_record.h"
 #include "server/thread_priority.h"
@@ -130,43 +132,63 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
       }
       return true;
     };
-    api::RefinedMesh refined =
-        api::run_refine_to_mesh(input_bytes, plan, progress, &ticket->cancel, grow);
-    const api::RefineOutcome& out = refined.outcome;
-    report = out.report;
-    tracker.enter(JobProgress::Stage::Write);
-    publish();
-    // Each file is listed once it is whole, so a failure below removes exactly those.
-    if (refined.stream()) {  // binary: made as it is written, never whole in memory
-      const auto start = std::chrono::steady_clock::now();
-      write_atomically(job->dir / "result.stl",
-                       [&](const ByteSink& sink) { write_binary_stl(refined.mesh, sink); });
-      bytes += binary_stl_size(refined.mesh.num_faces());
-      // The report's write time is the streamed write's (run_refine's included its own).
-      const double seconds =
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      report["seconds"]["write"] = seconds;
-      report["seconds"]["total"] = report["seconds"]["total"].get<double>() + seconds;
+    // A zip of mesh files, or a 3MF's objects refined to STL: each part on its own
+    // (job_parts.h). A zip's content was checked against the body limit at submit.
+    const std::optional<std::vector<api::ArchivePart>> parts = job_parts(
+        input_bytes, plan.request, job_archive_limits(std::numeric_limits<std::uint64_t>::max()));
+    if (parts) {
+      const auto publish_parts = [&](double fraction, const std::string& stage) {
+        cancel_noted(*job);  // from another replica
+        std::lock_guard lock(mutex_);
+        job->progress = std::max(job->progress, std::min(fraction, 0.995));
+        job->stage = stage;
+      };
+      report = run_parts_job(plan, *parts, job->dir, &ticket->cancel, grow, publish_parts, results,
+                             bytes);
     } else {
-      write_atomically(job->dir / "result.stl", out.stl);
-      bytes += out.stl.size();
+      api::RefinedMesh refined =
+          api::run_refine_to_mesh(input_bytes, plan, progress, &ticket->cancel, grow);
+      const api::RefineOutcome& out = refined.outcome;
+      report = out.report;
+      tracker.enter(JobProgress::Stage::Write);
+      publish();
+      // Each file is listed once it is whole, so a failure below removes exactly those.
+      if (refined.stream()) {  // binary: made as it is written, never whole in memory
+        const auto start = std::chrono::steady_clock::now();
+        write_atomically(job->dir / "result.stl",
+                         [&](const ByteSink& sink) { write_binary_stl(refined.mesh, sink); });
+        bytes += binary_stl_size(refined.mesh.num_faces());
+        // The report's write time is the streamed write's (run_refine's included its own).
+        const double seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        report["seconds"]["write"] = seconds;
+        report["seconds"]["total"] = report["seconds"]["total"].get<double>() + seconds;
+      } else {
+        write_atomically(job->dir / job_result_name(plan.request), out.stl);
+        bytes += out.stl.size();
+      }
+      results.push_back(job_result_name(plan.request));
+      if (out.contours) {
+        const std::string name =
+            std::string("contours") + slicer::file_extension(plan.request.slice->format);
+        write_atomically(job->dir / name, *out.contours);
+        results.push_back(name);
+        bytes += out.contours->size();
+      }
+      const std::string report_text =
+          report.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
+      write_atomically(job->dir / "report.json", report_text);
+      results.push_back("report.json");
+      bytes += report_text.size();
     }
-    results.push_back("result.stl");
-    if (out.contours) {
-      const std::string name =
-          std::string("contours") + slicer::file_extension(plan.request.slice->format);
-      write_atomically(job->dir / name, *out.contours);
-      results.push_back(name);
-      bytes += out.contours->size();
-    }
-    const std::string report_text =
-        report.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
-    write_atomically(job->dir / "report.json", report_text);
-    results.push_back("report.json");
-    bytes += report_text.size();
     state = JobState::Done;
   } catch (const Refused& r) {
     problem = r.problem;
+  } catch (const api::ArchiveError& e) {
+    if (e.code() == ErrorCode::Cancelled || job->cancel || cancel_all_)
+      state = JobState::Cancelled;
+    else
+      problem = archive_problem(e);
   } catch (const MemoryBudgetError& e) {
     if (job->cancel || cancel_all_) {
       state = JobState::Cancelled;

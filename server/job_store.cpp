@@ -49,14 +49,7 @@ JobStore::~JobStore() {
 }
 
 std::string JobStore::tenant_of(std::string_view api_key) const {
-  unsigned char mac[EVP_MAX_MD_SIZE];
-  unsigned int size = 0;
-  if (!HMAC(EVP_sha256(), tenant_key_.data(), static_cast<int>(tenant_key_.size()),
-            reinterpret_cast<const unsigned char*>(api_key.empty() ? "" : api_key.data()),
-            api_key.size(), mac, &size) ||
-      size < 16)
-    throw std::runtime_error("HMAC-SHA256 failed");
-  return hex(mac, 16);
+  return tenant_id(tenant_key_, api_key);
 }
 
 JobView JobStore::view(const Job& job) const {
@@ -66,6 +59,7 @@ JobView JobStore::view(const Job& job) const {
   v.expired = job.expired;
   v.progress = job.progress;
   v.stage = job.stage;
+  v.tenant = job.tenant;
   v.scheme = job.scheme;
   v.query = job.query;
   v.name = job.name;
@@ -107,7 +101,8 @@ std::vector<JobView> JobStore::list(const std::string& owner, std::optional<JobS
 void JobStore::notify_ended(const JobView& job) {
   if (callbacks_ && !job.callback_url.empty())
     callbacks_->send(job.callback_url,
-                     job_json(job).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+                     job_json(job).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace),
+                     job.tenant);
 }
 
 void JobStore::release_disk(Job& job) {

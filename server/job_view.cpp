@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <limits>
 
+#include "server/job_parts.h"
 #include "server/job_record.h"
 
 namespace stlrefine::server {
@@ -86,10 +87,13 @@ nlohmann::ordered_json job_json(const JobView& job) {
   nlohmann::ordered_json links;
   links["self"] = self;
   for (const std::string& name : job.results) {
+    if (part_file_name(name)) continue;                      // under `parts`
     const std::string key = name.substr(0, name.find('.'));  // result, contours, report
     links[key] = self + "/" + name;
   }
   j["links"] = links;
+  // A zip's parts, each with its files (links.result is then result.zip, all of them).
+  if (job.report.contains("parts")) j["parts"] = parts_json(job.report, self);
   return j;
 }
 

@@ -90,6 +90,10 @@ struct JobsConfig {
   std::function<api::RefinePlan(const std::string& query, const std::string& name,
                                 std::string_view input)>
       plan_job;
+  //! Event streams (GET /v1/jobs/{id}/events) open at once, in all and per tenant (per
+  //! client address without API keys): one more is refused (429 + Retry-After).
+  std::size_t max_event_streams = 256;
+  std::size_t max_event_streams_per_tenant = 32;
 };
 
 //! What a client sees of a job (a copy, taken under the store's lock).
@@ -103,6 +107,7 @@ struct JobView {
   std::string query;         //!< the parameters as submitted
   std::string name;          //!< the uploaded file's name (http_upload.h's upload_name), or empty
   std::string callback_url;  //!< POSTed the job's JSON when it ends; empty: none
+  std::string tenant;        //!< its owner (never shown: it signs the callback)
   std::chrono::system_clock::time_point created, started, finished;
   nlohmann::ordered_json report;                  //!< the refine report once done
   std::optional<nlohmann::ordered_json> problem;  //!< RFC 9457 body once failed/cancelled
@@ -221,6 +226,17 @@ class JobStore {
   std::vector<JobView> list(const std::string& owner, std::optional<JobState> state,
                             const std::optional<ListCursor>& after, std::size_t limit,
                             bool* more) const;
+  //! A place among the open event streams, held by a stream while it is open (released
+  //! when the last copy goes). Empty when `who` holds max_event_streams_per_tenant already
+  //! (`*whole` false) or max_event_streams are open (`*whole` true). Its own lock: never
+  //! waits for the store's.
+  using StreamPlace = std::shared_ptr<void>;
+  StreamPlace open_stream(const std::string& who, bool* whole);
+  //! find() for a stream polled on the event loop: nullopt instead of waiting when the
+  //! store's lock is held (a job being recorded); `*on_disk` when the job is not this
+  //! replica's and was read from its job.json.
+  std::optional<Lookup> try_find(const std::string& id, const std::string& owner, JobView* out,
+                                 bool* on_disk) const;
   //! Path of a result file of a done job (name from JobView::results).
   std::filesystem::path result_path(const std::string& id, const std::string& name) const;
 
@@ -282,6 +298,9 @@ class JobStore {
   void keep_leases();
   void expire_queued();
   void record_queued(const Job& job) const;
+  std::optional<Lookup> try_find_queued(const std::string& id, const std::string& owner,
+                                        JobView* out, bool* on_disk) const;
+  void refresh_watched();
   //! A cancel from another replica, seen just before a runner records the job's end.
   bool cancel_arrived(Job& job);  // under mutex_
   //! Queue mode: a job stopped by a shutdown (before or while it computed) goes back to the
@@ -323,6 +342,13 @@ class JobStore {
   std::thread keeper_;                         // queue mode: leases, figures, expiry
   struct QueueFigures;
   std::unique_ptr<QueueFigures> figures_;  // queue mode: what keep_leases() last saw
+  struct StreamCounts {
+    std::mutex mutex;
+    std::size_t total = 0;
+    std::map<std::string, std::size_t> by_who;
+  };
+  // Shared with the places handed out: a stream may outlive the store.
+  std::shared_ptr<StreamCounts> streams_ = std::make_shared<StreamCounts>();
 };
 
 }  // namespace stlrefine::server

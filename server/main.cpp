@@ -29,6 +29,7 @@
 #include <vector>
 
 #include "server/daemon.h"
+#include "server/job_callbacks.h"
 #include "server/memory_budget.h"
 
 namespace {
@@ -233,6 +234,17 @@ int main(int argc, char** argv) {
   app.add_option("--instance", instance,
                  "This replica's name (a job's worker; default: host name, with :pid in queue "
                  "mode)");
+  std::size_t max_event_streams = 256, max_event_streams_per_tenant = 32;
+  app.add_option("--max-event-streams", max_event_streams,
+                 "Job event streams (GET /v1/jobs/{id}/events) open at once; one more gets 429 "
+                 "+ Retry-After")
+      ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 20))
+      ->capture_default_str();
+  app.add_option("--max-event-streams-per-tenant", max_event_streams_per_tenant,
+                 "Job event streams one API key (without keys: one client address) may hold "
+                 "open; one more gets 429 + Retry-After")
+      ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 20))
+      ->capture_default_str();
   // Tests only: lets a request header make its handler throw or fail an allocation.
   app.add_flag("--test-faults", test_faults, "")->group("");
   // Every option can also come from the environment: STLREFINED_PORT=9000, ...
@@ -243,6 +255,13 @@ int main(int argc, char** argv) {
     for (char c : name) env += c == '-' ? '_' : static_cast<char>(std::toupper(c));
     option->envname(env);
   }
+  // Operator's command, not a setting (so no environment variable): print a tenant's
+  // callback key (server/job_callbacks.h) and exit.
+  std::string print_callback_key;
+  CLI::Option* print_key = app.add_option(
+      "--print-callback-key", print_callback_key,
+      "Print the callback key of the tenant of API KEY ('-': read the key from stdin; '' for "
+      "a daemon without API keys), from --callback-secret and --data-dir, and exit");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -284,6 +303,20 @@ int main(int argc, char** argv) {
     config.jobs.lease = std::chrono::seconds(lease_seconds);
     config.jobs.max_attempts = max_attempts;
     config.jobs.instance = instance;
+    config.jobs.max_event_streams = max_event_streams;
+    config.jobs.max_event_streams_per_tenant = max_event_streams_per_tenant;
+    if (print_key->count() > 0) {
+      if (print_callback_key == "-") {
+        std::getline(std::cin, print_callback_key);
+        while (!print_callback_key.empty() &&
+               (print_callback_key.back() == '\r' || print_callback_key.back() == ' '))
+          print_callback_key.pop_back();
+      }
+      std::cout << stlrefine::server::callback_key_of_api_key(data_dir, callback_secret,
+                                                              print_callback_key)
+                << std::endl;
+      return 0;
+    }
     if (!api_key_file.empty()) {
       std::ifstream keys(api_key_file);
       if (!keys) throw std::runtime_error("cannot read --api-key-file " + api_key_file);

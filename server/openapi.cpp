@@ -81,13 +81,16 @@ Json stl_body() {
            "binary) or 3MF, told apart by content (a 3MF's unit is applied); as the body, or as "
            "the one part named `file` of a multipart/form-data body (curl -F file=@part.stl; "
            "the part's filename names the downloads). Other form fields are refused (400 naming "
-           "them): parameters go in the query string."},
+           "them): parameters go in the query string. A zip of mesh files (not a 3MF) is one "
+           "job with one result per part on POST /v1/jobs (422 `archive_needs_job` elsewhere); "
+           "a hostile zip is a 422 naming the `entry`."},
           {"content",
            {{"model/stl", {{"schema", {{"type", "string"}, {"format", "binary"}}}}},
             {"model/3mf", {{"schema", {{"type", "string"}, {"format", "binary"}}}}},
             {"model/obj", {{"schema", {{"type", "string"}, {"format", "binary"}}}}},
             {"model/x-ply", {{"schema", {{"type", "string"}, {"format", "binary"}}}}},
             {"application/x-ply", {{"schema", {{"type", "string"}, {"format", "binary"}}}}},
+            {"application/zip", {{"schema", {{"type", "string"}, {"format", "binary"}}}}},
             {"application/octet-stream", {{"schema", {{"type", "string"}, {"format", "binary"}}}}},
             {"multipart/form-data",
              {{"schema",
@@ -264,8 +267,10 @@ Json build() {
              {"in", "query"},
              {"required", false},
              {"description",
-              "http(s) URL POSTed the job's JSON when it ends, with X-Stlrefine-Signature: "
-              "sha256=<HMAC-SHA256 hex of the body> under the server's --callback-secret; "
+              "http(s) URL POSTed the job's JSON when it ends, with X-Stlrefine-Timestamp: <unix "
+              "seconds> and X-Stlrefine-Signature: sha256=<HMAC-SHA256 hex of "
+              "\"<timestamp>.<body>\"> under the tenant's callback key (HMAC-SHA256 hex of the "
+              "tenant id under the server's --callback-secret; stlrefined --print-callback-key); "
               "retried with back-off. Only hosts on the server's --callback-allow list, and no "
               "loopback, link-local or private address unless the list names it (checked on "
               "the resolved addresses): otherwise 400."},
@@ -311,7 +316,11 @@ Json build() {
               "then closes."},
              {"content", {{"text/event-stream", {{"schema", {{"type", "string"}}}}}}}}},
            {"404", problem_response("Unknown job.")},
-           {"410", problem_response("Removed after retention.")}});
+           {"410", problem_response("Removed after retention.")},
+           {"429", problem_response("Too many event streams open (--max-event-streams, "
+                                    "--max-event-streams-per-tenant); see Retry-After.")}});
+      item["get"]["responses"]["429"]["headers"]["Retry-After"] =
+          header("Seconds to wait before trying again.", "integer");
     } else if (p == "/v1/slice") {
       Json op = operation(
           "Slice an STL into layer contours",
@@ -358,13 +367,20 @@ Json build() {
             {"required", true},
             {"schema",
              {{"type", "string"},
-              {"enum",
-               {"result.stl", "report.json", "contours.json", "contours.svg", "contours.cli"}}}}}});
+              {"description",
+               "result.stl (result.3mf with mesh_format=3mf), report.json, contours.<ext>; a zip "
+               "job: result.zip and each part's part<k>.stl|3mf and part<k>.contours.<ext> (the "
+               "job's `parts` links)"},
+              {"pattern",
+               "^(result\\.(stl|3mf|zip)|report\\.json|contours\\.(json|svg|cli)|"
+               "part[1-9][0-9]{0,5}"
+               "\\.(stl|3mf|contours\\.(json|svg|cli)))$"}}}}});
       item["parameters"] = params;
       Json download = operation(
           "Download a result of a done job",
-          {{"200", binary_response("The file.", {"model/stl", "application/json", "image/svg+xml",
-                                                 "text/plain", "application/octet-stream"})},
+          {{"200", binary_response("The file.",
+                                   {"model/stl", "model/3mf", "application/zip", "application/json",
+                                    "image/svg+xml", "text/plain", "application/octet-stream"})},
            {"206",
             binary_response("One byte range of the file (Range).", "application/octet-stream")},
            {"416", problem_response("The Range starts past the end.")},

@@ -166,6 +166,9 @@ SubmitResult JobStore::submit_queued(const std::shared_ptr<Job>& job, std::strin
     JobFields fields = fields_of(*job);
     fields["attempts"] = "0";
     fields["cancel"] = "0";
+    // 3MF chosen by the request's Accept header, which the runner does not see.
+    const api::RefineRequest& r = job->plan.request;
+    fields["accept_3mf"] = r.mesh_format == MeshFormat::ThreeMf && !r.mesh_format_given ? "1" : "0";
     redis_->enqueue(*c, job->id, job->tenant, epoch_ms(job->created), fields);
   } catch (const std::exception& e) {
     std::error_code ignored;
@@ -268,6 +271,43 @@ std::vector<JobView> JobStore::list_queued(const std::string& owner, std::option
   return out;
 }
 
+std::optional<JobStore::Lookup> JobStore::try_find_queued(const std::string& id,
+                                                          const std::string& owner, JobView* out,
+                                                          bool* on_disk) const {
+  // What the keeper last read (every beat); a job not watched yet is read at the next beat.
+  *on_disk = true;  // polled as seldom as another replica's job
+  QueueFigures& f = *figures_;
+  std::unique_lock lock(f.watch_mutex, std::try_to_lock);
+  if (!lock.owns_lock()) return std::nullopt;
+  if (f.watched.size() >= 2 * config_.max_event_streams && !f.watched.count({id, owner}))
+    return std::nullopt;
+  QueueFigures::Watched& w = f.watched[{id, owner}];
+  w.asked = std::chrono::steady_clock::now();
+  if (!w.found) return std::nullopt;
+  if (out) *out = w.view;
+  return w.found;
+}
+
+void JobStore::refresh_watched() {
+  QueueFigures& f = *figures_;
+  std::vector<std::pair<std::string, std::string>> keys;
+  {
+    std::lock_guard lock(f.watch_mutex);
+    const auto stale = std::chrono::steady_clock::now() - std::chrono::seconds(10);
+    std::erase_if(f.watched, [&](const auto& w) { return w.second.asked < stale; });
+    for (const auto& [key, w] : f.watched) keys.push_back(key);
+  }
+  for (const auto& [id, owner] : keys) {
+    JobView view;
+    const Lookup found = find_queued(id, owner, &view);
+    std::lock_guard lock(f.watch_mutex);
+    const auto it = f.watched.find({id, owner});
+    if (it == f.watched.end()) continue;
+    it->second.found = found;
+    it->second.view = std::move(view);
+  }
+}
+
 void JobStore::record_queued(const Job& job) const {
   // A final state is recorded by the runner's finish_queued() (with the entry's
   // acknowledgement); what a runner records before is best effort.
@@ -363,7 +403,10 @@ void JobStore::run_entry(RedisConnection& c, const QueueEntry& entry) {
   job->instance = redis_->consumer();
   try {
     const std::string input = read_file(job->dir / kInputFile);
-    job->plan = config_.plan_job(job->query, job->name, input);
+    std::string query = job->query;
+    if (get(start.fields, "accept_3mf") == "1")
+      query.append(query.empty() ? "" : "&").append("mesh_format=3mf");
+    job->plan = config_.plan_job(query, job->name, input);
   } catch (const std::exception& e) {
     // Validated when it was submitted: only a lost input or another replica's other limits.
     const auto* error = dynamic_cast<const Error*>(&e);
@@ -480,6 +523,7 @@ void JobStore::keep_leases() {
           request_cancel(*r.job, CancelReason::Client);
         }
       }
+      refresh_watched();
       const RedisQueue::Stats s = redis_->stats(c);
       figures_->depth = static_cast<std::uint64_t>(s.depth);
       figures_->pending = static_cast<std::uint64_t>(s.pending);

@@ -144,12 +144,12 @@ std::optional<api::Problem> RouteContext::precheck(const HttpRequest& req,
   }
   // The mesh formats read_mesh takes (the body is sniffed by content whatever it says).
   const bool mesh_type = type == "model/3mf" || type == "model/obj" || type == "model/x-ply" ||
-                         type == "application/x-ply";
+                         type == "application/x-ply" || type == "application/zip";
   if (type != "model/stl" && type != "application/octet-stream" && !mesh_type &&
       type != "application/x-www-form-urlencoded" && !boundary) {
     api::Problem p = api::unsupported_media_type(
         "unsupported-media-type",
-        "Content-Type must be model/stl, model/3mf, model/obj, model/x-ply, "
+        "Content-Type must be model/stl, model/3mf, model/obj, model/x-ply, application/zip, "
         "application/octet-stream or multipart/form-data, not '" +
             shortened(req.header("Content-Type")) + "'");
     p.field = "Content-Type";
@@ -181,13 +181,6 @@ std::optional<api::Problem> RouteContext::precheck(const HttpRequest& req,
       checked.slice = api::parse_slice_params(raw, limits);
     else
       checked.info = api::parse_info_params(raw);
-    // A job keeps its mesh as result.stl (server/job_runner.cpp): until a job's results are
-    // named by their format, a 3MF job would be a 3MF served as model/stl.
-    if (route->kind == RouteKind::Submit &&
-        checked.refine->request.mesh_format == MeshFormat::ThreeMf)
-      throw Error(ErrorCode::InvalidParameter, "unsupported_combination",
-                  "mesh_format=3mf is answered by POST /v1/refine; a job's result is a binary STL")
-          .with_field("mesh_format");
   } catch (const Error& e) {
     return api::problem_from_error(e);
   }
@@ -232,7 +225,8 @@ Fields RouteContext::problem_headers(const api::Problem& problem) const {
   Fields h;
   // 507: space comes back as finished jobs expire.
   if (problem.status == api::http::kServiceUnavailable ||
-      problem.status == api::http::kInsufficientStorage)
+      problem.status == api::http::kInsufficientStorage ||
+      problem.status == api::http::kTooManyRequests)
     h.emplace("Retry-After", std::to_string(config.retry_after_seconds));
   if (problem.status == api::http::kUnauthorized) h.emplace("WWW-Authenticate", "Bearer");
   if (problem.status == api::http::kMethodNotAllowed && problem.extensions.contains("allow"))

@@ -193,6 +193,7 @@ void LsfStencil::edge_points(const Level& coarse, std::span<Vec3> out) const {
         guard[i].normal = plane;
     }
   });
+  lsf::relax_normals(m, f, guard, lsf::kRelaxRounds);
   const lsf::GuardNormals normal_of{m, f, guard.data()};
   // The guard reads, per edge, the corners of its two faces, their four positions and its ends'
   // guard records: a chain of dependent loads at random places, which the edges before it

@@ -14,6 +14,7 @@
 
 #include "core/schemes/butterfly.h"
 #include "core/schemes/crease_rules.h"
+#include "core/schemes/lsf_rules.h"
 #include "tests/core/test_util.h"
 #include "tests/support/mesh_queries.h"
 #include "tests/support/shapes.h"
@@ -532,7 +533,17 @@ void expect_batched_equal_one_vertex(Level level, std::size_t min_vertices, LsfK
     BigVector<Vec3> estimate(m.num_halfedges());
     for (std::uint32_t v = 0; v < m.num_vertices(); ++v)
       LsfStencil::half_edge_estimates(m, level.features, VertexId(v), estimate);
-    // The estimates of both ends, then the guards (issue 17) on both paths alike.
+    // The estimates of both ends, then the guards (issue 17) on both paths alike: the guard's
+    // vertex records the one-vertex way (walked sector normals, relaxed as the stencil does).
+    std::vector<lsf::GuardVertex> guard(m.num_vertices());
+    for (std::uint32_t v = 0; v < m.num_vertices(); ++v) {
+      if (level.features.kind(VertexId(v)) > VertexKind::Dart) continue;
+      guard[v].one_sector = 1;
+      guard[v].normal = lsf::sector_normal(m, level.features, m.halfedge(VertexId(v)));
+      guard[v].spokes = lsf::ring_spoke_flags(m, VertexId(v));
+    }
+    lsf::relax_normals(m, level.features, guard, lsf::kRelaxRounds);
+    const lsf::GuardNormals normal_of{m, level.features, guard.data()};
     std::vector<Vec3> expected(m.num_edges());
     for (std::uint32_t e = 0; e < m.num_edges(); ++e) {
       const HalfedgeId h = m.halfedge(EdgeId(e));
@@ -542,11 +553,11 @@ void expect_batched_equal_one_vertex(Level level, std::size_t min_vertices, LsfK
         continue;
       }
       const HalfedgeId lower = h.idx < m.twin(h).idx ? h : m.twin(h);
-      expected[e] = lsf_guarded_edge_point(m, level.features, EdgeId(e), estimate[lower.idx],
-                                           estimate[m.twin(lower).idx]);
+      expected[e] = lsf::guarded_edge_point(normal_of, EdgeId(e), estimate[lower.idx],
+                                            estimate[m.twin(lower).idx]);
     }
     std::vector<std::uint8_t> marks(m.num_faces());
-    lsf_guard_child_folds(m, level.features, expected, marks);
+    lsf::guard_child_folds(normal_of, expected, marks);
     std::size_t compared = 0;
     for (std::uint32_t e = 0; e < m.num_edges(); ++e) {
       if (level.features.is_sharp(EdgeId(e))) continue;

@@ -316,6 +316,24 @@ TEST_F(QueueMode, SigtermHandsRunningAndQueuedJobsToAnotherReplica) {
   }
 }
 
+TEST_F(QueueMode, EventStreamFollowsAJobRunningOnAnotherReplica) {
+  const Replica& api = start_replica("api", {"--role", "api"});
+  start_replica("w");
+  const std::string id = submit(api, kLongJob, long_mesh());
+  auto client = api.client();
+  client->set_read_timeout(60, 0);
+  // The stream ends with the job: its body is every event.
+  auto res = client->Get(("/v1/jobs/" + id + "/events").c_str());
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200);
+  EXPECT_NE(res->body.find("event: progress"), std::string::npos) << res->body;
+  EXPECT_NE(res->body.find("\"state\":\"running\""), std::string::npos) << res->body;
+  const std::size_t end = res->body.find("event: end");
+  ASSERT_NE(end, std::string::npos) << res->body;
+  EXPECT_NE(res->body.find("\"state\":\"done\"", end), std::string::npos) << res->body;
+  EXPECT_NE(res->body.find("\"worker\":\"w\"", end), std::string::npos) << res->body;
+}
+
 TEST_F(QueueMode, RedisRestartedMidRunLosesNoJob) {
   const Replica& a = start_replica("a");
   start_replica("b");

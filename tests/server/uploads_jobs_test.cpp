@@ -10,10 +10,12 @@
 #include <openssl/evp.h>
 #include <openssl/hmac.h>
 
+#include <array>
 #include <atomic>
 #include <cctype>
 #include <chrono>
 #include <cstdio>
+#include <ctime>
 #include <filesystem>
 #include <memory>
 #include <mutex>
@@ -30,6 +32,7 @@
 #include "server/daemon.h"
 #include "server/http.h"
 #include "server/http_upload.h"
+#include "server/job_callbacks.h"
 #include "test_stl.h"
 
 namespace stlrefine::server {
@@ -613,10 +616,11 @@ TEST(JobCallbacks, SignedPostRetriedUntilAcceptedOnlyToAllowedHosts) {
   // The receiver: refuses the first delivery (500), accepts the second.
   httplib::Server receiver;
   std::mutex mutex;
-  std::vector<std::pair<std::string, std::string>> received;  // body, signature
+  std::vector<std::array<std::string, 3>> received;  // body, signature, timestamp
   receiver.Post("/hook", [&](const httplib::Request& req, httplib::Response& res) {
     std::lock_guard lock(mutex);
-    received.emplace_back(req.body, req.get_header_value("X-Stlrefine-Signature"));
+    received.push_back({req.body, req.get_header_value("X-Stlrefine-Signature"),
+                        req.get_header_value("X-Stlrefine-Timestamp")});
     res.status = received.size() == 1 ? 500 : 204;
   });
   const int port = receiver.bind_to_any_port("127.0.0.1");
@@ -649,8 +653,12 @@ TEST(JobCallbacks, SignedPostRetriedUntilAcceptedOnlyToAllowedHosts) {
     {
       std::lock_guard lock(mutex);
       ASSERT_EQ(received.size(), 2u);  // refused once, then delivered; not again
-      for (const auto& [body, signature] : received) {
-        EXPECT_EQ(signature, "sha256=" + hmac_hex(secret, body));
+      // Signed under the tenant's key (the keyless tenant here), over "timestamp.body".
+      const std::string key = callback_key_of_api_key(dir, secret, "");
+      EXPECT_EQ(key, hmac_hex(secret, ""));  // the keyless daemon's one tenant id: ""
+      for (const auto& [body, signature, timestamp] : received) {
+        EXPECT_EQ(signature, "sha256=" + hmac_hex(key, timestamp + "." + body));
+        EXPECT_NEAR(std::stod(timestamp), static_cast<double>(std::time(nullptr)), 30.0);
         const Json j = Json::parse(body);
         EXPECT_EQ(j["id"], done["id"]);
         EXPECT_EQ(j["state"], "done");

@@ -1,0 +1,147 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+//
+// LSF against the ideal refinement on CAD-like tessellations (issue 17 item 3: within 2x of
+// the ideal, at most 0.25x the input, 2 levels). The ideal is the same 1-to-4 topology with
+// every new edge point the chord midpoint moved onto the true surface (onto the crease for a
+// crease chord's halves), as bench/fidelity measures it. Default (auto) crease detection,
+// as a request runs it.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <map>
+#include <set>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "core/features/features.h"
+#include "core/schemes/lsf.h"
+#include "tests/core/test_util.h"
+#include "tests/support/cad_like.h"
+#include "tests/support/shapes.h"
+#include "tests/support/true_surface.h"
+
+namespace stlrefine {
+namespace {
+
+using namespace test;
+
+constexpr std::array<std::uint64_t, 3> kSeeds{1, 2, 3};
+
+// Area-weighted RMS distance to the surface over the centroids of a k x k split of each face.
+double rms_distance(const Mesh& m, const TrueSurface& surface, int k) {
+  double sum = 0, area = 0;
+  for (std::uint32_t f = 0; f < m.num_faces(); ++f) {
+    const auto [i, j, l] = m.face_vertices(FaceId(f));
+    const Vec3 a = m.position(i), b = m.position(j), c = m.position(l);
+    const double face_area = 0.5 * norm(triangle_normal(a, b, c));
+    double face_sum = 0;
+    int count = 0;
+    for (int r = 0; r < k; ++r) {
+      for (int s = 0; s + r < k; ++s) {
+        for (int inverted = 0; inverted < 2; ++inverted) {
+          if (inverted && r + s + 1 >= k) continue;
+          const double u = (r + (inverted ? 2.0 : 1.0) / 3.0) / k;
+          const double v = (s + (inverted ? 2.0 : 1.0) / 3.0) / k;
+          const Vec3 p = a + u * (b - a) + v * (c - a);
+          const double d = distance(p, surface.closest_point(p).point);
+          face_sum += d * d;
+          ++count;
+        }
+      }
+    }
+    sum += face_area * face_sum / count;
+    area += face_area;
+  }
+  return std::sqrt(sum / area);
+}
+
+// `levels` 1-to-4 splits of the shape's soup whose edge points are the chord midpoints moved
+// onto the truth (the crease's nearest point for halves of a crease chord).
+IndexedSoup ideal_refinement(const CadShape& shape, int levels) {
+  IndexedSoup soup = shape.soup;
+  using Edge = std::pair<std::uint32_t, std::uint32_t>;
+  std::set<Edge> crease;
+  for (const auto& [a, b] : shape.crease_edges) crease.insert({a, b});
+  for (int level = 0; level < levels; ++level) {
+    std::map<Edge, std::uint32_t> edge_point;
+    std::set<Edge> next_crease;
+    auto mid = [&](std::uint32_t a, std::uint32_t b) {
+      const Edge key = std::minmax(a, b);
+      if (const auto it = edge_point.find(key); it != edge_point.end()) return it->second;
+      const Vec3 m = (soup.positions[a] + soup.positions[b]) * 0.5;
+      const bool on_crease = crease.count(key) > 0;
+      soup.positions.push_back(on_crease ? shape.surface->closest_crease_point(m)->point
+                                         : shape.surface->closest_point(m).point);
+      const auto id = static_cast<std::uint32_t>(soup.positions.size() - 1);
+      edge_point.emplace(key, id);
+      if (on_crease) next_crease.insert(std::minmax(a, id)), next_crease.insert(std::minmax(id, b));
+      return id;
+    };
+    std::vector<std::array<std::uint32_t, 3>> next;
+    for (const auto& t : soup.triangles) {
+      const std::uint32_t ab = mid(t[0], t[1]), bc = mid(t[1], t[2]), ca = mid(t[2], t[0]);
+      next.push_back({t[0], ab, ca});
+      next.push_back({ab, t[1], bc});
+      next.push_back({ca, bc, t[2]});
+      next.push_back({ab, bc, ca});
+    }
+    soup.triangles = std::move(next);
+    crease = std::move(next_crease);
+  }
+  return soup;
+}
+
+struct Ratios {
+  double to_ideal = 0, to_input = 0;  // means over kSeeds, 2 levels
+};
+
+Ratios two_level_ratios(CadFamily family) {
+  Ratios r;
+  for (const std::uint64_t seed : kSeeds) {
+    const CadShape shape = make_cad_shape(family, {seed, 1.0});
+    const Mesh input = to_mesh(shape.soup);
+    Level level{Mesh(input), detect_features(input, FeatureParams{})};
+    level = refine_levels("lsf", std::move(level), 2);
+    const double rms = rms_distance(level.mesh, *shape.surface, 2);
+    const double ideal = rms_distance(to_mesh(ideal_refinement(shape, 2)), *shape.surface, 2);
+    const double in = rms_distance(input, *shape.surface, 8);
+    r.to_ideal += rms / ideal / kSeeds.size();
+    r.to_input += rms / in / kSeeds.size();
+  }
+  return r;
+}
+
+// The families issue 17's target is met on: the zipped walls (crease sector normals held
+// across the rim, Hermite midpoints at crease ends, rims continued through false corners) and
+// the hulls (relaxed guard normals). Before this round the cylinder was 2.9-3.8x the ideal,
+// the cone 3.6-4.0x, the tube 2.7-4.5x; here now 1.71, 1.69, 1.63 (hulls 1.25-1.40).
+TEST(LsfIdeal, ZippedWallsAndHullsWithinTwiceTheIdealAndAQuarterOfTheInput) {
+  for (const CadFamily family : {CadFamily::CappedCylinder, CadFamily::Cone, CadFamily::Tube,
+                                 CadFamily::Sphere, CadFamily::Ellipsoid, CadFamily::Blob}) {
+    const Ratios r = two_level_ratios(family);
+    EXPECT_LE(r.to_ideal, 2.0) << cad_family_name(family);
+    EXPECT_LE(r.to_input, 0.25) << cad_family_name(family);
+  }
+}
+
+// Where the target is still missed, today's figures on these seeds (rounded box 6.18x the
+// ideal, 0.42x the input; plate 3.56x, 0.23x; torus 2.02x, 0.14x) are the bound, so that
+// they cannot get worse unnoticed (the target stays open: bench/results-issue17-s5-lsf.md).
+TEST(LsfIdeal, RoundedBoxPlateAndTorusNoWorseThanToday) {
+  const std::array<std::pair<CadFamily, double>, 3> bounds = {
+      {{CadFamily::RoundedBox, 6.5}, {CadFamily::Plate, 3.8}, {CadFamily::Torus, 2.2}}};
+  for (const auto& [family, bound] : bounds) {
+    const Ratios r = two_level_ratios(family);
+    EXPECT_LE(r.to_ideal, bound) << cad_family_name(family);
+    EXPECT_LE(r.to_input, 0.5) << cad_family_name(family);
+  }
+}
+
+}  // namespace
+}  // namespace stlrefine
