@@ -255,8 +255,10 @@ TEST_F(QueueMode, KilledReplicasJobFinishesOnAnotherWithOneResult) {
   const double seconds = std::chrono::duration<double>(Clock::now() - killed).count();
   ASSERT_EQ(j.value("state", ""), "done") << j.dump();
   EXPECT_EQ(j.value("worker", ""), survivor.name);
-  // Lease (2 s) + a reclaim look (1 s) + the run, with room for a loaded machine.
-  EXPECT_LT(seconds, 2 + 1 + 30.0);
+  // Within the lease (2 s) + a reclaim look (1 s) + the second run, and a few seconds for a
+  // machine loaded by parallel tests.
+  const double run = j["timings"].value("run_seconds", 0.0);
+  EXPECT_LT(seconds, 2 + 1 + run + 5) << "run " << run << " s";
   EXPECT_EQ(j["links"].size(), 3u) << j.dump();  // self, result.stl, report.json
   auto stl = survivor.client()->Get(("/v1/jobs/" + id + "/result.stl").c_str());
   ASSERT_TRUE(stl);
@@ -285,8 +287,9 @@ TEST_F(QueueMode, CancelThroughAReplicaThatDoesNotRunTheJob) {
   EXPECT_EQ(Json::parse(del->body).value("cancel", ""), "cancelled");
   const Json j = wait_ended(api, id, 10s);
   EXPECT_EQ(j.value("state", ""), "cancelled") << j.dump();
-  // Seen at the runner's next heartbeat (0.25 s) and cancellation check.
-  EXPECT_LT(std::chrono::duration<double>(Clock::now() - asked).count(), 3.0);
+  // Seen at the runner's next heartbeat (0.25 s) and cancellation check (about 1 s here;
+  // room for a machine loaded by parallel tests).
+  EXPECT_LT(std::chrono::duration<double>(Clock::now() - asked).count(), 5.0);
   // A queued job is cancelled at once: with the only runner busy, the second one waits.
   const std::string busy = submit(api, kLongJob, long_mesh());
   const std::string queued = submit(api, "levels=1", binary_stl(octahedron_triangles()));
