@@ -57,12 +57,12 @@ struct JobStore::Job {
   std::shared_ptr<RequestWatch::Ticket> ticket;
   // Queue mode.
   std::string entry;         // its stream entry while this replica runs it
-  bool handed_back = false;  // put back in the queue at shutdown, unstarted
+  bool handed_back = false;  // put back in the queue by a shutdown (hand_back)
   bool superseded = false;   // another replica took its entry over (this lease lapsed)
 };
 
-//! Queue mode: the figures of /metrics, refreshed by the lease keeper (the event loop never
-//! waits for Redis).
+//! Queue mode: the figures of /metrics and the jobs event streams follow, refreshed by the
+//! lease keeper (the event loop never waits for Redis).
 struct JobStore::QueueFigures {
   std::atomic<bool> reachable{false};
   std::atomic<std::uint64_t> depth{0}, pending{0}, reclaims{0}, attempts{0};
