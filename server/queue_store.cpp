@@ -23,7 +23,7 @@ namespace {
 // Each Redis call's reply: a hung Redis holds an HTTP thread at most this long.
 constexpr auto kCallTimeout = std::chrono::milliseconds(1000);
 // A runner waits this long for a new entry, then looks at shutdown and silent entries.
-constexpr auto kBlock = std::chrono::milliseconds(500);
+constexpr auto kBlock = std::chrono::milliseconds(600);
 // How often a runner looks for entries whose runner went silent (XAUTOCLAIM).
 constexpr auto kReclaimEvery = std::chrono::milliseconds(1000);
 // A runner records a job's end for this long while Redis is away (restarting), then leaves it
@@ -31,6 +31,10 @@ constexpr auto kReclaimEvery = std::chrono::milliseconds(1000);
 constexpr auto kFinishPatience = std::chrono::seconds(30);
 // A DELETE that meets a job being recorded as ended waits this long for that record.
 constexpr auto kFinishingWait = std::chrono::seconds(5);
+// A runner's pause after a failed call to Redis (its connection adds the back-off).
+constexpr auto kRetryPause = std::chrono::milliseconds(250);
+// Finished jobs one janitor pass expires at most.
+constexpr std::size_t kExpireBatch = 256;
 // Ids a job list looks at, at most (newest first).
 constexpr std::size_t kListScan = 2000;
 
@@ -374,7 +378,7 @@ bool JobStore::finish_queued(RedisConnection& c, Job& job) {
         return false;
       }
     }
-    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    std::this_thread::sleep_for(kRetryPause);
   }
 }
 
@@ -484,7 +488,7 @@ void JobStore::run_queue_jobs() {
         redis_->ensure_group(c);  // NOGROUP: a Redis restarted without its data
       } catch (const std::exception&) {
       }
-      std::this_thread::sleep_for(std::chrono::milliseconds(200));
+      std::this_thread::sleep_for(kRetryPause);
     }
   }
 }
@@ -546,7 +550,7 @@ void JobStore::expire_queued() {
   auto c = redis_->pool().take();
   const auto before =
       now_ms() - std::chrono::duration_cast<std::chrono::milliseconds>(config_.retention).count();
-  for (const std::string& id : redis_->due(*c, before, 200)) {
+  for (const std::string& id : redis_->due(*c, before, kExpireBatch)) {
     if (!well_formed_id(id)) {
       redis_->expired(*c, id);
       continue;
