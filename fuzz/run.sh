@@ -58,7 +58,7 @@ seeds() {
 
 # Stack traces for UBSan reports too (ASan prints them anyway).
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1}
-# lib3mf 1.8.1 leaks its zip entries (scripts/lsan.supp says why).
+# Suppressions for leaks that are not ours (scripts/lsan.supp; none today).
 export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$root/scripts/lsan.supp}
 
 for name in "${names[@]}"; do

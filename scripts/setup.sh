@@ -20,7 +20,8 @@ jobs=$(nproc 2>/dev/null || echo 2)
 packages=(build-essential cmake pkg-config curl ca-certificates
   libcgal-dev libeigen3-dev libcpp-httplib-dev nlohmann-json3-dev libcli11-dev libtbb-dev
   libgtest-dev libgmock-dev libbenchmark-dev libopenmesh-dev libzip-dev libssl-dev
-  lib3mf-dev  # 3MF in and out (core/io/threemf_*.cpp)
+  lib3mf-dev  # 3MF out (core/io/threemf_writer.cpp)
+  libexpat1-dev  # 3MF in: the model XML, streamed (core/io/threemf_xml.cpp)
   clang-14 libclang-rt-14-dev
   libjson-validator-perl  # the OpenAPI validator of tests/server/openapi_validator_test.cpp
   libhiredis-dev redis-server)  # --queue redis:// (server/queue_*), and its tests

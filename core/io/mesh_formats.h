@@ -69,11 +69,15 @@ struct MeshInput {
 //!    (the body ends before the header's counts), syntax (ASCII body), bad_index,
 //!    bad_face (fewer than 3 corners), trailing_bytes (binary data after the last
 //!    element), zero_triangles, non_finite, coordinate_out_of_range, too_many_triangles;
-//!  - 3MF: not_3mf (not a readable 3MF package or model: lib3mf's message),
-//!    too_large (over kMax3mfParts parts, or parts inflating to over
-//!    kMax3mfUncompressedBytes, checked in the zip's
-//!    directory before any inflating), zero_triangles, bad_index, non_finite,
-//!    coordinate_out_of_range (after the build transforms), too_many_triangles.
+//!  - 3MF: not_3mf (not a readable zip, no _rels/.rels, the model part it names missing,
+//!    XML not well-formed or with a DOCTYPE, an element out of place, a missing or bad
+//!    attribute, an unknown unit, an object id defined twice or used before it is
+//!    defined, components nested over 32 deep; the message names the part and line),
+//!    too_large (over kMax3mfParts parts, parts declaring or really inflating to over
+//!    kMax3mfUncompressedBytes, too many objects, components or build items, one XML
+//!    token over 16 MiB), zero_triangles, bad_index, non_finite, coordinate_out_of_range
+//!    (after the build transforms), too_many_triangles (stored, or once components are
+//!    expanded: checked before expanding), too_many_vertices.
 MeshInput read_mesh(std::span<const std::uint8_t> bytes, const StlReadOptions& options = {});
 
 //! The readers read_mesh dispatches to (each checks its own format only).
@@ -81,11 +85,19 @@ MeshInput read_obj(std::span<const std::uint8_t> bytes, const StlReadOptions& op
 MeshInput read_ply(std::span<const std::uint8_t> bytes, const StlReadOptions& options = {});
 MeshInput read_3mf(std::span<const std::uint8_t> bytes, const StlReadOptions& options = {});
 
-//! Most bytes a 3MF's parts may inflate to (a zip bomb is refused before lib3mf reads it).
+//! Most bytes a 3MF's parts may inflate to (and see kMax3mfInflateRatio): declared (refused
+//! before inflating) and as really inflated (counted while streaming; the XML is never
+//! held whole).
 inline constexpr std::uint64_t kMax3mfUncompressedBytes = std::uint64_t{4} << 30;
 //! Most parts (zip entries) a 3MF may have: a model, its relationships, content types,
 //! thumbnails and a few attachments fit many times over.
 inline constexpr std::int64_t kMax3mfParts = 256;
+//! What a 3MF's parts may really inflate to is also bounded by its size: at most
+//! max(kMax3mfInflateFloor, kMax3mfInflateRatio x the package's bytes). Deflated mesh XML
+//! shrinks ~3-10x (bench/results-issue19-s5-tmf-web.md); a bomb shrinks ~1000x and would
+//! cost seconds of parsing per request for nothing.
+inline constexpr std::uint64_t kMax3mfInflateRatio = 100;
+inline constexpr std::uint64_t kMax3mfInflateFloor = std::uint64_t{64} << 20;
 
 //! A mesh to write and the name its 3MF object gets.
 struct NamedMesh {

@@ -1,23 +1,26 @@
 // SPDX-License-Identifier: MIT
 // Copyright (c) 2026 stlrefine authors
 //
-// 3MF through Debian's lib3mf (1.8, the NMR C interface): every build item's object, mesh
-// or components (nested, each with its transform), flattened with the item's transform
-// into one part per build item, and the model's unit. The zip's directory is read first
-// (libzip) so that a bomb is refused before lib3mf inflates anything.
+// A 3MF package (libzip): the zip's directory is checked first (parts, declared sizes);
+// _rels/.rels names the model part; that part is inflated in chunks straight into the
+// streaming model parser (threemf_model.h), counting the bytes it really inflates to
+// against a cap from the package's own size (kMax3mfInflateRatio), whatever the directory
+// declared. Replaces Debian's
+// lib3mf 1.8.1 for reading, which leaked every zip entry it opened (~800 bytes of daemon
+// RSS per request: bench/results-issue19-s5-tmf-web.md).
 
-#include <Model/COM/NMR_DLLInterfaces.h>
 #include <zip.h>
 
 #include <algorithm>
-#include <array>
-#include <cstring>
+#include <charconv>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include "core/io/mesh_formats.h"
 #include "core/io/reader_util.h"
+#include "core/io/threemf_model.h"
+#include "core/io/threemf_xml.h"
 
 namespace stlrefine {
 
@@ -25,41 +28,25 @@ namespace {
 
 using io_detail::malformed;
 
-//! A row-major affine map: x'_i = sum_j m[i][j] x_j + m[i][3] (lib3mf's MODELTRANSFORM).
-using Affine = std::array<std::array<double, 4>, 3>;
+constexpr std::string_view kModelRelationship =
+    "http://schemas.microsoft.com/3dmanufacturing/2013/01/3dmodel";
+constexpr std::string_view kRelationshipsNs =
+    "http://schemas.openxmlformats.org/package/2006/relationships";
+// _rels/.rels names a few parts; a larger one is not a 3MF's.
+constexpr std::uint64_t kMaxRelsBytes = 1 << 20;
 
-constexpr Affine kIdentity = {{{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}}};
-
-Affine from_lib3mf(const NMR::MODELTRANSFORM& t) {
-  Affine a{};
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 4; ++j) a[i][j] = t.m_fFields[i][j];
-  return a;
+Error not_3mf(const std::string& message) {
+  return malformed("not_3mf", message).at_byte(0);
 }
 
-//! outer(inner(x)).
-Affine compose(const Affine& outer, const Affine& inner) {
-  Affine r{};
-  for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 4; ++j) {
-      double s = j == 3 ? outer[i][3] : 0.0;
-      for (int k = 0; k < 3; ++k) s += outer[i][k] * inner[k][j];
-      r[i][j] = s;
-    }
-  }
-  return r;
-}
-
-//! Releases a lib3mf object when it goes out of scope.
-struct Released {
-  void operator()(NMR::PLib3MFBase* p) const {
-    if (p) NMR::lib3mf_release(p);
-  }
+struct ZipCloser {
+  void operator()(zip_t* z) const { zip_discard(z); }
 };
-using Lib3mfHandle = std::unique_ptr<NMR::PLib3MFBase, Released>;
+struct ZipFileCloser {
+  void operator()(zip_file_t* f) const { zip_fclose(f); }
+};
 
-//! The uncompressed size of every part, from the zip's central directory.
-void refuse_zip_bomb(std::span<const std::uint8_t> bytes, std::uint64_t limit) {
+std::unique_ptr<zip_t, ZipCloser> open_zip(std::span<const std::uint8_t> bytes) {
   zip_error_t error;
   zip_error_init(&error);
   zip_source_t* source = zip_source_buffer_create(bytes.data(), bytes.size(), 0, &error);
@@ -69,229 +56,129 @@ void refuse_zip_bomb(std::span<const std::uint8_t> bytes, std::uint64_t limit) {
     zip_source_free(source);
     const std::string why = zip_error_strerror(&error);
     zip_error_fini(&error);
-    throw malformed("not_3mf", "this starts like a zip (3MF) but is not a readable zip: " + why)
-        .at_byte(0);
+    throw not_3mf("this starts like a zip (3MF) but is not a readable zip: " + why);
   }
   zip_error_fini(&error);
-  std::uint64_t total = 0;
+  return std::unique_ptr<zip_t, ZipCloser>(archive);
+}
+
+//! Refuses, from the directory alone, a package of too many parts or whose parts declare
+//! more than `limit` bytes: a bomb that tells the truth is refused before any inflating.
+void check_directory(zip_t* archive, std::uint64_t limit) {
   const zip_int64_t entries = zip_get_num_entries(archive, 0);
-  // lib3mf 1.8.1 leaks ~160 bytes for each part it opens (scripts/lsan.supp): a package of
-  // thousands of parts would make one request leak megabytes.
-  if (entries > kMax3mfParts) {
-    zip_discard(archive);
+  // Every entry costs libzip memory and time; a model, its relationships, content types,
+  // thumbnails and a few attachments fit many times over.
+  if (entries > kMax3mfParts)
     throw malformed("too_large", "the 3MF has " + std::to_string(entries) + " parts, more than " +
                                      std::to_string(kMax3mfParts))
         .at_byte(0);
-  }
+  std::uint64_t total = 0;
   for (zip_int64_t i = 0; i < entries; ++i) {
     zip_stat_t st;
     zip_stat_init(&st);
     if (zip_stat_index(archive, static_cast<zip_uint64_t>(i), 0, &st) == 0 &&
         (st.valid & ZIP_STAT_SIZE))
       total += st.size;
-    if (total > limit) {
-      zip_discard(archive);
+    if (total > limit)
       throw malformed("too_large",
                       "the 3MF's parts inflate to more than " + std::to_string(limit) + " bytes")
           .at_byte(0);
-    }
   }
-  zip_discard(archive);
 }
 
-class ThreeMfReader {
+//! Inflates part `name` in chunks into `sink(data, size, last)`, counting what it really
+//! inflates to against `budget` (decremented; `limit` is the cap a refusal quotes).
+template <class Sink>
+void inflate(zip_t* archive, const std::string& name, std::uint64_t& budget, std::uint64_t limit,
+             const char* why, Sink sink) {
+  const zip_int64_t index = zip_name_locate(archive, name.c_str(), ZIP_FL_NOCASE);
+  if (index < 0) throw not_3mf("the package has no part " + name);
+  std::unique_ptr<zip_file_t, ZipFileCloser> file(
+      zip_fopen_index(archive, static_cast<zip_uint64_t>(index), 0));
+  if (!file) throw not_3mf("the part " + name + " cannot be opened: " + zip_strerror(archive));
+  std::vector<char> chunk(std::size_t{1} << 16);
+  for (;;) {
+    const zip_int64_t n = zip_fread(file.get(), chunk.data(), chunk.size());
+    if (n < 0) throw not_3mf("the part " + name + " is corrupt: " + zip_file_strerror(file.get()));
+    if (static_cast<std::uint64_t>(n) > budget)
+      throw malformed("too_large", "the 3MF's part " + name + " inflates to more than " +
+                                       std::to_string(limit) + " bytes (" + why + ")")
+          .at_byte(0);
+    budget -= static_cast<std::uint64_t>(n);
+    sink(chunk.data(), static_cast<std::size_t>(n), n == 0);
+    if (n == 0) return;
+  }
+}
+
+//! "%20" and the like in a relationship's target.
+std::string percent_decoded(std::string_view s) {
+  std::string out;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    unsigned value = 0;
+    if (s[i] == '%' && i + 2 < s.size() &&
+        std::from_chars(s.data() + i + 1, s.data() + i + 3, value, 16).ptr == s.data() + i + 3) {
+      out.push_back(static_cast<char>(value));
+      i += 2;
+    } else {
+      out.push_back(s[i]);
+    }
+  }
+  return out;
+}
+
+//! The first 3D model relationship's target in _rels/.rels.
+class RootRelationships : public io_detail::XmlHandler {
  public:
-  ThreeMfReader(std::span<const std::uint8_t> bytes, const StlReadOptions& options)
-      : bytes_(bytes), options_(options) {}
-
-  MeshInput read() {
-    refuse_zip_bomb(bytes_, kMax3mfUncompressedBytes);
-    NMR::PLib3MFModel* raw_model = nullptr;
-    check(NMR::lib3mf_createmodel(&raw_model), nullptr, "cannot make a model");
-    const Lib3mfHandle model(raw_model);
-    NMR::PLib3MFModelReader* raw_reader = nullptr;
-    check(NMR::lib3mf_model_queryreader(model.get(), "3mf", &raw_reader), model.get(),
-          "no 3MF reader");
-    const Lib3mfHandle reader(raw_reader);
-    // lib3mf's signature takes a mutable buffer; it only reads it.
-    auto* data = const_cast<BYTE*>(reinterpret_cast<const BYTE*>(bytes_.data()));
-    if (NMR::lib3mf_reader_readfrombuffer(reader.get(), data, bytes_.size()) != LIB3MF_OK)
-      throw malformed("not_3mf", "not a readable 3MF: " + last_error(reader.get())).at_byte(0);
-
-    MeshInput out;
-    out.format = MeshFormat::ThreeMf;
-    out.soup.format = StlFormat::Binary;
-    DWORD unit = 0;
-    check(NMR::lib3mf_model_getunit(model.get(), &unit), model.get(), "no unit");
-    out.unit = declared_unit(unit);
-
-    NMR::PLib3MFModelBuildItemIterator* raw_items = nullptr;
-    check(NMR::lib3mf_model_getbuilditems(model.get(), &raw_items), model.get(), "no build");
-    const Lib3mfHandle items(raw_items);
-    coords_ = &out.soup.coords;
-    BOOL more = false;
-    for (std::size_t n = 0;; ++n) {
-      check(NMR::lib3mf_builditemiterator_movenext(items.get(), &more), items.get(), "build");
-      if (!more) break;
-      NMR::PLib3MFModelBuildItem* raw_item = nullptr;
-      check(NMR::lib3mf_builditemiterator_getcurrent(items.get(), &raw_item), items.get(),
-            "build item");
-      const Lib3mfHandle item(raw_item);
-      NMR::PLib3MFModelObjectResource* raw_object = nullptr;
-      check(NMR::lib3mf_builditem_getobjectresource(item.get(), &raw_object), item.get(),
-            "build item object");
-      const Lib3mfHandle object(raw_object);
-      Affine transform = kIdentity;
-      BOOL has = false;
-      check(NMR::lib3mf_builditem_hasobjecttransform(item.get(), &has), item.get(), "transform");
-      if (has) {
-        NMR::MODELTRANSFORM t;
-        check(NMR::lib3mf_builditem_getobjecttransform(item.get(), &t), item.get(), "transform");
-        transform = from_lib3mf(t);
-      }
-      MeshPart part;
-      part.first_triangle = coords_->size() / 9;
-      part.name = object_name(object.get());
-      if (part.name.empty()) part.name = "object " + std::to_string(n + 1);
-      add_object(object.get(), transform, 0);
-      part.triangle_count = coords_->size() / 9 - part.first_triangle;
-      if (part.triangle_count > 0) out.parts.push_back(std::move(part));
-    }
-    if (coords_->empty())
-      throw malformed("zero_triangles", "the 3MF's build holds no mesh triangle").at_byte(0);
-    return out;
+  void start(std::string_view ns, std::string_view name,
+             const io_detail::XmlAttributes& attrs) override {
+    if (ns != kRelationshipsNs || name != "Relationship" || !target.empty()) return;
+    const char* type = attrs.find("Type");
+    const char* to = attrs.find("Target");
+    if (type && to && type == kModelRelationship) target = to;
   }
-
- private:
-  static std::string last_error(NMR::PLib3MFBase* instance) {
-    DWORD code = 0;
-    LPCSTR message = nullptr;
-    if (instance) NMR::lib3mf_getlasterror(instance, &code, &message);
-    return message ? std::string(message) : "lib3mf error " + std::to_string(code);
-  }
-
-  static void check(LIB3MFRESULT r, NMR::PLib3MFBase* instance, const char* what) {
-    if (r != LIB3MF_OK)
-      throw malformed("not_3mf", std::string("3MF model: ") + what + ": " + last_error(instance))
-          .at_byte(0);
-  }
-
-  static DeclaredUnit declared_unit(DWORD unit) {
-    switch (unit) {
-      case NMR::MODELUNIT_MICROMETER:
-        return {"micron", 0.001};
-      case NMR::MODELUNIT_MILLIMETER:
-        return {"millimeter", 1.0};
-      case NMR::MODELUNIT_CENTIMETER:
-        return {"centimeter", 10.0};
-      case NMR::MODELUNIT_INCH:
-        return {"inch", 25.4};
-      case NMR::MODELUNIT_FOOT:
-        return {"foot", 304.8};
-      case NMR::MODELUNIT_METER:
-        return {"meter", 1000.0};
-      default:
-        throw malformed("not_3mf", "unknown 3MF unit " + std::to_string(unit)).at_byte(0);
-    }
-  }
-
-  static std::string object_name(NMR::PLib3MFModelObjectResource* object) {
-    ULONG needed = 0;
-    if (NMR::lib3mf_object_getnameutf8(object, nullptr, 0, &needed) != LIB3MF_OK || needed == 0)
-      return {};
-    std::string name(std::min<ULONG>(needed, 4096) + 1, '\0');
-    if (NMR::lib3mf_object_getnameutf8(object, name.data(), static_cast<ULONG>(name.size()),
-                                       &needed) != LIB3MF_OK)
-      return {};
-    name.resize(std::strlen(name.c_str()));
-    return name;
-  }
-
-  void add_object(NMR::PLib3MFModelObjectResource* object, const Affine& transform, int depth) {
-    // lib3mf refuses reference cycles; the depth cap keeps a deep but acyclic chain bounded.
-    if (depth > 32) throw malformed("not_3mf", "components nested more than 32 deep").at_byte(0);
-    BOOL is_mesh = false, is_components = false;
-    check(NMR::lib3mf_object_ismeshobject(object, &is_mesh), object, "object");
-    check(NMR::lib3mf_object_iscomponentsobject(object, &is_components), object, "object");
-    if (is_mesh) return add_mesh(object, transform);
-    if (!is_components) return;
-    DWORD count = 0;
-    check(NMR::lib3mf_componentsobject_getcomponentcount(object, &count), object, "components");
-    for (DWORD i = 0; i < count; ++i) {
-      NMR::PLib3MFModelComponent* raw_component = nullptr;
-      check(NMR::lib3mf_componentsobject_getcomponent(object, i, &raw_component), object,
-            "component");
-      const Lib3mfHandle component(raw_component);
-      NMR::PLib3MFModelObjectResource* raw_child = nullptr;
-      check(NMR::lib3mf_component_getobjectresource(component.get(), &raw_child), component.get(),
-            "component object");
-      const Lib3mfHandle child(raw_child);
-      Affine inner = kIdentity;
-      BOOL has = false;
-      check(NMR::lib3mf_component_hastransform(component.get(), &has), component.get(),
-            "component transform");
-      if (has) {
-        NMR::MODELTRANSFORM t;
-        check(NMR::lib3mf_component_gettransform(component.get(), &t), component.get(),
-              "component transform");
-        inner = from_lib3mf(t);
-      }
-      add_object(child.get(), compose(transform, inner), depth + 1);
-    }
-  }
-
-  void add_mesh(NMR::PLib3MFModelMeshObject* mesh, const Affine& m) {
-    DWORD vertex_count = 0, triangle_count = 0;
-    check(NMR::lib3mf_meshobject_getvertexcount(mesh, &vertex_count), mesh, "vertices");
-    check(NMR::lib3mf_meshobject_gettrianglecount(mesh, &triangle_count), mesh, "triangles");
-    if (coords_->size() / 9 + triangle_count > options_.max_triangles)
-      throw io_detail::too_many_triangles(coords_->size() / 9 + triangle_count, options_)
-          .at_byte(0);
-    std::vector<NMR::MODELMESHVERTEX> vertices(vertex_count);
-    std::vector<NMR::MODELMESHTRIANGLE> triangles(triangle_count);
-    if (vertex_count)
-      check(NMR::lib3mf_meshobject_getvertices(mesh, vertices.data(), vertex_count, nullptr), mesh,
-            "vertices");
-    if (triangle_count)
-      check(NMR::lib3mf_meshobject_gettriangleindices(mesh, triangles.data(), triangle_count,
-                                                      nullptr),
-            mesh, "triangles");
-    // The transformed positions, checked as read_stl checks a file's floats.
-    std::vector<float> positions(3 * std::size_t{vertex_count});
-    for (std::size_t v = 0; v < vertex_count; ++v) {
-      const float* p = vertices[v].m_fPosition;
-      for (std::size_t i = 0; i < 3; ++i) {
-        const double x = m[i][0] * p[0] + m[i][1] * p[1] + m[i][2] * p[2] + m[i][3];
-        const std::string where = "vertex " + std::to_string(v) + ": " + io_detail::axis_name(i) +
-                                  " (after the build and component transforms)";
-        positions[3 * v + i] =
-            io_detail::checked_coordinate(x, options_, where, [](Error& e) { e.at_byte(0); });
-      }
-    }
-    coords_->reserve(coords_->size() + 9 * std::size_t{triangle_count});
-    for (std::size_t t = 0; t < triangle_count; ++t) {
-      for (const DWORD index : triangles[t].m_nIndices) {
-        if (index >= vertex_count)
-          throw malformed("bad_index", "triangle " + std::to_string(t) + " names vertex " +
-                                           std::to_string(index) + " of " +
-                                           std::to_string(vertex_count))
-              .at_byte(0);
-        coords_->insert(coords_->end(), positions.begin() + 3 * std::ptrdiff_t{index},
-                        positions.begin() + 3 * std::ptrdiff_t{index} + 3);
-      }
-    }
-  }
-
-  std::span<const std::uint8_t> bytes_;
-  const StlReadOptions& options_;
-  std::vector<float>* coords_ = nullptr;
+  void end(std::string_view, std::string_view) override {}
+  std::string target;
 };
+
+std::string model_part_name(zip_t* archive, std::uint64_t& budget) {
+  const std::string rels = "_rels/.rels";
+  if (zip_name_locate(archive, rels.c_str(), ZIP_FL_NOCASE) < 0)
+    throw not_3mf("the zip has no _rels/.rels: not a 3MF package");
+  RootRelationships handler;
+  io_detail::HardenedXml xml(handler, rels);
+  std::uint64_t rels_budget = std::min(budget, kMaxRelsBytes);
+  const std::uint64_t before = rels_budget;
+  inflate(archive, rels, rels_budget, kMaxRelsBytes, "the cap on a 3MF's relationships",
+          [&](const char* data, std::size_t size, bool last) { xml.feed(data, size, last); });
+  budget -= before - rels_budget;
+  if (handler.target.empty())
+    throw not_3mf("_rels/.rels names no 3D model part (relationship type " +
+                  std::string(kModelRelationship) + ")");
+  // Targets of the package's root relationships are package paths ("/3D/3dmodel.model").
+  std::string name = percent_decoded(handler.target);
+  while (!name.empty() && name.front() == '/') name.erase(0, 1);
+  if (name.empty() || zip_name_locate(archive, name.c_str(), ZIP_FL_NOCASE) < 0)
+    throw not_3mf("_rels/.rels names the model part " + io_detail::quoted(handler.target) +
+                  ", which the package does not hold");
+  return name;
+}
 
 }  // namespace
 
 MeshInput read_3mf(std::span<const std::uint8_t> bytes, const StlReadOptions& options) {
   options.validate();
-  return ThreeMfReader(bytes, options).read();
+  const auto archive = open_zip(bytes);
+  const std::uint64_t limit =
+      std::min(kMax3mfUncompressedBytes,
+               std::max(kMax3mfInflateFloor, kMax3mfInflateRatio * std::uint64_t{bytes.size()}));
+  check_directory(archive.get(), limit);
+  std::uint64_t budget = limit;
+  const std::string part = model_part_name(archive.get(), budget);
+  io_detail::ThreeMfModel model(options, part);
+  inflate(archive.get(), part, budget, limit,
+          "the 3MF's parts may inflate to 100 times the package's size, 64 MiB at least",
+          [&](const char* data, std::size_t size, bool last) { model.feed(data, size, last); });
+  return model.finish();
 }
 
 }  // namespace stlrefine

@@ -83,7 +83,8 @@ DominantPlanes dominant_planes(const Mesh& m, const Features& features) {
         for (HalfedgeId g : sector) {
           const std::uint32_t f = g.idx / 3;
           if (out.plane[f].area == 0) continue;
-          double held = 0, largest_on = 0, largest_off = 0;
+          double held = 0, off = 0, largest_on = 0, largest_off = 0;
+          bool lost = false;
           for (HalfedgeId o : sector) {
             const double a = out.plane[o.idx / 3].area;
             if (out.coplanar(m, f, o.idx / 3)) {
@@ -91,9 +92,18 @@ DominantPlanes dominant_planes(const Mesh& m, const Features& features) {
               largest_on = std::max(largest_on, a);
             } else {
               largest_off = std::max(largest_off, a);
+              off += a;
+              // Over half the area off the plane: it cannot dominate (the margin is far
+              // above the sums' rounding, so the answer is the full count's). On a scan
+              // every face's plane loses after two or three of its neighbours.
+              if (2 * off > total * (1 + 1e-9)) {
+                lost = true;
+                break;
+              }
             }
           }
-          out.dominant[g.idx] = 2 * held >= total && largest_on >= kDominance * largest_off;
+          out.dominant[g.idx] =
+              !lost && 2 * held >= total && largest_on >= kDominance * largest_off;
         }
         sector.clear();
       }

@@ -49,7 +49,7 @@ struct Level {
   //! Per face corner (3f + k, the corner at from(half-edge 3f + k)): the unit normal of the
   //! smooth surface the input stands for, which the split4 fold guard holds children to.
   //! Estimated once on the input (sector_normals) and carried to every later level by the
-  //! split4 host (split4_host.h); empty otherwise (the guard then estimates it on the level).
+  //! split4 and sqrt3 hosts; empty otherwise (the guard then estimates it on the level).
   BigVector<Vec3> smooth_normals{};
   //! Whether the step that refines this level makes the fine level's smooth_normals: off
   //! for the last step of a refinement (refine() knows it; the output needs none, and they

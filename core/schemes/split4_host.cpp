@@ -141,7 +141,8 @@ Split4Topology split4_topology(const Mesh& m, const Features& features) {
 
 std::uint64_t guard_folds_work_bytes(const Mesh& m) {
   return sizeof(Vec3) * std::uint64_t(m.num_edges()) +
-         2 * sizeof(std::uint32_t) * std::uint64_t(m.num_faces());
+         2 * sizeof(std::uint32_t) * std::uint64_t(m.num_faces()) +
+         (1 + sizeof(Vec3)) * std::uint64_t(m.num_vertices());  // moved old vertices
 }
 
 std::uint64_t guard_folds_normal_bytes(const Mesh& m) {
@@ -300,11 +301,41 @@ std::size_t guard_folds(const Mesh& m, const Features& features, const BigVector
     folding[f] = 1;
     touched.push_back(f);
   };
+  // Old vertices the stencil moved (butterfly-g1 from its second step on): where a child of
+  // theirs folds they go back towards where they were, first (see below).
+  std::vector<std::uint8_t> vertex_stage;
+  std::vector<Vec3> vertex_original;
+  auto moved_corner = [&](VertexId v) {
+    if (vertex_stage.empty()) return false;
+    return vertex_stage[v.idx] + 1u < kScale.size();
+  };
+  for (std::uint32_t v = 0; v < nv; ++v) {
+    if (pos[v] == m.position(VertexId(v))) continue;
+    if (vertex_stage.empty()) {
+      vertex_stage.assign(nv, kScale.size() - 1);
+      vertex_original.assign(pos.begin(), pos.begin() + nv);
+    }
+    vertex_stage[v] = 0;
+  }
   std::size_t moved_edges = 0;
   while (!todo.empty()) {
     if (original.empty()) original.assign(pos.begin() + nv, pos.end());
     touched.clear();
     for (std::uint32_t f : todo) {
+      // A moved corner goes back first, in the edge points' stages, to where the coarse level
+      // has it: G1's moves of old vertices are what folds there, and with the corner back
+      // the edge points are the plain butterfly's.
+      bool corner_moved = false;
+      for (const VertexId v : m.face_vertices(FaceId(f))) {
+        if (!moved_corner(v)) continue;
+        corner_moved = true;
+        if (vertex_stage[v.idx] == 0) ++moved_edges;
+        ++vertex_stage[v.idx];
+        const Vec3& home = m.position(v);
+        pos[v.idx] = home + kScale[vertex_stage[v.idx]] * (vertex_original[v.idx] - home);
+        for_each_outgoing(m, v, [&](HalfedgeId h) { touch(h.idx / 3); });
+      }
+      if (corner_moved) continue;
       bool smooth_movable = false;
       for (std::uint32_t k = 0; k < 3; ++k) {
         const EdgeId e = m.edge(HalfedgeId(3 * f + k));
@@ -332,7 +363,8 @@ std::size_t guard_folds(const Mesh& m, const Features& features, const BigVector
       // parent geometry): nothing further can be done there.
       bool movable = false;
       for (std::uint32_t k = 0; k < 3; ++k)
-        movable |= stage[m.edge(HalfedgeId(3 * f + k)).idx] + 1u < kScale.size();
+        movable |= stage[m.edge(HalfedgeId(3 * f + k)).idx] + 1u < kScale.size() ||
+                   moved_corner(m.from(HalfedgeId(3 * f + k)));
       if (movable) todo.push_back(f);
     }
   }

@@ -74,7 +74,9 @@ BigVector<Vec3> sector_normals(const Mesh& coarse, const Features& features);
 //! per coarse edge (V + e). Pulls edge points whose 1-to-4 children would turn more than
 //! kGuardAngleDeg from the smooth normals (the sector normals at the child's old vertices,
 //! their edge means at its new ones) or more than 90 degrees from their parent towards the
-//! chord midpoint, smooth edges before sharp ones; returns how many moved. It allocates a
+//! chord midpoint, smooth edges before sharp ones; an old vertex the stencil moved
+//! (butterfly-g1) of such a child goes back towards its coarse position first. Returns how
+//! many edge points and vertices moved. It allocates a
 //! byte per edge and per face and guard_folds_normal_bytes; only when some child folds,
 //! guard_folds_work_bytes more, and calls `reserve` with that first.
 std::size_t guard_folds(const Mesh& coarse, const Features& features, BigVector<Vec3>& positions,
@@ -108,8 +110,8 @@ std::uint64_t keep_dominant_planes_bytes(const Mesh& coarse);
 //! The fold guard's smooth normals (three per face), always allocated.
 std::uint64_t guard_folds_normal_bytes(const Mesh& coarse);
 
-//! The fold guard's work arrays when some child folds: the original edge points and two
-//! face lists.
+//! The fold guard's work arrays when some child folds: the original edge points, two face
+//! lists, and a stage and the stencil's point per vertex (for vertices the stencil moved).
 std::uint64_t guard_folds_work_bytes(const Mesh& coarse);
 
 //! Heap bytes split4(coarse, stencil) allocates at most, the fine level included.

@@ -79,8 +79,10 @@ class Sqrt3Stencil {
 //!   second trisection point of a boundary edge gets V + F + (rank among boundary edges).
 //! - faces: fine face h belongs to coarse half-edge h: the flipped triangle
 //!   (from(h), apex across, apex of h), or for a sharp or kept h the triangle it keeps.
-//! Fold guard (issue 17 item 2, when stencil.guards_folds()), against the coarse level's
-//! sector normals (split4_host.h) with the limit kSqrt3FoldAngleDeg:
+//! Fold guard (issue 17 item 2, when stencil.guards_folds()), against the smooth normals
+//! of the input (its sector_normals, split4_host.h, carried from step to step in
+//! Level::smooth_normals: the fine level gets them when coarse.pass_smooth_normals) with the
+//! limit kSqrt3FoldAngleDeg:
 //! - topological: a non-sharp edge whose flip would fold (a flipped child past the limit,
 //!   or the quad (a, q_g, b, q_f) not convex seen along the edge's smooth normal) is not
 //!   flipped; the face points of its two faces join both of its ends. Decided with the
@@ -98,13 +100,14 @@ class Sqrt3Stencil {
 Level sqrt3_refine(const Level& coarse, const Sqrt3Stencil& stencil, StepStats& stats,
                    FoldGuard guard = FoldGuard::AsStencil);
 
-//! The sqrt3 fold guard's limit (degrees) against the coarse level's smooth normals, tighter
-//! than split4's kFoldAngleDeg (60): each level's smooth normals are the sector normals of
-//! the level before, which drift from the true surface's (by 30-37 degrees after 3 steps
-//! next to the rounded box's fanned corners), so a guard at 60 let faces 60-80 degrees off
-//! the truth through. Tuned on seeds 1000-1003 of the CAD-like families: 30 against 60 gives
-//! far fewer faces past 60 degrees from the truth and the same or a lower RMS
-//! (bench/results-issue17-sqrt3.md). 20 was better still, but then the guard changes the
+//! The sqrt3 fold guard's limit (degrees) against the smooth normals, tighter than split4's
+//! kFoldAngleDeg (60): chosen when each level's smooth normals were the sector normals of the
+//! level before, which drift from the true surface's (by 30-37 degrees after 3 steps next to
+//! the rounded box's fanned corners), so a guard at 60 let faces 60-80 degrees off the truth
+//! through. The normals are carried from the input now (bench/results-issue17-s5-folds.md);
+//! the adaptive host still estimates them per level. Tuned on seeds 1000-1003 of the CAD-like
+//! families: 30 against 60 gives far fewer faces past 60 degrees from the truth and the same or a
+//! lower RMS (bench/results-issue17-sqrt3.md). 20 was better still, but then the guard changes the
 //! spectral analysis's probe steps, had it refined with the guard (it runs sqrt3_refine with
 //! FoldGuard::Off, as split4).
 inline constexpr double kSqrt3FoldAngleDeg = 30.0;

@@ -100,8 +100,9 @@ std::string cube_ply_binary(bool big, std::uint32_t vertex_count = 8) {
   return s;
 }
 
-//! A zip holding the given files (stored: the tests read the XML as written).
-std::string zip_of(const std::vector<std::pair<std::string, std::string>>& files) {
+//! A zip holding the given files (libzip's default method, or deflate at level 9).
+std::string zip_of(const std::vector<std::pair<std::string, std::string>>& files,
+                   bool deflate = false) {
   zip_error_t error;
   zip_error_init(&error);
   zip_source_t* buffer = zip_source_buffer_create(nullptr, 0, 0, &error);
@@ -110,7 +111,9 @@ std::string zip_of(const std::vector<std::pair<std::string, std::string>>& files
   zip_source_keep(buffer);
   for (const auto& [name, data] : files) {
     zip_source_t* s = zip_source_buffer(archive, data.data(), data.size(), 0);
-    zip_file_add(archive, name.c_str(), s, ZIP_FL_OVERWRITE);
+    const zip_int64_t index = zip_file_add(archive, name.c_str(), s, ZIP_FL_OVERWRITE);
+    if (deflate)
+      zip_set_file_compression(archive, static_cast<zip_uint64_t>(index), ZIP_CM_DEFLATE, 9);
   }
   zip_close(archive);
   zip_source_open(buffer);
@@ -469,15 +472,15 @@ TEST(ThreeMfReader, RefusesBadPackages) {
       package_3mf(model_xml(
           "millimeter", "<object id=\"1\" type=\"model\">" + cube_mesh_xml() + "</object>", "")),
       "zero_triangles");
-  // A triangle naming a vertex that does not exist (lib3mf refuses it while parsing).
-  expect_refused(package_3mf(model_xml("millimeter",
-                                       "<object id=\"1\" type=\"model\">" +
-                                           cube_mesh_xml("",
-                                                         "<triangle v1=\"0\" v2=\"1\" "
-                                                         "v3=\"99\"/>") +
-                                           "</object>",
-                                       "<item objectid=\"1\"/>")),
-                 "not_3mf");
+  // A triangle naming a vertex that does not exist.
+  const Error index = expect_refused(
+      package_3mf(model_xml("millimeter",
+                            "<object id=\"1\" type=\"model\">" +
+                                cube_mesh_xml("", "<triangle v1=\"0\" v2=\"1\" v3=\"99\"/>") +
+                                "</object>",
+                            "<item objectid=\"1\"/>")),
+      "bad_index");
+  EXPECT_TRUE(mentions(index, "names vertex 99 of 8")) << index.what();
   // A transform that throws a vertex beyond max_abs_coordinate.
   const Error far = expect_refused(
       package_3mf(model_xml("millimeter",
@@ -516,7 +519,246 @@ TEST(ThreeMfReader, RefusesAZipBombOnItsDirectory) {
   AllocationProbe probe(64 << 20);
   const Error e = expect_refused(zip, "too_large");
   EXPECT_FALSE(probe.refused());
-  EXPECT_TRUE(mentions(e, std::to_string(kMax3mfUncompressedBytes))) << e.what();
+  EXPECT_TRUE(mentions(e, "inflate to more than " + std::to_string(kMax3mfInflateFloor)))
+      << e.what();
+}
+
+// ---- 3MF: hostile packages (the reader is ours since lib3mf leaked) -----------------------
+
+//! A package whose model is `resources` and `build` in millimetre.
+std::string package_of(const std::string& resources, const std::string& build) {
+  return package_3mf(model_xml("millimeter", resources, build));
+}
+
+const std::string kCubeObject = "<object id=\"1\" name=\"cube\">" + cube_mesh_xml() + "</object>";
+
+//! The message of a refusal says `what`.
+void expect_refused_saying(const std::string& bytes, const char* reason, const std::string& what,
+                           const StlReadOptions& options = {}) {
+  const Error e = expect_refused(bytes, reason, options);
+  EXPECT_TRUE(mentions(e, what)) << "wanted '" << what << "' in: " << e.what();
+}
+
+TEST(ThreeMfReader, FindsTheModelWhereRelsSaysAndNowhereElse) {
+  const std::string model = model_xml("meter", kCubeObject, "<item objectid=\"1\"/>");
+  const std::string types =
+      "<?xml version=\"1.0\"?><Types "
+      "xmlns=\"http://schemas.openxmlformats.org/package/2006/content-types\"/>";
+  const auto rels = [](const std::string& target) {
+    return "<?xml version=\"1.0\"?><Relationships "
+           "xmlns=\"http://schemas.openxmlformats.org/package/2006/relationships\"><Relationship "
+           "Target=\"" +
+           target +
+           "\" Id=\"r\" Type=\"http://schemas.microsoft.com/3dmanufacturing/2013/01/3dmodel\"/>"
+           "</Relationships>";
+  };
+  // Elsewhere than 3D/3dmodel.model, with an escaped space: read from there.
+  const MeshInput in = read_mesh(span_of(zip_of({{"[Content_Types].xml", types},
+                                                 {"_rels/.rels", rels("/parts/my%20part.model")},
+                                                 {"parts/my part.model", model}})));
+  EXPECT_EQ(in.unit->name, "meter");
+  EXPECT_EQ(in.soup.triangle_count(), 12u);
+  // _rels names a part the zip does not hold (the model sits at the usual place).
+  expect_refused_saying(
+      zip_of({{"_rels/.rels", rels("/3D/elsewhere.model")}, {"3D/3dmodel.model", model}}),
+      "not_3mf", "'/3D/elsewhere.model', which the package does not hold");
+  // No _rels/.rels; a _rels/.rels without a model relationship.
+  expect_refused_saying(zip_of({{"3D/3dmodel.model", model}}), "not_3mf", "no _rels/.rels");
+  expect_refused_saying(zip_of({{"_rels/.rels",
+                                 "<Relationships xmlns=\"http://schemas.openxmlformats.org/"
+                                 "package/2006/relationships\"/>"},
+                                {"3D/3dmodel.model", model}}),
+                        "not_3mf", "names no 3D model part");
+}
+
+TEST(ThreeMfReader, RefusesAPartThatInflatesPastWhatItsDirectoryDeclares) {
+  // _rels/.rels really inflates to 2 MiB (over its 1 MiB cap) but its directory entries say
+  // 100 bytes: the bytes are counted as they inflate, the declared size is not trusted.
+  const std::string rels =
+      "<Relationships xmlns=\"http://schemas.openxmlformats.org/package/2006/relationships\">" +
+      std::string(2 << 20, ' ') + "</Relationships>";
+  std::string zip = zip_of({{"_rels/.rels", rels}}, true);
+  ASSERT_LT(zip.size(), 64u << 10);  // deflated: a small upload
+  const std::uint32_t small = 100;
+  std::memcpy(zip.data() + 22, &small, 4);  // local header's uncompressed size
+  const std::size_t central = zip.find("PK\x01\x02");
+  ASSERT_NE(central, std::string::npos);
+  std::memcpy(zip.data() + central + 24, &small, 4);  // the directory's
+  const Error e = expect_refused(zip, "too_large");
+  EXPECT_TRUE(mentions(e, "_rels/.rels inflates to more than 1048576 bytes")) << e.what();
+}
+
+//! Every entry of `zip` declared `size` bytes inflated (local headers and directory).
+void understate_sizes(std::string& zip, std::uint32_t size) {
+  for (std::size_t at = zip.find("PK\x03\x04"); at != std::string::npos;
+       at = zip.find("PK\x03\x04", at + 1))
+    std::memcpy(zip.data() + at + 22, &size, 4);
+  for (std::size_t at = zip.find("PK\x01\x02"); at != std::string::npos;
+       at = zip.find("PK\x01\x02", at + 1))
+    std::memcpy(zip.data() + at + 24, &size, 4);
+}
+
+TEST(ThreeMfReader, RefusesABombOnWhatItReallyInflatesTo) {
+  // 80 MiB of blanks in the model deflate to ~80 KiB. Honestly declared: over 100 times the
+  // package's size (and the 64 MiB floor), refused on the directory. Declared as 1000
+  // bytes: refused while inflating.
+  const std::string model =
+      model_xml("millimeter", kCubeObject + std::string(80 << 20, ' '), "<item objectid=\"1\"/>");
+  const std::string rels = zip_of(
+      {{"_rels/.rels",
+        "<Relationships xmlns=\"http://schemas.openxmlformats.org/package/2006/relationships\">"
+        "<Relationship Target=\"/3D/3dmodel.model\" Id=\"r\" "
+        "Type=\"http://schemas.microsoft.com/3dmanufacturing/2013/01/3dmodel\"/>"
+        "</Relationships>"},
+       {"3D/3dmodel.model", model}},
+      true);
+  ASSERT_LT(rels.size(), 1u << 20);
+  const Error honest = expect_refused(rels, "too_large");
+  EXPECT_TRUE(mentions(honest, "parts inflate to more than 67108864 bytes")) << honest.what();
+  std::string lying = rels;
+  understate_sizes(lying, 1000);
+  AllocationProbe probe(std::size_t{16} << 20);
+  const Error e = expect_refused(lying, "too_large");
+  EXPECT_FALSE(probe.refused());
+  EXPECT_TRUE(mentions(e, "3D/3dmodel.model inflates to more than 67108864 bytes")) << e.what();
+}
+
+TEST(ThreeMfReader, RefusesHostileXml) {
+  // Entity expansion ("billion laughs"): any DOCTYPE is refused before an entity is declared.
+  std::string laughs = "<?xml version=\"1.0\"?><!DOCTYPE model [<!ENTITY a \"ha\">";
+  for (int i = 1; i < 10; ++i)
+    laughs += "<!ENTITY a" + std::to_string(i) + " \"" + std::string(10, '&') + "\">";
+  laughs += "]><model>&a9;</model>";
+  expect_refused_saying(package_3mf(laughs), "not_3mf", "DOCTYPE");
+  // An external entity (a file of the server) likewise.
+  expect_refused_saying(
+      package_3mf("<?xml version=\"1.0\"?><!DOCTYPE model SYSTEM \"file:///etc/passwd\"><model/>"),
+      "not_3mf", "DOCTYPE");
+  // An undeclared entity; XML that is not well-formed, with its line.
+  expect_refused_saying(package_3mf("<model>&xxe;</model>"), "not_3mf", "undefined entity");
+  expect_refused_saying(package_3mf("<model>\n\n<resources></model>"), "not_3mf",
+                        "3D/3dmodel.model line 3: not well-formed XML");
+  // Nesting deep enough to exhaust a recursive parser.
+  std::string deep = "<model xmlns=\"http://schemas.microsoft.com/3dmanufacturing/core/2015/02\">";
+  for (int i = 0; i < 100; ++i) deep += "<x>";
+  expect_refused_saying(package_3mf(deep), "not_3mf", "nested more than 64 deep");
+  // One token of 2 MiB (expat would buffer it whole, however large the bomb).
+  AllocationProbe probe(std::size_t{64} << 20);
+  expect_refused_saying(package_3mf("<model><!--" + std::string(2 << 20, 'x') + "--></model>"),
+                        "too_large", "bytes without an XML element");
+  EXPECT_FALSE(probe.refused());
+  // Not a model at all.
+  expect_refused_saying(package_3mf("<svg/>"), "not_3mf", "root element is <svg>");
+  expect_refused_saying(package_3mf("<model xmlns=\"urn:other\"/>"), "not_3mf",
+                        "root element is <model> in namespace 'urn:other', not a 3MF <model>");
+}
+
+TEST(ThreeMfReader, RefusesBadObjectsAndReferences) {
+  const std::string item = "<item objectid=\"1\"/>";
+  // A build item naming an object the model lacks; an id defined twice.
+  expect_refused_saying(package_of(kCubeObject, "<item objectid=\"7\"/>"), "not_3mf",
+                        "names object 7, which the model does not define");
+  expect_refused_saying(package_of(kCubeObject + kCubeObject, item), "not_3mf",
+                        "object id 1 is defined twice");
+  // Component cycles: an object naming itself, two naming each other (3MF defines an
+  // object before its use, so either is a reference to an undefined object).
+  expect_refused_saying(
+      package_of("<object id=\"1\"><components><component objectid=\"1\"/></components></object>",
+                 item),
+      "not_3mf", "<component> names object 1, which the model does not define before it");
+  expect_refused_saying(
+      package_of(kCubeObject.substr(0, kCubeObject.size() - 9) +
+                     "</object><object id=\"2\"><components><component objectid=\"3\"/>"
+                     "</components></object><object id=\"3\"><components><component "
+                     "objectid=\"2\"/></components></object>",
+                 item),
+      "not_3mf", "names object 3");
+  // A chain of 40 components: deep, not cyclic.
+  std::string chain = kCubeObject;
+  for (int i = 2; i <= 40; ++i)
+    chain += "<object id=\"" + std::to_string(i) + "\"><components><component objectid=\"" +
+             std::to_string(i - 1) + "\"/></components></object>";
+  expect_refused_saying(package_of(chain, "<item objectid=\"40\"/>"), "not_3mf",
+                        "components nested more than 32 deep");
+  // Bad attributes: a missing coordinate, a negative index, a transform of 11 numbers,
+  // an unknown unit, a mesh and components in one object, a p:path into another part.
+  expect_refused_saying(
+      package_of("<object id=\"1\">" + cube_mesh_xml("<vertex x=\"1\" y=\"2\"/>") + "</object>",
+                 item),
+      "not_3mf", "<vertex> has no z");
+  expect_refused_saying(
+      package_of("<object id=\"1\">" +
+                     cube_mesh_xml("", "<triangle v1=\"-1\" v2=\"1\" v3=\"2\"/>") + "</object>",
+                 item),
+      "not_3mf", "v1='-1' is not an integer");
+  expect_refused_saying(package_of(kCubeObject, "<item objectid=\"1\" transform=\"1 0 0\"/>"),
+                        "not_3mf", "is not 12 numbers");
+  expect_refused_saying(package_3mf(model_xml("furlong", kCubeObject, item)), "not_3mf",
+                        "unknown 3MF unit 'furlong'");
+  expect_refused_saying(
+      package_of("<object id=\"1\">" + cube_mesh_xml() + cube_mesh_xml() + "</object>", item),
+      "not_3mf", "more than one <mesh> or <components>");
+  expect_refused_saying(
+      package_of(kCubeObject,
+                 "<item xmlns:p=\"http://schemas.microsoft.com/3dmanufacturing/production/"
+                 "2015/06\" objectid=\"1\" p:path=\"/3D/other.model\"/>"),
+      "not_3mf", "in another model part (p:path)");
+}
+
+TEST(ThreeMfReader, RefusesNonFiniteCoordinates) {
+  for (const char* bad : {"nan", "inf", "-infinity", "1e39"}) {
+    const std::string vertex = std::string("<vertex x=\"0\" y=\"") + bad + "\" z=\"0\"/>";
+    const std::string mesh = "<object id=\"1\">" + cube_mesh_xml(vertex) + "</object>";
+    expect_refused_saying(package_of(mesh, "<item objectid=\"1\"/>"), "non_finite",
+                          "object 1, vertex 8: y", {});
+  }
+}
+
+TEST(ThreeMfReader, BoundsCountsBeforeExpandingTheBuild) {
+  StlReadOptions tight;
+  tight.max_triangles = 20;
+  // Stored triangles count even in an object no build item uses.
+  const std::string second = "<object id=\"2\">" + cube_mesh_xml() + "</object>";
+  expect_refused(package_of(kCubeObject + second, "<item objectid=\"1\"/>"), "too_many_triangles",
+                 tight);
+  // Vertices beyond 3 max_triangles in an object of one triangle.
+  tight.max_triangles = 2;
+  std::string many = "<object id=\"1\"><mesh><vertices>";
+  for (int i = 0; i < 7; ++i) many += "<vertex x=\"0\" y=\"0\" z=\"0\"/>";
+  many +=
+      "</vertices><triangles><triangle v1=\"0\" v2=\"1\" v3=\"2\"/></triangles></mesh></object>";
+  expect_refused_saying(package_of(many, "<item objectid=\"1\"/>"), "too_many_vertices",
+                        "more than 3 max_triangles (6) vertices", tight);
+  // Components instancing the cube 10 times per level, 9 levels: 12e9 triangles from a
+  // few KiB, refused on the count before one triangle is expanded.
+  std::string tree = kCubeObject;
+  for (int level = 2; level <= 10; ++level) {
+    tree += "<object id=\"" + std::to_string(level) + "\"><components>";
+    for (int i = 0; i < 10; ++i)
+      tree += "<component objectid=\"" + std::to_string(level - 1) + "\"/>";
+    tree += "</components></object>";
+  }
+  AllocationProbe probe(std::size_t{64} << 20);
+  const Error e = expect_refused(package_of(tree, "<item objectid=\"10\"/>"), "too_many_triangles");
+  EXPECT_FALSE(probe.refused());
+  EXPECT_EQ(e.field(), "max_triangles");
+}
+
+TEST(ThreeMfReader, IgnoresExtensionsAndMetadata) {
+  // Materials, metadata, an unknown extension element and attributes: the geometry only.
+  const std::string model =
+      "<?xml version=\"1.0\" encoding=\"UTF-8\"?><model unit=\"millimeter\" xml:lang=\"en-US\" "
+      "xmlns=\"http://schemas.microsoft.com/3dmanufacturing/core/2015/02\" "
+      "xmlns:m=\"http://schemas.microsoft.com/3dmanufacturing/material/2015/02\" "
+      "xmlns:x=\"urn:example\"><metadata name=\"Title\">part &amp; co</metadata><resources>"
+      "<m:basematerials id=\"5\"><m:base name=\"red\" displaycolor=\"#FF0000\"/>"
+      "</m:basematerials><object id=\"1\" name=\"cube\" pid=\"5\" pindex=\"0\">" +
+      cube_mesh_xml() +
+      "<x:extra><vertex x=\"nan\"/></x:extra></object></resources><build><item objectid=\"1\" "
+      "x:note=\"n\"/></build></model>";
+  const MeshInput in = read_mesh(span_of(package_3mf(model)));
+  EXPECT_EQ(in.soup.coords, cube_coords());
+  EXPECT_EQ(in.parts.at(0).name, "cube");
 }
 
 }  // namespace

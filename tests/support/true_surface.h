@@ -138,7 +138,10 @@ std::shared_ptr<const TrueSurface> rounded_box_surface(Vec3 half_extent, double 
 //! scored 90 degrees: its centroid is nearest to the side wall. Its own region is the one
 //! its corners are on; a fold or a ridge agrees with the truth at none of the four points.
 //! A closest point within `crease_snap` of a crease counts as on it (float32 rounding of an
-//! STL puts flat faces a hair past their rim).
+//! STL puts flat faces a hair past their rim), and so does a point whose nearest crease point
+//! is at most twice as far as the surface (a cap's face a hair past a rim the curve rule
+//! bulged: the crease is as near as the error; a fold or ridge still agrees with neither
+//! piece nor any normal between them).
 double face_truth_angle_deg(const TrueSurface& surface, const Vec3& n, const Vec3& a, const Vec3& b,
                             const Vec3& c, double crease_snap = 0);
 

@@ -233,5 +233,29 @@ TEST(FaceTruthAngle, AFlatCapFacePastTheRimIsNotAFoldButAReversedOneIs) {
   EXPECT_EQ(faces_off_truth(build_mesh({{a, b, c}, {{0u, 2u, 1u}}}).mesh, *cylinder, 60), 1u);
 }
 
+// The same past a frustum's top rim with every point of the face outside it (what 3 butterfly
+// levels or 6 sqrt3 steps leave on the CAD-like cones: cap faces 0.0002-0.03 mm past the
+// rim): the nearest points are on the side wall, 72 degrees from the cap, and the rim only
+// 1.07 times farther. At the error's own scale the face is at the rim, whose normals span
+// the cap's and the side's: 0 degrees. Reversed, or tilted away from both, it is still off.
+TEST(FaceTruthAngle, AFlatCapFaceWhollyPastAConeRimIsAtTheRim) {
+  const auto frustum = revolution_surface({ProfilePiece::segment({0, 0}, {10, 0}),
+                                           ProfilePiece::segment({10, 0}, {5, 15}),
+                                           ProfilePiece::segment({5, 15}, {0, 15})});
+  const double z = 15 - 1e-3;
+  const Vec3 a{5.03, -0.2, z}, b{5.03, 0.2, z}, c{5.015, 0, z};
+  const Vec3 up{0, 0, 1};
+  for (const Vec3& p : {a, b, c, (a + b + c) * (1.0 / 3.0)}) {
+    const SurfacePoint s = frustum->closest_point(p);
+    ASSERT_FALSE(s.on_crease());
+    EXPECT_GT(normal_angle_deg(s, up), 70);
+  }
+  EXPECT_NEAR(face_truth_angle_deg(*frustum, up, a, b, c), 0, 1e-9);
+  EXPECT_GT(face_truth_angle_deg(*frustum, up * -1.0, a, b, c), 90);
+  const double t = 70 * kPi / 180;
+  EXPECT_NEAR(face_truth_angle_deg(*frustum, {-std::sin(t), 0, std::cos(t)}, a, b, c), 70, 1e-6);
+  EXPECT_EQ(faces_off_truth(build_mesh({{a, b, c}, {{0u, 1u, 2u}}}).mesh, *frustum, 60), 0u);
+}
+
 }  // namespace
 }  // namespace stlrefine::test

@@ -1,6 +1,9 @@
-// The stlrefine page: choose an STL, submit it as a job (POST v1/jobs), poll the job, then
-// show the refined part, its layers and the download links. URLs are relative, so the
-// page also works behind a reverse proxy that serves it under a path prefix.
+// The stlrefine page: choose a mesh, submit it as a job (POST v1/jobs), poll the job, then
+// show the refined part, its size and units, its layers (the job's own contour file) and
+// the download links. Large files are read in a worker (preview.js), and a result of
+// more than PREVIEW_TRIANGLES is drawn decimated, said on the page. URLs are relative, so
+// the page also works behind a reverse proxy that serves it under a path prefix.
+import { CONTOUR_FILES } from './contours.js';
 import { LayerView } from './layers.js';
 import { PartView } from './viewer.js';
 
@@ -8,9 +11,12 @@ const $ = (id) => document.getElementById(id);
 const form = $('job-form');
 const FALLBACK_SCHEMES = ['butterfly', 'loop', 'lsf'];
 const POLL_MS = 250;
-const MAX_VIEW_BYTES = 256 * 1024 * 1024; // larger results are downloaded, not drawn
+// Triangles drawn at most per side: more (a 4 M triangle result) would stall the page and
+// a software-rendered browser; such a part is shown decimated.
+const PREVIEW_TRIANGLES = 250000;
 const DESCRIPTIONS = {
   'result.stl': 'refined part (binary STL)',
+  'result.3mf': 'refined part (3MF)',
   'contours.json': 'layer contours (JSON)',
   'contours.svg': 'layer contours (SVG)',
   'contours.cli': 'layer contours (CLI)',
@@ -64,6 +70,55 @@ async function api(url, options = {}) {
 
 const jobUrl = (id, file = '') => `v1/jobs/${encodeURIComponent(id)}${file ? `/${file}` : ''}`;
 
+// ---- the worker (preview.js) ----------------------------------------------------------------
+
+const workers = new Map(); // worker -> 'before' | 'after'
+
+// Ends the workers of one side (a new file, a new job), whose answers nobody waits for.
+function endWorkers(side) {
+  for (const [w, s] of workers) {
+    if (s !== side) continue;
+    w.terminate();
+    workers.delete(w);
+  }
+}
+
+// One task in a fresh module worker for `side`; rejects with a Problem.
+function inWorker(side, message, transfer = []) {
+  return new Promise((resolve, reject) => {
+    const worker = new Worker(new URL('preview.js', import.meta.url), { type: 'module' });
+    workers.set(worker, side);
+    const done = () => {
+      worker.terminate();
+      workers.delete(worker);
+    };
+    worker.onmessage = (e) => {
+      done();
+      if (e.data && e.data.error) reject(new Problem(e.data.error));
+      else resolve(e.data);
+    };
+    worker.onerror = (e) => {
+      done();
+      reject(new Problem({ title: 'The page could not read this', detail: e.message }));
+    };
+    worker.postMessage({ ...message, headers: withKey() }, transfer);
+  });
+}
+
+const absolute = (url) => new URL(url, document.baseURI).href;
+
+// What a file is, by its first bytes, as the server tells formats apart.
+function sniff(bytes) {
+  const head = new Uint8Array(bytes, 0, Math.min(bytes.byteLength, 512));
+  const text = new TextDecoder('latin1').decode(head);
+  if (text.startsWith('PK\x03\x04')) return '3mf';
+  if (/^ply\r?\n/.test(text)) return 'ply';
+  if (bytes.byteLength >= 84 && 84 + 50 * new DataView(bytes).getUint32(80, true) === bytes.byteLength) return 'stl';
+  if (/^\s*solid/.test(text)) return 'stl';
+  if (/^\s*(v|vn|vt|f|o|g|mtllib|usemtl|#)[ \t]/m.test(text)) return 'obj';
+  return 'stl';
+}
+
 // ---- errors -------------------------------------------------------------------------------
 
 function clearError() {
@@ -94,8 +149,8 @@ function showError(problem) {
   }
   const where = [];
   if (problem.field) where.push(`field: ${problem.field}`);
-  if (problem.line != null) where.push(`line ${problem.line} of the STL`);
-  if (problem.byte_offset != null) where.push(`byte ${problem.byte_offset} of the STL`);
+  if (problem.line != null) where.push(`line ${problem.line} of the file`);
+  if (problem.byte_offset != null) where.push(`byte ${problem.byte_offset} of the file`);
   if (where.length) {
     const p = document.createElement('p');
     p.textContent = `Where: ${where.join(', ')}`;
@@ -142,8 +197,8 @@ async function loadSchemes() {
 // The query string: what the user typed, as typed; the server judges it and names the field.
 function query() {
   const q = new URLSearchParams();
-  const fields = ['scheme', 'levels', 'crease_angle', 'adaptive_tol', 'max_level'];
-  if ($('slice-on').checked) fields.push('slice', 'slice_format');
+  const fields = ['units', 'scheme', 'levels', 'crease_angle', 'adaptive_tol', 'max_level'];
+  if ($('slice-on').checked) fields.push('layer_height', 'slice_format');
   fields.push('primitives', 'primitive_tol', 'max_deviation');
   const adaptive = Number($('adaptive_tol').value) > 0;
   for (const name of fields) {
@@ -163,23 +218,68 @@ function query() {
 async function chooseFile(file) {
   if (!file) return;
   clearError();
-  input = { name: file.name, bytes: await file.arrayBuffer() };
-  $('file-info').textContent = `${file.name}, ${file.size.toLocaleString()} bytes`;
+  input = { name: file.name, file, bytes: await file.arrayBuffer() };
+  input.format = sniff(input.bytes);
+  $('file-info').textContent = `${file.name}, ${file.size.toLocaleString()} bytes (${input.format.toUpperCase()})`;
   resetResults();
-  if (view) {
-    try {
+  endWorkers('before');
+  if (!view) return;
+  view.remove(0);
+  if (input.format !== 'stl') {
+    $('view-info').textContent = `Before: a ${input.format.toUpperCase()} file is drawn here only once refined (the server reads it).`;
+    return;
+  }
+  const binary = input.bytes.byteLength >= 84 ? new DataView(input.bytes).getUint32(80, true) : 0;
+  try {
+    if (84 + 50 * binary === input.bytes.byteLength && binary > PREVIEW_TRIANGLES) {
+      $('view-info').textContent = `Before: ${binary.toLocaleString()} triangles, preparing a preview...`;
+      const chosen = input;
+      const p = await inWorker('before', { kind: 'mesh', buffer: input.bytes, cap: PREVIEW_TRIANGLES });
+      if (input !== chosen) return; // another file was chosen meanwhile
+      view.showPositions(0, p.positions);
+      $('view-info').textContent = `Before: ${previewText(p)}.`;
+    } else {
       const n = view.show(0, input.bytes);
       $('view-info').textContent = `Before: ${n.toLocaleString()} triangles.`;
-    } catch (err) {
-      view.remove(0);
-      $('view-info').textContent = `The browser could not read this file as STL (${err.message}); the server will say more.`;
     }
+  } catch {
+    view.remove(0);
+    $('view-info').textContent = 'Before: this is not an STL the page can draw. It is sent as it is; the server reads STL, 3MF, OBJ and PLY and says what is wrong with it.';
   }
+}
+
+function previewText(p) {
+  const n = p.triangles.toLocaleString();
+  return p.shown === p.triangles ? `${n} triangles`
+    : `${n} triangles, drawn as a decimated preview of ${p.shown.toLocaleString()} (the download has them all)`;
+}
+
+// The part's size and the units it was read in (report.input.units), and the warnings.
+function showPart(report) {
+  const units = report.input && report.input.units;
+  const info = $('part-info');
+  if (units && Array.isArray(units.size_mm)) {
+    const size = units.size_mm.map((x) => Number(x.toPrecision(4)).toLocaleString()).join(' × ');
+    let how = units.declared ? `declared by the file (${units.declared})` : units.assumed ? 'assumed' : 'as asked';
+    if (units.scale != null && units.scale !== 1) how += `, scaled by ${units.scale}`;
+    info.textContent = `Part size: ${size} mm. Units: ${units.units}, ${how}.`;
+    info.dataset.units = units.units;
+  } else {
+    info.textContent = '';
+  }
+  $('warnings').replaceChildren(...(report.warnings || []).map((w) => Object.assign(document.createElement('li'), {
+    textContent: `Warning: ${w.message}`,
+  })));
 }
 
 function resetResults() {
   job = null;
+  endWorkers('after');
   if (view) view.remove(1);
+  delete $('view3d').dataset.after;
+  delete $('view3d').dataset.shown;
+  $('part-info').textContent = '';
+  $('warnings').replaceChildren();
   layers.clear();
   $('downloads').replaceChildren(Object.assign(document.createElement('li'), {
     className: 'hint', textContent: 'Results appear here when the job is done.',
@@ -215,7 +315,7 @@ const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 async function run() {
   clearError();
   if (!input) {
-    showError({ title: 'No file', detail: 'Choose or drop an STL file first.', field: 'file' });
+    showError({ title: 'No file', detail: 'Choose or drop a mesh file first.', field: 'file' });
     return;
   }
   let q;
@@ -233,8 +333,8 @@ async function run() {
     const disposition = `attachment; filename*=UTF-8''${encodeURIComponent(input.name)}`;
     const res = await api(`v1/jobs?${q}`, {
       method: 'POST',
-      headers: { 'Content-Type': 'model/stl', 'Content-Disposition': disposition },
-      body: input.bytes,
+      headers: { 'Content-Type': input.format === 'stl' ? 'model/stl' : 'application/octet-stream', 'Content-Disposition': disposition },
+      body: input.file, // a Blob: sent from the file, not copied on the page's thread
     });
     job = await res.json();
     showJob(job);
@@ -252,53 +352,75 @@ async function run() {
   }
 }
 
+const baseName = (href) => href.slice(href.lastIndexOf('/') + 1);
+
+function downloadItem(j, name, description) {
+  const a = document.createElement('a');
+  a.href = jobUrl(j.id, name);
+  a.download = name;
+  a.textContent = name;
+  if ($('api-key').value.trim()) a.addEventListener('click', (e) => downloadWithKey(e, a)); // a plain link cannot send it
+  const li = document.createElement('li');
+  li.append(a, ` — ${description}`);
+  return li;
+}
+
 async function finished(j, q) {
   const report = j.report || {};
   $('report').textContent = JSON.stringify(report, null, 2);
+  // Every file of the job; a job of several parts (a zip, a multi-object 3MF) lists each
+  // part's files under parts[] and links.result is then result.zip.
   const list = $('downloads');
   list.replaceChildren();
-  const key = $('api-key').value.trim();
-  for (const name of Object.keys(DESCRIPTIONS)) {
-    if (!Object.values(j.links || {}).some((href) => href.endsWith(`/${name}`))) continue;
-    const a = document.createElement('a');
-    a.href = jobUrl(j.id, name);
-    a.download = name;
-    a.textContent = name;
-    if (key) a.addEventListener('click', (e) => downloadWithKey(e, a)); // a plain link cannot send it
-    const li = document.createElement('li');
-    li.append(a, ` — ${DESCRIPTIONS[name]}`);
-    list.append(li);
+  for (const [key, href] of Object.entries(j.links || {})) {
+    if (key === 'self') continue;
+    const name = baseName(href);
+    list.append(downloadItem(j, name, DESCRIPTIONS[name] || (name === 'result.zip' ? 'every part\'s files and the report (zip)' : key)));
+  }
+  const parts = Array.isArray(j.parts) ? j.parts : [];
+  for (const part of parts) {
+    for (const [key, href] of Object.entries(part.links || {})) {
+      list.append(downloadItem(j, baseName(href), `${part.name}: ${key === 'result' ? 'refined part' : 'layer contours'}`));
+    }
   }
 
-  const outBytes = report.output && report.output.bytes;
-  const small = !(outBytes > MAX_VIEW_BYTES);
-  const hasJson = Boolean(j.results && j.results.includes('contours.json'));
-  let stl = null;
-  if (small && (view || (q.has('slice') && !hasJson))) {
-    stl = await (await api(jobUrl(j.id, 'result.stl'))).arrayBuffer();
-  }
-  if (view && stl) {
-    const n = view.show(1, stl);
-    const before = report.input ? report.input.faces : undefined;
-    $('view-info').textContent = `Before: ${before != null ? before.toLocaleString() : '?'} triangles. After: ${n.toLocaleString()} triangles.`;
-    $('view3d').dataset.after = String(n);
+  // The part drawn: the job's, or the first of its parts (said on the page).
+  const shown = parts.length ? parts[0] : null;
+  // (report.parts[k].report is part k's own report, with its input's size and units.)
+  const partReport = (shown && Array.isArray(report.parts) && report.parts[0] && report.parts[0].report) || report;
+  showPart(partReport);
+  const results = Object.values((shown || j).links || {}).map(baseName);
+  const resultName = results.find((n) => n.endsWith('.stl') && n !== 'report.json');
+  const which = shown ? `Part 1 of ${parts.length} (${shown.name}). ` : '';
+
+  // The refined part, read and (when large) decimated in the worker.
+  if (view && resultName) {
+    $('view-info').textContent = 'Reading the refined part...';
+    const p = await inWorker('after', { kind: 'mesh', url: absolute(jobUrl(j.id, resultName)), cap: PREVIEW_TRIANGLES });
+    if (job !== j) return; // a new job started meanwhile
+    view.showPositions(1, p.positions);
+    const before = partReport.input ? partReport.input.faces : undefined;
+    $('view-info').textContent = `${which}Before: ${before != null ? before.toLocaleString() : '?'} triangles. After: ${previewText(p)}.`;
+    $('view3d').dataset.after = String(p.triangles);
+    $('view3d').dataset.shown = String(p.shown);
   } else if (view) {
-    $('view-info').textContent = `The refined part (${outBytes.toLocaleString()} bytes) is too large to draw here; download it.`;
+    $('view-info').textContent = 'The refined part is not an STL the page draws; download it.';
   }
 
-  // The layer view needs JSON: the job's own contours, or a JSON slice of the result.
-  if (!q.has('slice')) {
+  // The job's own contour file, in the format it was asked for.
+  // (A part's contour file is part<k>.contours.<ext>: read by its extension.)
+  const contourFile = results.find((n) => CONTOUR_FILES.some((c) => n.endsWith(c.slice('contours'.length)) && n.includes('contours')));
+  const contours = contourFile && CONTOUR_FILES.find((c) => contourFile.endsWith(c.slice('contours'.length)));
+  if (!q.has('layer_height')) {
     layers.clear('Slicing was not asked for.');
-  } else if (hasJson) {
-    layers.load(await (await api(jobUrl(j.id, 'contours.json'))).json());
-  } else if (!stl) {
-    layers.clear('The refined part is too large to slice again here; download the contours.');
+  } else if (!contours) {
+    layers.clear('The job wrote no contour file.');
   } else {
-    const sq = new URLSearchParams({ layer_height: q.get('slice'), format: 'json' });
-    const res = await api(`v1/slice?${sq}`, {
-      method: 'POST', headers: { 'Content-Type': 'model/stl' }, body: stl,
-    });
-    layers.load(await res.json());
+    layers.clear(`Reading ${contourFile}...`);
+    const doc = await inWorker('after', { kind: 'contours', url: absolute(jobUrl(j.id, contourFile)), name: contours });
+    if (job !== j) return;
+    layers.load(doc);
+    $('layer-canvas').dataset.source = doc.format;
   }
 }
 
@@ -332,7 +454,7 @@ $('cancel').addEventListener('click', async () => {
 });
 $('file').addEventListener('change', () => chooseFile($('file').files[0]).catch(fail));
 $('slice-on').addEventListener('change', () => {
-  $('slice').disabled = !$('slice-on').checked;
+  $('layer_height').disabled = !$('slice-on').checked;
   $('slice_format').disabled = !$('slice-on').checked;
 });
 $('api-key').addEventListener('change', () => loadSchemes()); // the document may need the key

@@ -1,5 +1,5 @@
-// The layer view: one layer of a contours.json document (slicer/README.md, JSON format) at a
-// time on a 2D canvas, seen from above (+z), picked with a range slider.
+// The layer view: one layer of the job's contours (read by contours.js from whichever format
+// the job wrote) at a time on a 2D canvas, seen from above (+z), picked with a range slider.
 const FILL = '#d9e4f2';
 const LINE = '#1f5fae';
 const OPEN = '#c0392b';
@@ -54,26 +54,30 @@ export class LayerView {
     const layers = this.doc.layers;
     const k = Number(this.slider.value);
     const layer = layers[k];
-    const polygons = layer.polygons || [];
-    const open = layer.open || [];
+    const polygons = layer.loops.filter((l) => l.type !== 'open');
+    const open = layer.loops.filter((l) => l.type === 'open');
 
     // The part's xy bounds fill the canvas (same scale in x and y), y up.
-    const b = this.doc.bounds || { min: [0, 0, 0], max: [1, 1, 1] };
+    const b = this.doc.bounds;
     const spanX = Math.max(b.max[0] - b.min[0], 1e-9);
     const spanY = Math.max(b.max[1] - b.min[1], 1e-9);
     const margin = 12;
     const scale = Math.min((w - 2 * margin) / spanX, (h - 2 * margin) / spanY);
     const ox = (w - spanX * scale) / 2;
     const oy = (h - spanY * scale) / 2;
-    const px = (p) => [ox + (p[0] - b.min[0]) * scale, h - oy - (p[1] - b.min[1]) * scale];
+    // Points are flat [x0, y0, x1, y1, ...] (Float32Array).
+    const trace = (target, pts) => {
+      for (let i = 0; i < pts.length; i += 2) {
+        const x = ox + (pts[i] - b.min[0]) * scale;
+        const y = h - oy - (pts[i + 1] - b.min[1]) * scale;
+        if (i === 0) target.moveTo(x, y);
+        else target.lineTo(x, y);
+      }
+    };
 
     const path = new Path2D();
     for (const poly of polygons) {
-      poly.points.forEach((p, i) => {
-        const [x, y] = px(p);
-        if (i === 0) path.moveTo(x, y);
-        else path.lineTo(x, y);
-      });
+      trace(path, poly.points);
       path.closePath();
     }
     ctx.fillStyle = FILL;
@@ -84,11 +88,7 @@ export class LayerView {
     ctx.strokeStyle = OPEN;
     for (const line of open) {
       ctx.beginPath();
-      line.points.forEach((p, i) => {
-        const [x, y] = px(p);
-        if (i === 0) ctx.moveTo(x, y);
-        else ctx.lineTo(x, y);
-      });
+      trace(ctx, line.points);
       ctx.stroke();
     }
 

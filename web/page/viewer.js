@@ -1,6 +1,8 @@
 // The 3D view: the part before refinement (left half of the canvas) and after (right
 // half), drawn by three.js with one camera, so both sides turn and zoom together.
 import {
+  BufferAttribute,
+  BufferGeometry,
   Color,
   DirectionalLight,
   HemisphereLight,
@@ -48,7 +50,17 @@ export class PartView {
 
   /** Shows STL bytes (an ArrayBuffer) on side 0 (before) or 1 (after); returns the triangle count. */
   show(side, buffer) {
-    const geometry = new STLLoader().parse(buffer);
+    return this.showGeometry(side, new STLLoader().parse(buffer));
+  }
+
+  /** Shows triangles given as 9 floats each (a preview made in preview.js). */
+  showPositions(side, positions) {
+    const geometry = new BufferGeometry();
+    geometry.setAttribute('position', new BufferAttribute(positions, 3));
+    return this.showGeometry(side, geometry);
+  }
+
+  showGeometry(side, geometry) {
     const s = this.sides[side];
     this.remove(side);
     const material = new MeshStandardMaterial({
