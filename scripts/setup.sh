@@ -23,7 +23,8 @@ packages=(build-essential cmake pkg-config curl ca-certificates
   lib3mf-dev  # 3MF out (core/io/threemf_writer.cpp)
   libexpat1-dev  # 3MF in: the model XML, streamed (core/io/threemf_xml.cpp)
   clang-14 libclang-rt-14-dev
-  libjson-validator-perl)  # the OpenAPI validator of tests/server/openapi_validator_test.cpp
+  libjson-validator-perl  # the OpenAPI validator of tests/server/openapi_validator_test.cpp
+  libhiredis-dev redis-server)  # --queue redis:// (server/queue_*), and its tests
 # The web page (web/) needs node and npm at build time (npm ci fetches three.js), and its
 # browser test (tests/web/) chromium. Checked by command, not by package: nodejs from
 # elsewhere (NodeSource) bundles npm and conflicts with Debian's npm package.

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <ctime>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -25,9 +26,12 @@
 #include "server/front_end.h"
 #include "server/http.h"
 #include "server/http_adapter.h"
+#include "server/http_upload.h"
+#include "server/job_parts.h"
 #include "server/job_routes.h"
 #include "server/metrics.h"
 #include "server/page.h"
+#include "server/redis_client.h"
 #include "server/request_watch.h"
 #include "server/route_context.h"
 #include "server/routes.h"
@@ -171,6 +175,20 @@ DaemonConfig checked(DaemonConfig c) {
     throw std::invalid_argument("the job queue length must be in [1, 100000]");
   if (!c.jobs.data_dir.empty() && c.jobs.retention.count() < 1)
     throw std::invalid_argument("job retention must be at least 1 s");
+  if (!c.jobs.run_jobs && c.jobs.queue.empty())
+    throw std::invalid_argument(
+        "--role api needs --queue: without a shared queue its jobs would never run");
+  if (!c.jobs.queue.empty()) {
+    if (c.jobs.data_dir.empty())
+      throw std::invalid_argument(
+          "--queue needs --data-dir: a directory every replica shares (NFS, CephFS, a "
+          "ReadWriteMany volume) for the jobs' inputs and results");
+    parse_redis_address(c.jobs.queue);  // its own precise error
+    if (c.jobs.lease.count() < 1 || c.jobs.lease.count() > 3600)
+      throw std::invalid_argument("--lease-seconds must be in [1, 3600]");
+    if (c.jobs.max_attempts < 1 || c.jobs.max_attempts > 100)
+      throw std::invalid_argument("--max-attempts must be in [1, 100]");
+  }
   for (const std::string& key : c.api_keys)
     if (key.size() < 16) throw std::invalid_argument("API keys must be at least 16 characters");
   return c;
@@ -193,6 +211,25 @@ Daemon::Impl::Impl(DaemonConfig c)
     jc.memory = &memory;
     jc.deadline = config.request_deadline;
     jc.runner_nice = config.compute_nice;
+    // Queue mode: a job taken from the queue is planned as POST /v1/jobs planned it
+    // (server/job_routes.cpp; an Accept: model/3mf comes as mesh_format=3mf).
+    jc.plan_job = [this](const std::string& query, const std::string& name,
+                         std::string_view input) {
+      api::RawParams raw = api::parse_query(query);
+      std::erase_if(
+          raw, [](const auto& p) { return p.first == "filename" || p.first == "callback_url"; });
+      api::RefinePlan plan = api::plan_refine(api::parse_refine_fields(raw, limits));
+      if (plan.request.slice) plan.request.slice->writer.label = download_stem(name);
+      const auto bytes =
+          std::span(reinterpret_cast<const std::uint8_t*>(input.data()), input.size());
+      // A zip, or a 3MF of several objects to STL: a parts job (its content was checked
+      // against the body limit at submit).
+      const std::optional<std::vector<api::ArchivePart>> parts = job_parts(
+          bytes, plan.request, job_archive_limits(std::numeric_limits<std::uint64_t>::max()));
+      std::uint64_t result_bytes = 0;
+      return parts ? plan_parts_job(plan, *parts, &result_bytes)
+                   : api::plan_body(std::move(plan), bytes, api::ResultSink::JobFiles);
+    };
     jobs = std::make_unique<JobStore>(jc, slots, [this](const JobView& job, double seconds) {
       const auto& r = job.report;
       const std::uint64_t in = r.contains("input") ? r["input"].value("faces", 0ull) : 0;
@@ -358,6 +395,15 @@ Answer Daemon::Impl::serve(ReadRequest& read) {
   bool ranges = false;
   try {
     route(req, read, res, ranges);
+  } catch (const RedisUnavailable& e) {
+    // Queue mode with Redis away: the job routes answer 503 (the others never ask Redis).
+    log_line(std::string("stlrefined: ") + e.what());
+    res = HttpAnswer();
+    ranges = false;
+    api::Problem p = api::service_unavailable(
+        "queue-unavailable", "the job queue (Redis) cannot be reached; retry later");
+    p.extensions["reason"] = "queue_unavailable";
+    ctx.respond(res, p);
   } catch (...) {
     std::string what = "unknown exception";
     try {
@@ -418,6 +464,9 @@ void Daemon::Impl::route(const HttpRequest& req, ReadRequest& read, HttpAnswer& 
     if (jobs) {
       g.jobs_queued = jobs->queued();
       g.jobs_running = jobs->running();
+      if (const auto q = jobs->queue_stats())
+        g.queue =
+            Metrics::QueueGauges{q->reachable, q->depth, q->pending, q->reclaims, q->attempts};
     }
     return res.set_content(metrics.render(g) + process_metrics(), "text/plain; version=0.0.4");
   }

@@ -100,6 +100,7 @@ void JobStore::load_existing() {
 }
 
 void JobStore::persist(const Job& job) const {
+  if (redis_) return record_queued(job);  // queue_store.cpp
   nlohmann::ordered_json j;
   j["id"] = job.id;
   j["owner"] = job.instance;
@@ -185,6 +186,7 @@ JobStore::Leftovers JobStore::sweep_leftovers() {
 }
 
 void JobStore::expire_now() {
+  if (redis_) return expire_queued();
   const Leftovers leftovers = sweep_leftovers();
   std::lock_guard lock(mutex_);
   for (const std::string& id : leftovers.to_delete) {

@@ -24,6 +24,7 @@
 #include "api/problem.h"
 #include "core/io/atomic_file.h"
 #include "server/jobs.h"
+#include "server/queue_redis.h"
 
 namespace stlrefine::server {
 
@@ -54,6 +55,26 @@ struct JobStore::Job {
   CancelReason cancel_reason = CancelReason::None;
   //! While it computes: its cancel flag (deadline, DELETE, shutdown). Under the mutex.
   std::shared_ptr<RequestWatch::Ticket> ticket;
+  // Queue mode.
+  std::string entry;         // its stream entry while this replica runs it
+  bool handed_back = false;  // put back in the queue by a shutdown (hand_back)
+  bool superseded = false;   // another replica took its entry over (this lease lapsed)
+};
+
+//! Queue mode: the figures of /metrics and the jobs event streams follow, refreshed by the
+//! lease keeper (the event loop never waits for Redis).
+struct JobStore::QueueFigures {
+  std::atomic<bool> reachable{false};
+  std::atomic<std::uint64_t> depth{0}, pending{0}, reclaims{0}, attempts{0};
+  //! The jobs event streams follow (key: id and owner), as the keeper last read them: a
+  //! stream polls on the event loop, which never waits for Redis.
+  struct Watched {
+    std::optional<Lookup> found;  // empty until first read
+    JobView view;
+    std::chrono::steady_clock::time_point asked;
+  };
+  std::mutex watch_mutex;
+  std::map<std::pair<std::string, std::string>, Watched> watched;
 };
 
 struct JobStore::Leftovers {

@@ -25,6 +25,7 @@ using namespace job_files;
 
 void JobStore::run_jobs() {
   lower_thread_priority(config_.runner_nice);
+  if (redis_) return run_queue_jobs();
   for (;;) {
     std::shared_ptr<Job> job;
     {
@@ -51,6 +52,7 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
   std::optional<ComputeSlots::Lease> lease;
   while (!(lease = slots_.try_acquire()) && !cancelled())
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  if (!lease && redis_ && hand_back(*job)) return;
   {
     std::lock_guard lock(mutex_);
     job->started = Clock::now();
@@ -215,7 +217,7 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
   ::malloc_trim(0);  // what the refinement freed goes back before its reservation does
   memory.reset();
   std::error_code ignored;
-  fs::remove(job->dir / kInputFile, ignored);
+  if (!redis_) fs::remove(job->dir / kInputFile, ignored);  // queue mode: once recorded
   const auto discard = [&] {
     for (const std::string& name : results) fs::remove(job->dir / name, ignored);
     results.clear();
@@ -228,7 +230,7 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
     // Another replica's cancel note is either here now, or it finds the job finished.
     DirLock dir_lock(job->dir);
     std::lock_guard lock(mutex_);
-    if (fs::exists(job->dir / kCancelFile, ignored)) request_cancel(*job, CancelReason::Client);
+    if (cancel_arrived(*job)) request_cancel(*job, CancelReason::Client);
     const CancelReason why = job->cancel_reason;
     if (why == CancelReason::Client) {
       // A cancel answered Found before this point: it wins, even over finished work.
@@ -277,6 +279,7 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
     }
     done = view(*job);
   }
+  if (redis_ && done.state == JobState::Cancelled && hand_back(*job)) return;  // runs elsewhere
   if (on_finished_)
     on_finished_(done, std::chrono::duration<double>(done.finished - done.started).count());
   notify_ended(done);

@@ -24,16 +24,23 @@ JobStore::JobStore(JobsConfig config, ComputeSlots& slots, FinishedFn on_finishe
     char host[256] = {};
     ::gethostname(host, sizeof host - 1);
     config_.instance = host;
+    // Queue mode: the replica's consumer name, unique even for daemons on one host.
+    if (!config_.queue.empty()) config_.instance.append(":").append(std::to_string(::getpid()));
   }
   if (!config_.free_bytes)
     config_.free_bytes = [dir = config_.data_dir] { return statvfs_free(dir); };
   fs::create_directories(config_.data_dir);
   tenant_key_ = load_tenant_key(config_.data_dir);
-  load_existing();
+  if (config_.queue.empty())
+    load_existing();
+  else
+    start_queue();  // the jobs are in Redis: nothing of this replica's to recover
   if (!config_.callbacks.secret.empty() && !config_.callbacks.allow.empty())
     callbacks_ = std::make_unique<CallbackSender>(config_.callbacks);
-  for (std::size_t i = 0; i < config_.runners; ++i) runners_.emplace_back([this] { run_jobs(); });
+  if (config_.run_jobs)
+    for (std::size_t i = 0; i < config_.runners; ++i) runners_.emplace_back([this] { run_jobs(); });
   janitor_ = std::thread([this] { janitor(); });
+  if (redis_) keeper_ = std::thread([this] { keep_leases(); });
 }
 
 JobStore::~JobStore() {
@@ -63,12 +70,14 @@ JobView JobStore::view(const Job& job) const {
   v.report = job.report;
   v.problem = job.problem;
   if (!job.expired) v.results = job.results;
+  if (redis_) v.worker = job.instance;
   return v;
 }
 
 std::vector<JobView> JobStore::list(const std::string& owner, std::optional<JobState> state,
                                     const std::optional<ListCursor>& after, std::size_t limit,
                                     bool* more) const {
+  if (redis_) return list_queued(owner, state, after, limit, more);
   // Newest first: (created, id) descending, so a cursor is a position that stays valid as
   // jobs come and go.
   using Key = std::pair<std::int64_t, std::string>;
@@ -126,6 +135,7 @@ SubmitResult JobStore::submit(api::RefinePlan plan, std::string query, std::stri
   job->callback_url = std::move(callback_url);
   job->plan = std::move(plan);
   job->created = Clock::now();
+  if (redis_) return submit_queued(job, stl_bytes, predicted_result_bytes);
   const std::uint64_t input = stl_bytes.size();
   const std::uint64_t reserve = saturating_add(input, predicted_result_bytes);
   {
@@ -190,6 +200,7 @@ JobStore::Lookup JobStore::find_on_disk(const std::string& id, const std::string
 JobStore::Lookup JobStore::find(const std::string& id, const std::string& owner,
                                 JobView* out) const {
   if (!well_formed_id(id)) return Lookup::Unknown;
+  if (redis_) return find_queued(id, owner, out);
   {
     std::lock_guard lock(mutex_);
     const auto it = jobs_.find(id);
@@ -215,6 +226,7 @@ void JobStore::request_cancel(Job& job, CancelReason why) {
 }
 
 bool JobStore::cancel_noted(Job& job) {
+  if (redis_) return false;  // the lease keeper raises job.cancel (queue_store.cpp)
   std::error_code ec;
   if (!fs::exists(job.dir / kCancelFile, ec)) return false;
   std::lock_guard lock(mutex_);
@@ -261,6 +273,7 @@ void JobStore::end_unrun(Job& job, const char* stage, const api::Problem& failur
 
 JobStore::Lookup JobStore::cancel(const std::string& id, const std::string& owner, JobView* out) {
   if (!well_formed_id(id)) return Lookup::Unknown;
+  if (redis_) return cancel_queued(id, owner, out);
   {
     std::lock_guard lock(mutex_);
     const auto it = jobs_.find(id);
@@ -333,6 +346,7 @@ fs::path JobStore::result_path(const std::string& id, const std::string& name) c
 }
 
 std::size_t JobStore::queued() const {
+  if (figures_) return figures_->depth;  // every replica's queue, as last seen
   std::lock_guard lock(mutex_);
   return queue_.size();
 }
@@ -383,6 +397,7 @@ void JobStore::shutdown(std::chrono::milliseconds grace) {
   for (std::thread& t : runners_)
     if (t.joinable()) t.join();
   if (janitor_.joinable()) janitor_.join();
+  if (keeper_.joinable()) keeper_.join();
 }
 
 }  // namespace stlrefine::server

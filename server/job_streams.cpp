@@ -35,6 +35,7 @@ std::optional<JobStore::Lookup> JobStore::try_find(const std::string& id, const 
                                                    JobView* out, bool* on_disk) const {
   *on_disk = false;
   if (!well_formed_id(id)) return Lookup::Unknown;
+  if (redis_) return try_find_queued(id, owner, out, on_disk);  // queue_store.cpp
   {
     std::unique_lock lock(mutex_, std::try_to_lock);
     if (!lock.owns_lock()) return std::nullopt;

@@ -67,6 +67,7 @@ nlohmann::ordered_json job_json(const JobView& job) {
   j["parameters"] = job.query;
   if (!job.name.empty()) j["name"] = job.name;
   if (!job.callback_url.empty()) j["callback_url"] = job.callback_url;
+  if (!job.worker.empty()) j["worker"] = job.worker;  // queue mode: the replica running it
   nlohmann::ordered_json t;
   t["created"] = iso8601(job.created);
   const bool has_started = job.started.time_since_epoch().count() != 0;

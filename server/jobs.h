@@ -32,6 +32,10 @@
 
 namespace stlrefine::server {
 
+class RedisConnection;
+class RedisQueue;
+struct QueueEntry;
+
 enum class JobState { Queued, Running, Done, Failed, Cancelled };
 const char* to_string(JobState state);
 
@@ -71,6 +75,21 @@ struct JobsConfig {
   //! Where and how `callback_url`s are called (job_callbacks.h); without a secret and an
   //! allow-list, a job with one is refused.
   CallbackPolicy callbacks;
+
+  // Queue mode (issue 20, server/queue_store.cpp): the jobs of every replica in one Redis.
+  //! "redis://HOST:PORT[/DB]" or "unix:///PATH[?db=N]"; empty: the embedded store above.
+  std::string queue;
+  //! Whether this replica runs jobs (--role worker|all); an api replica only queues them.
+  bool run_jobs = true;
+  //! A running job's entry silent this long is taken over by another replica's runner.
+  std::chrono::seconds lease{30};
+  //! Runs of a job whose runner stopped before it finished; one more fails it.
+  int max_attempts = 3;
+  //! Queue mode: a runner plans a job taken from the queue again from what was submitted
+  //! (its parameters, its file's name, its input). Set by the daemon (it has the limits).
+  std::function<api::RefinePlan(const std::string& query, const std::string& name,
+                                std::string_view input)>
+      plan_job;
   //! Event streams (GET /v1/jobs/{id}/events) open at once, in all and per tenant (per
   //! client address without API keys): one more is refused (429 + Retry-After).
   std::size_t max_event_streams = 256;
@@ -93,6 +112,7 @@ struct JobView {
   nlohmann::ordered_json report;                  //!< the refine report once done
   std::optional<nlohmann::ordered_json> problem;  //!< RFC 9457 body once failed/cancelled
   std::vector<std::string> results;               //!< file names ready for download
+  std::string worker;  //!< queue mode: the replica that runs or ran it; empty otherwise
 };
 
 //! Seconds a running job still needs, from its progress and its run time so far; 0 when
@@ -222,6 +242,15 @@ class JobStore {
 
   std::size_t queued() const;
   std::size_t running() const;
+  //! Queue mode's figures for /metrics (empty in the embedded mode).
+  struct QueueStats {
+    bool reachable = false;      //!< the last look at Redis succeeded
+    std::uint64_t depth = 0;     //!< jobs no runner has taken yet (every replica's)
+    std::uint64_t pending = 0;   //!< jobs taken and not finished (running, or whose runner died)
+    std::uint64_t reclaims = 0;  //!< jobs this replica took over from a silent runner
+    std::uint64_t attempts = 0;  //!< runs this replica started (first runs and re-runs)
+  };
+  std::optional<QueueStats> queue_stats() const;
   const JobsConfig& config() const { return config_; }
 
   //! Stops taking jobs: queued jobs fail ("shutting down"); running jobs may finish until
@@ -256,6 +285,32 @@ class JobStore {
   bool cancel_noted(Job& job);                      // another replica's note; takes mutex_
   void cancel_running(CancelReason why);
   void release_disk(Job& job);  // under mutex_
+  // Queue mode (queue_store.cpp).
+  void start_queue();
+  SubmitResult submit_queued(const std::shared_ptr<Job>& job, std::string_view stl_bytes,
+                             std::uint64_t predicted_result_bytes);
+  Lookup find_queued(const std::string& id, const std::string& owner, JobView* out) const;
+  Lookup cancel_queued(const std::string& id, const std::string& owner, JobView* out);
+  std::vector<JobView> list_queued(const std::string& owner, std::optional<JobState> state,
+                                   const std::optional<ListCursor>& after, std::size_t limit,
+                                   bool* more) const;
+  void run_queue_jobs();
+  void keep_leases();
+  void expire_queued();
+  void record_queued(const Job& job) const;
+  std::optional<Lookup> try_find_queued(const std::string& id, const std::string& owner,
+                                        JobView* out, bool* on_disk) const;
+  void refresh_watched();
+  //! A cancel from another replica, seen just before a runner records the job's end.
+  bool cancel_arrived(Job& job);  // under mutex_
+  //! Queue mode: a job stopped by a shutdown (before or while it computed) goes back to the
+  //! queue for another replica, instead of ending cancelled.
+  bool hand_back(Job& job);
+  void run_entry(RedisConnection& c, const QueueEntry& entry);
+  bool finish_queued(RedisConnection& c, Job& job);
+  //! A job's hash (field -> value) from a Job, and back.
+  std::map<std::string, std::string> fields_of(const Job& job) const;
+  std::shared_ptr<Job> job_of(const std::map<std::string, std::string>& fields) const;
   //! Queues the job's callback, if it has one (it has just ended).
   void notify_ended(const JobView& job);
   api::Problem cancel_problem(CancelReason why, bool discarded) const;
@@ -283,6 +338,10 @@ class JobStore {
   std::thread janitor_;
   RequestWatch watch_;                         // deadlines of running jobs
   std::unique_ptr<CallbackSender> callbacks_;  // when callbacks are configured
+  std::unique_ptr<RedisQueue> redis_;          // queue mode: where the jobs are
+  std::thread keeper_;                         // queue mode: leases, figures, expiry
+  struct QueueFigures;
+  std::unique_ptr<QueueFigures> figures_;  // queue mode: what keep_leases() last saw
   struct StreamCounts {
     std::mutex mutex;
     std::size_t total = 0;

@@ -213,6 +213,27 @@ int main(int argc, char** argv) {
                  "HOST[:PORT] a job's callback_url may call (repeatable); loopback, "
                  "link-local and private addresses only when named here as an address")
       ->delimiter(',');
+  // Queue mode (issue 20): several replicas, one Redis.
+  std::string queue, role = "all", instance;
+  int lease_seconds = 30, max_attempts = 3;
+  app.add_option("--queue", queue,
+                 "Queue mode: redis://HOST[:PORT][/DB] or unix:///PATH[?db=N]; jobs of every "
+                 "replica in one Redis, files in the shared --data-dir (also STLREFINE_QUEUE)");
+  app.add_option("--role", role,
+                 "Queue mode: api (queues and answers, runs no jobs), worker or all (run them)")
+      ->check(CLI::IsMember({"api", "worker", "all"}))
+      ->capture_default_str();
+  app.add_option("--lease-seconds", lease_seconds,
+                 "Queue mode: a running job silent this long is run again by another replica")
+      ->check(CLI::Range(1, 3600))
+      ->capture_default_str();
+  app.add_option("--max-attempts", max_attempts,
+                 "Queue mode: runs of a job whose runner stopped before it finished")
+      ->check(CLI::Range(1, 100))
+      ->capture_default_str();
+  app.add_option("--instance", instance,
+                 "This replica's name (a job's worker; default: host name, with :pid in queue "
+                 "mode)");
   std::size_t max_event_streams = 256, max_event_streams_per_tenant = 32;
   app.add_option("--max-event-streams", max_event_streams,
                  "Job event streams (GET /v1/jobs/{id}/events) open at once; one more gets 429 "
@@ -275,6 +296,13 @@ int main(int argc, char** argv) {
       if (const char* env = std::getenv("STLREFINE_CALLBACK_SECRET")) callback_secret = env;
     config.jobs.callbacks.secret = callback_secret;
     config.jobs.callbacks.allow = callback_allow;
+    if (queue.empty())
+      if (const char* env = std::getenv("STLREFINE_QUEUE")) queue = env;
+    config.jobs.queue = queue;
+    config.jobs.run_jobs = role != "api";
+    config.jobs.lease = std::chrono::seconds(lease_seconds);
+    config.jobs.max_attempts = max_attempts;
+    config.jobs.instance = instance;
     config.jobs.max_event_streams = max_event_streams;
     config.jobs.max_event_streams_per_tenant = max_event_streams_per_tenant;
     if (print_key->count() > 0) {

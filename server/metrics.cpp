@@ -148,6 +148,29 @@ std::string Metrics::render(const Gauges& g) const {
   out << "# HELP stlrefine_jobs_running Jobs running.\n"
          "# TYPE stlrefine_jobs_running gauge\nstlrefine_jobs_running "
       << g.jobs_running << "\n";
+  if (g.queue) {
+    // Queue mode: what autoscaling reads (depth and pending are every replica's; the same
+    // on each replica), and this replica's own counts.
+    const Metrics::QueueGauges& q = *g.queue;
+    out << "# HELP stlrefine_queue_up Whether the last look at the job queue (Redis) "
+           "succeeded.\n# TYPE stlrefine_queue_up gauge\nstlrefine_queue_up "
+        << (q.up ? 1 : 0) << "\n";
+    out << "# HELP stlrefine_queue_depth Jobs in the shared queue no runner has taken yet.\n"
+           "# TYPE stlrefine_queue_depth gauge\nstlrefine_queue_depth "
+        << q.depth << "\n";
+    out << "# HELP stlrefine_queue_pending_entries Jobs taken by a runner and not finished "
+           "(running, or whose runner died).\n# TYPE stlrefine_queue_pending_entries gauge\n"
+           "stlrefine_queue_pending_entries "
+        << q.pending << "\n";
+    out << "# HELP stlrefine_queue_reclaims_total Jobs this replica took over from a silent "
+           "runner.\n# TYPE stlrefine_queue_reclaims_total counter\n"
+           "stlrefine_queue_reclaims_total "
+        << q.reclaims << "\n";
+    out << "# HELP stlrefine_queue_attempts_total Job runs this replica started (first runs "
+           "and re-runs).\n# TYPE stlrefine_queue_attempts_total counter\n"
+           "stlrefine_queue_attempts_total "
+        << q.attempts << "\n";
+  }
   out << "# HELP stlrefine_compute_slots Compute slots configured.\n"
          "# TYPE stlrefine_compute_slots gauge\nstlrefine_compute_slots "
       << g.compute_slots << "\n";

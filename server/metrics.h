@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <tuple>
 
@@ -26,7 +27,13 @@ class Metrics {
                   std::uint64_t faces_in, std::uint64_t faces_out);
 
   //! Gauges are read at scrape time by the caller and passed in.
+  //! Queue mode (--queue): the shared queue as this replica last saw it, and its own counts.
+  struct QueueGauges {
+    bool up = false;
+    std::uint64_t depth = 0, pending = 0, reclaims = 0, attempts = 0;
+  };
   struct Gauges {
+    std::optional<QueueGauges> queue;
     std::size_t jobs_queued = 0, jobs_running = 0;
     std::size_t compute_slots = 0, compute_slots_free = 0;
     std::uint64_t memory_budget_bytes = 0, memory_reserved_bytes = 0;

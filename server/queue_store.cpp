@@ -1,0 +1,565 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+// The job store's queue mode (issue 20): the routes call the same JobStore, but a job lives in
+// Redis (server/queue_redis.h) and its files in the data directory every replica shares.
+// Submit writes the input and queues the job; every replica's runners take jobs through one
+// consumer group and compute them with the embedded store's runner (job_runner.cpp); a lease
+// keeper renews the leases of this replica's running jobs, publishes their progress and
+// passes cancels on; any replica answers for any job from its hash.
+#include <algorithm>
+#include <limits>
+#include <thread>
+
+#include "core/error.h"
+#include "server/job_record.h"
+
+namespace stlrefine::server {
+
+namespace fs = std::filesystem;
+using namespace job_files;
+
+namespace {
+
+// Each Redis call's reply: a hung Redis holds an HTTP thread at most this long.
+constexpr auto kCallTimeout = std::chrono::milliseconds(1000);
+// A runner waits this long for a new entry, then looks at shutdown and silent entries.
+constexpr auto kBlock = std::chrono::milliseconds(600);
+// How often a runner looks for entries whose runner went silent (XAUTOCLAIM).
+constexpr auto kReclaimEvery = std::chrono::milliseconds(1000);
+// A runner records a job's end for this long while Redis is away (restarting), then leaves it
+// to be taken over and run again.
+constexpr auto kFinishPatience = std::chrono::seconds(30);
+// A DELETE that meets a job being recorded as ended waits this long for that record.
+constexpr auto kFinishingWait = std::chrono::seconds(5);
+// A runner's pause after a failed call to Redis (its connection adds the back-off).
+constexpr auto kRetryPause = std::chrono::milliseconds(250);
+// Finished jobs one janitor pass expires at most.
+constexpr std::size_t kExpireBatch = 256;
+// Ids a job list looks at, at most (newest first).
+constexpr std::size_t kListScan = 2000;
+
+std::int64_t now_ms() {
+  return epoch_ms(Clock::now());
+}
+
+std::string dump(const nlohmann::ordered_json& j) {
+  return j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+}
+
+std::string get(const JobFields& f, const char* key) {
+  const auto it = f.find(key);
+  return it == f.end() ? std::string() : it->second;
+}
+
+std::int64_t get_int(const JobFields& f, const char* key) {
+  try {
+    const std::string v = get(f, key);
+    return v.empty() ? 0 : std::stoll(v);
+  } catch (const std::exception&) {
+    return 0;
+  }
+}
+
+// A finished job keeps its hash twice the retention: its results for one, then a 410
+// tombstone for another (as the embedded store keeps its job.json).
+std::chrono::seconds keep(const JobsConfig& c) {
+  return 2 * std::max(c.retention, std::chrono::seconds(1));
+}
+
+}  // namespace
+
+JobFields JobStore::fields_of(const Job& job) const {
+  JobFields f;
+  f["id"] = job.id;
+  f["tenant"] = job.tenant;
+  f["state"] = to_string(job.state);
+  f["expired"] = job.expired ? "1" : "0";
+  f["scheme"] = job.scheme;
+  f["parameters"] = job.query;
+  f["name"] = job.name;
+  f["callback_url"] = job.callback_url;
+  f["progress"] = std::to_string(job.progress);
+  f["stage"] = job.stage;
+  f["created_ms"] = std::to_string(epoch_ms(job.created));
+  f["started_ms"] = std::to_string(epoch_ms(job.started));
+  f["finished_ms"] = std::to_string(epoch_ms(job.finished));
+  f["report"] = dump(job.report);
+  if (job.problem) f["problem"] = dump(*job.problem);
+  f["results"] = dump(nlohmann::ordered_json(job.results));
+  f["result_bytes"] = std::to_string(job.result_bytes);
+  f["worker"] = job.instance;
+  return f;
+}
+
+std::shared_ptr<JobStore::Job> JobStore::job_of(const JobFields& f) const {
+  auto job = std::make_shared<Job>();
+  job->id = get(f, "id");
+  job->dir = config_.data_dir / job->id;
+  job->tenant = get(f, "tenant");
+  job->instance = get(f, "worker");
+  job->state = state_from(get(f, "state"));
+  job->expired = get(f, "expired") == "1";
+  job->scheme = get(f, "scheme");
+  job->query = get(f, "parameters");
+  job->name = get(f, "name");
+  job->callback_url = get(f, "callback_url");
+  try {
+    job->progress = std::stod(get(f, "progress"));
+  } catch (const std::exception&) {
+    job->progress = 0;
+  }
+  job->stage = get(f, "stage");
+  job->created = from_epoch_ms(get_int(f, "created_ms"));
+  job->started = from_epoch_ms(get_int(f, "started_ms"));
+  job->finished = from_epoch_ms(get_int(f, "finished_ms"));
+  const auto json = [&](const char* key) {
+    const std::string text = get(f, key);
+    return text.empty() ? nlohmann::ordered_json()
+                        : nlohmann::ordered_json::parse(text, nullptr, false);
+  };
+  if (auto r = json("report"); r.is_object()) job->report = std::move(r);
+  if (auto p = json("problem"); p.is_object()) job->problem = std::move(p);
+  if (auto r = json("results"); r.is_array())
+    for (const auto& name : r)
+      if (name.is_string()) job->results.push_back(name.get<std::string>());
+  job->result_bytes =
+      static_cast<std::uint64_t>(std::max<std::int64_t>(0, get_int(f, "result_bytes")));
+  return job;
+}
+
+void JobStore::start_queue() {
+  // A malformed address stops the daemon at its start, with what is wrong with it.
+  RedisAddress address = parse_redis_address(config_.queue);
+  redis_ = std::make_unique<RedisQueue>(std::move(address), config_.instance, kCallTimeout);
+  figures_ = std::make_unique<QueueFigures>();
+  try {
+    auto c = redis_->pool().take();
+    redis_->ensure_group(*c);
+    figures_->reachable = true;
+  } catch (const std::exception& e) {
+    // Redis may come up after the daemons (compose, k8s): runners and the keeper retry.
+    log_line(std::string("queue: ") + e.what() + "; retrying in the background");
+  }
+}
+
+std::optional<JobStore::QueueStats> JobStore::queue_stats() const {
+  if (!figures_) return std::nullopt;
+  return QueueStats{figures_->reachable, figures_->depth, figures_->pending, figures_->reclaims,
+                    figures_->attempts};
+}
+
+SubmitResult JobStore::submit_queued(const std::shared_ptr<Job>& job, std::string_view stl_bytes,
+                                     std::uint64_t predicted_result_bytes) {
+  using Status = SubmitResult::Status;
+  {
+    std::lock_guard lock(mutex_);
+    if (stopping_) return SubmitResult::refused(Status::ShuttingDown);
+  }
+  auto c = redis_->pool().take();  // RedisUnavailable: the daemon answers 503
+  const RedisQueue::Stats stats = redis_->stats(*c);
+  if (static_cast<std::uint64_t>(stats.depth) >= config_.max_queued)
+    return SubmitResult::refused(Status::QueueFull);
+  // Free space of the shared directory; what other replicas accepted meanwhile is not counted.
+  const std::uint64_t needed = saturating_add(
+      saturating_add(stl_bytes.size(), predicted_result_bytes), config_.min_free_bytes);
+  const std::uint64_t free = config_.free_bytes();
+  if (free < needed) return SubmitResult::refused(Status::NoSpace, needed, free);
+  try {
+    fs::create_directories(job->dir);
+    write_atomically(job->dir / kInputFile, stl_bytes);
+    JobFields fields = fields_of(*job);
+    fields["attempts"] = "0";
+    fields["cancel"] = "0";
+    // 3MF chosen by the request's Accept header, which the runner does not see.
+    const api::RefineRequest& r = job->plan.request;
+    fields["accept_3mf"] = r.mesh_format == MeshFormat::ThreeMf && !r.mesh_format_given ? "1" : "0";
+    redis_->enqueue(*c, job->id, job->tenant, epoch_ms(job->created), fields);
+  } catch (const std::exception& e) {
+    std::error_code ignored;
+    fs::remove_all(job->dir, ignored);
+    const auto* error = dynamic_cast<const std::system_error*>(&e);
+    if (!error || !no_space(error->code())) throw;
+    log_line("job refused: " + std::string(e.what()));
+    return SubmitResult::refused(Status::NoSpace, needed, config_.free_bytes());
+  }
+  return {Status::Accepted, view(*job), 0, 0};
+}
+
+JobStore::Lookup JobStore::find_queued(const std::string& id, const std::string& owner,
+                                       JobView* out) const {
+  auto c = redis_->pool().take();
+  const std::optional<JobFields> f = redis_->load(*c, id);
+  if (!f || !same_tenant(get(*f, "tenant"), owner)) return Lookup::Unknown;
+  const std::shared_ptr<Job> job = job_of(*f);
+  if (out) *out = view(*job);
+  return job->expired ? Lookup::Expired : Lookup::Found;
+}
+
+JobStore::Lookup JobStore::cancel_queued(const std::string& id, const std::string& owner,
+                                         JobView* out) {
+  auto c = redis_->pool().take();
+  const std::string cancelled = dump(api::to_json(cancel_problem(CancelReason::Client, false)));
+  RedisQueue::Cancel result = redis_->cancel(*c, id, owner, cancelled, now_ms(), keep(config_));
+  if (result == RedisQueue::Cancel::Unknown) return Lookup::Unknown;
+  if (result == RedisQueue::Cancel::Finishing) {
+    // Its runner is recording its end (the cancel came too late for it): wait for that.
+    const auto until = std::chrono::steady_clock::now() + kFinishingWait;
+    while (std::chrono::steady_clock::now() < until) {
+      const std::optional<JobFields> f = redis_->load(*c, id);
+      if (!f) return Lookup::Unknown;
+      if (finished(state_from(get(*f, "state")))) {
+        redis_->mark_expired(*c, id);
+        result = RedisQueue::Cancel::Finished;
+        break;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+  }
+  const std::optional<JobFields> f = redis_->load(*c, id);
+  if (!f) return Lookup::Unknown;
+  const std::shared_ptr<Job> job = job_of(*f);
+  std::error_code ignored;
+  switch (result) {
+    case RedisQueue::Cancel::Expired:
+      if (out) *out = view(*job);
+      return Lookup::Expired;
+    case RedisQueue::Cancel::Queued:
+      fs::remove(job->dir / kInputFile, ignored);
+      if (out) *out = view(*job);
+      notify_ended(view(*job));
+      return Lookup::Found;
+    case RedisQueue::Cancel::Finished:
+      // DELETE of a finished job frees its disk space (any replica: the directory is shared).
+      for (const std::string& name : job->results) fs::remove(job->dir / name, ignored);
+      if (out) *out = view(*job);
+      return Lookup::TooLate;
+    default:  // running (or still finishing): its runner sees the flag within a heartbeat
+      if (out) {
+        *out = view(*job);
+        out->stage = "cancel requested";
+      }
+      return Lookup::Found;
+  }
+}
+
+std::vector<JobView> JobStore::list_queued(const std::string& owner, std::optional<JobState> state,
+                                           const std::optional<ListCursor>& after,
+                                           std::size_t limit, bool* more) const {
+  auto c = redis_->pool().take();
+  const std::int64_t max_ms = after ? after->created_ms : std::numeric_limits<std::int64_t>::max();
+  const auto ids = redis_->tenant_jobs(*c, owner, max_ms, kListScan);
+  std::vector<std::string> wanted;
+  for (const auto& [created, id] : ids)
+    if (!after || std::make_pair(created, id) < std::make_pair(after->created_ms, after->id))
+      wanted.push_back(id);
+  const auto found = redis_->load_many(*c, wanted);
+  std::vector<JobView> out;
+  std::vector<std::string> gone;
+  bool over = false;
+  for (std::size_t i = 0; i < wanted.size(); ++i) {
+    if (!found[i]) {
+      gone.push_back(wanted[i]);  // its hash outlived its retention
+      continue;
+    }
+    if (!same_tenant(get(*found[i], "tenant"), owner)) continue;
+    const std::shared_ptr<Job> job = job_of(*found[i]);
+    if (state && job->state != *state) continue;
+    if (out.size() == limit) {
+      over = true;
+      break;
+    }
+    out.push_back(view(*job));
+  }
+  redis_->forget(*c, owner, gone);
+  if (more) *more = over;
+  return out;
+}
+
+std::optional<JobStore::Lookup> JobStore::try_find_queued(const std::string& id,
+                                                          const std::string& owner, JobView* out,
+                                                          bool* on_disk) const {
+  // What the keeper last read (every beat); a job not watched yet is read at the next beat.
+  *on_disk = true;  // polled as seldom as another replica's job
+  QueueFigures& f = *figures_;
+  std::unique_lock lock(f.watch_mutex, std::try_to_lock);
+  if (!lock.owns_lock()) return std::nullopt;
+  if (f.watched.size() >= 2 * config_.max_event_streams && !f.watched.count({id, owner}))
+    return std::nullopt;
+  QueueFigures::Watched& w = f.watched[{id, owner}];
+  w.asked = std::chrono::steady_clock::now();
+  if (!w.found) return std::nullopt;
+  if (out) *out = w.view;
+  return w.found;
+}
+
+void JobStore::refresh_watched() {
+  QueueFigures& f = *figures_;
+  std::vector<std::pair<std::string, std::string>> keys;
+  {
+    std::lock_guard lock(f.watch_mutex);
+    const auto stale = std::chrono::steady_clock::now() - std::chrono::seconds(10);
+    std::erase_if(f.watched, [&](const auto& w) { return w.second.asked < stale; });
+    for (const auto& [key, w] : f.watched) keys.push_back(key);
+  }
+  for (const auto& [id, owner] : keys) {
+    JobView view;
+    const Lookup found = find_queued(id, owner, &view);
+    std::lock_guard lock(f.watch_mutex);
+    const auto it = f.watched.find({id, owner});
+    if (it == f.watched.end()) continue;
+    it->second.found = found;
+    it->second.view = std::move(view);
+  }
+}
+
+void JobStore::record_queued(const Job& job) const {
+  // A final state is recorded by the runner's finish_queued() (with the entry's
+  // acknowledgement); what a runner records before is best effort.
+  if (finished(job.state)) return;
+  try {
+    auto c = redis_->pool().take();
+    redis_->record(*c, job.id,
+                   {{"state", to_string(job.state)},
+                    {"stage", job.stage},
+                    {"started_ms", std::to_string(epoch_ms(job.started))}});
+  } catch (const std::exception& e) {
+    log_line("job " + job.id + ": cannot record its state: " + e.what());
+  }
+}
+
+bool JobStore::cancel_arrived(Job& job) {
+  if (!redis_) {
+    std::error_code ignored;
+    return fs::exists(job.dir / kCancelFile, ignored);
+  }
+  try {
+    auto c = redis_->pool().take();
+    return redis_->seal(*c, job.id);
+  } catch (const std::exception& e) {
+    log_line("job " + job.id + ": cannot look for a cancel: " + e.what());
+    return false;
+  }
+}
+
+bool JobStore::hand_back(Job& job) {
+  {
+    // Only what a shutdown stopped (not a client's cancel, nor a run another replica took
+    // over): the job is not the client's to submit again.
+    std::lock_guard lock(mutex_);
+    if (!stopping_ || job.superseded || job.cancel_reason == CancelReason::Client) return false;
+    job.handed_back = true;
+  }
+  try {
+    auto c = redis_->pool().take();
+    redis_->hand_back(*c, job.id, job.entry);
+    log_line("job " + job.id + " handed back to the queue at shutdown");
+  } catch (const std::exception& e) {
+    // Its entry stays pending: another replica takes it over after the lease.
+    log_line("job " + job.id + ": cannot hand it back (" + e.what() + "); left to the lease");
+  }
+  return true;
+}
+
+bool JobStore::finish_queued(RedisConnection& c, Job& job) {
+  const auto until = std::chrono::steady_clock::now() + kFinishPatience;
+  for (;;) {
+    try {
+      JobFields f = fields_of(job);
+      f["sealed"] = "0";
+      if (!redis_->finish(c, job.id, job.entry, f, keep(config_), epoch_ms(job.finished))) {
+        log_line("job " + job.id + ": its entry was taken over by another replica; not recorded");
+        return false;
+      }
+      return true;
+    } catch (const std::exception& e) {
+      if (std::chrono::steady_clock::now() > until) {
+        log_line("job " + job.id + ": cannot record its end (" + e.what() +
+                 "); it runs again once its lease lapses");
+        return false;
+      }
+    }
+    std::this_thread::sleep_for(kRetryPause);
+  }
+}
+
+void JobStore::run_entry(RedisConnection& c, const QueueEntry& entry) {
+  const std::string exhausted = dump(api::to_json(api::server_error(
+      "interrupted", "the job was started " + std::to_string(config_.max_attempts) +
+                         " times and each time its runner stopped before it finished (killed, "
+                         "or silent for longer than the lease of " +
+                         std::to_string(config_.lease.count()) + " s); it is not run again")));
+  const RedisQueue::Start start =
+      redis_->start(c, entry.job, config_.max_attempts, exhausted, now_ms());
+  if (start.kind == RedisQueue::Start::Kind::Skip) {
+    redis_->drop(c, entry.entry);  // cancelled while queued, or gone
+    return;
+  }
+  const std::shared_ptr<Job> job = job_of(start.fields);
+  job->entry = entry.entry;
+  std::error_code ignored;
+  if (start.kind == RedisQueue::Start::Kind::Exhausted) {
+    log_line("job " + job->id + " failed: too many attempts");
+    if (finish_queued(c, *job)) fs::remove(job->dir / kInputFile, ignored);
+    notify_ended(view(*job));
+    return;
+  }
+  ++figures_->attempts;
+  job->instance = redis_->consumer();
+  try {
+    const std::string input = read_file(job->dir / kInputFile);
+    std::string query = job->query;
+    if (get(start.fields, "accept_3mf") == "1")
+      query.append(query.empty() ? "" : "&").append("mesh_format=3mf");
+    job->plan = config_.plan_job(query, job->name, input);
+  } catch (const std::exception& e) {
+    // Validated when it was submitted: only a lost input or another replica's other limits.
+    const auto* error = dynamic_cast<const Error*>(&e);
+    log_line("job " + job->id + " failed before it ran: " + e.what());
+    job->state = JobState::Failed;
+    job->stage = to_string(JobState::Failed);
+    job->finished = Clock::now();
+    job->problem = api::to_json(error ? api::problem_from_error(*error) : api::internal_error());
+    if (finish_queued(c, *job)) fs::remove(job->dir / kInputFile, ignored);
+    notify_ended(view(*job));
+    return;
+  }
+  bool admitted = false;
+  {
+    std::lock_guard lock(mutex_);
+    if (!stopping_) {
+      jobs_.emplace(job->id, job);
+      ++running_;
+      admitted = true;
+    }
+  }
+  if (!admitted) {
+    hand_back(*job);
+    return;
+  }
+  run_one(job);
+  if (!job->handed_back && !job->superseded && finish_queued(c, *job))
+    fs::remove(job->dir / kInputFile, ignored);
+  std::lock_guard lock(mutex_);
+  jobs_.erase(job->id);
+  --running_;
+  work_.notify_all();  // shutdown() waits for running_ == 0
+}
+
+void JobStore::run_queue_jobs() {
+  // One connection per runner: XREADGROUP blocks it.
+  RedisConnection c(redis_->pool().address(), kCallTimeout);
+  auto last_reclaim = std::chrono::steady_clock::time_point{};
+  bool away = false;  // logged once per outage
+  for (;;) {
+    {
+      std::lock_guard lock(mutex_);
+      if (stopping_) return;
+    }
+    // Work is taken only with a compute slot free: a job waits in the queue, where an idle
+    // replica can take it, rather than in a busy runner.
+    if (slots_.available() == 0) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      continue;
+    }
+    std::optional<QueueEntry> entry;
+    try {
+      const auto now = std::chrono::steady_clock::now();
+      if (now - last_reclaim >= kReclaimEvery) {
+        last_reclaim = now;
+        entry = redis_->reclaim(c, config_.lease);
+        if (entry) {
+          ++figures_->reclaims;
+          log_line("job " + entry->job + " taken over from a silent runner");
+        }
+      }
+      if (!entry) entry = redis_->next(c, kBlock);
+      if (away) log_line("queue: Redis is back");
+      away = false;
+      if (!entry) continue;
+      if (!well_formed_id(entry->job)) {
+        redis_->drop(c, entry->entry);  // not written by a store
+        continue;
+      }
+      run_entry(c, *entry);
+    } catch (const std::exception& e) {
+      if (!away) log_line(std::string("queue: ") + e.what());
+      away = true;
+      try {
+        redis_->ensure_group(c);  // NOGROUP: a Redis restarted without its data
+      } catch (const std::exception&) {
+      }
+      std::this_thread::sleep_for(kRetryPause);
+    }
+  }
+}
+
+void JobStore::keep_leases() {
+  RedisConnection c(redis_->pool().address(), kCallTimeout);
+  // A cancel is seen within a beat; a lease is renewed many times before it lapses.
+  const auto beat = std::clamp<std::chrono::milliseconds>(
+      std::chrono::duration_cast<std::chrono::milliseconds>(config_.lease) / 4,
+      std::chrono::milliseconds(50), std::chrono::milliseconds(250));
+  for (;;) {
+    struct Running {
+      std::shared_ptr<Job> job;
+      std::string entry, stage;
+      double progress;
+    };
+    std::vector<Running> running;
+    {
+      std::lock_guard lock(mutex_);
+      if (stopping_ && running_ == 0) return;
+      for (const auto& [id, job] : jobs_)
+        if (!finished(job->state)) running.push_back({job, job->entry, job->stage, job->progress});
+    }
+    try {
+      for (const Running& r : running) {
+        const RedisQueue::Beat b =
+            redis_->heartbeat(c, r.job->id, r.entry, r.progress, r.stage, now_ms());
+        std::lock_guard lock(mutex_);
+        if (finished(r.job->state)) continue;
+        if (!b.owned && !r.job->superseded) {
+          // Silent too long (a stall, a Redis outage): another runner has it now.
+          log_line("job " + r.job->id + ": lease lost to another replica; stopping this run");
+          r.job->superseded = true;
+          request_cancel(*r.job, CancelReason::ShutdownNow);
+        } else if (b.cancel && r.job->cancel_reason != CancelReason::Client) {
+          request_cancel(*r.job, CancelReason::Client);
+        }
+      }
+      refresh_watched();
+      const RedisQueue::Stats s = redis_->stats(c);
+      figures_->depth = static_cast<std::uint64_t>(s.depth);
+      figures_->pending = static_cast<std::uint64_t>(s.pending);
+      figures_->reachable = true;
+    } catch (const RedisError& e) {
+      figures_->reachable = true;
+      try {
+        redis_->ensure_group(c);
+      } catch (const std::exception&) {
+      }
+    } catch (const std::exception&) {
+      figures_->reachable = false;  // the runners log the outage
+    }
+    std::this_thread::sleep_for(beat);
+  }
+}
+
+void JobStore::expire_queued() {
+  // Any replica's janitor may do this; removing files twice is harmless.
+  auto c = redis_->pool().take();
+  const auto before =
+      now_ms() - std::chrono::duration_cast<std::chrono::milliseconds>(config_.retention).count();
+  for (const std::string& id : redis_->due(*c, before, kExpireBatch)) {
+    if (!well_formed_id(id)) {
+      redis_->expired(*c, id);
+      continue;
+    }
+    std::error_code ignored;
+    fs::remove_all(config_.data_dir / id, ignored);  // the hash is its tombstone (410)
+    redis_->mark_expired(*c, id);
+    redis_->expired(*c, id);
+  }
+}
+
+}  // namespace stlrefine::server

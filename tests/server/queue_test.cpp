@@ -1,0 +1,454 @@
+// SPDX-License-Identifier: MIT
+// Copyright (c) 2026 stlrefine authors
+//
+// Queue mode (issue 20) against a real redis-server on a unix socket in a temporary
+// directory and several real stlrefined processes sharing one data directory: jobs spread
+// over the replicas, a killed replica's job finishes elsewhere, a cancel crosses replicas,
+// a Redis restart (AOF) loses nothing, a stopped Redis refuses submissions but not /v1/refine,
+// and tenants stay apart. Skipped only when redis-server is not installed (setup.sh installs
+// it).
+
+#include <gtest/gtest.h>
+#include <httplib.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+#include <unistd.h>
+
+#include <csignal>
+#include <deque>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "subprocess.h"
+#include "test_stl.h"
+
+namespace stlrefine::test {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+using Json = nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+std::string redis_server_path() {
+  for (const char* p : {"/usr/bin/redis-server", "/usr/local/bin/redis-server"})
+    if (::access(p, X_OK) == 0) return p;
+  return {};
+}
+
+bool can_connect(const fs::path& socket_path) {
+  const int fd = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  std::snprintf(addr.sun_path, sizeof addr.sun_path, "%s", socket_path.c_str());
+  const bool ok = ::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0;
+  ::close(fd);
+  return ok;
+}
+
+// A redis-server of its own: unix socket only, append-only file fsynced at every write (what
+// a bureau runs with: appendonly yes, maxmemory-policy noeviction).
+class Redis {
+ public:
+  explicit Redis(fs::path dir) : dir_(std::move(dir)) {}
+  fs::path socket() const { return dir_ / "redis.sock"; }
+  std::string url() const { return "unix://" + socket().string(); }
+  void start() {
+    child_ = std::make_unique<Child>(std::vector<std::string>{
+        redis_server_path(), "--port", "0", "--unixsocket", socket().string(), "--dir",
+        dir_.string(), "--appendonly", "yes", "--appendfsync", "always", "--save", "",
+        "--maxmemory-policy", "noeviction"});
+    const auto until = Clock::now() + 10s;
+    while (!can_connect(socket()) && Clock::now() < until) std::this_thread::sleep_for(20ms);
+    ASSERT_TRUE(can_connect(socket())) << child_->stderr_text();
+  }
+  void kill() {
+    child_->signal(SIGKILL);
+    child_->wait(5s);
+    child_.reset();
+    fs::remove(socket());
+  }
+
+ private:
+  fs::path dir_;
+  std::unique_ptr<Child> child_;
+};
+
+struct Replica {
+  std::unique_ptr<Child> child;
+  int port = 0;
+  std::string name;
+  std::unique_ptr<httplib::Client> client() const {
+    auto c = std::make_unique<httplib::Client>("127.0.0.1", port);
+    c->set_read_timeout(10, 0);
+    return c;
+  }
+};
+
+class QueueMode : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (redis_server_path().empty()) GTEST_SKIP() << "redis-server is not installed (setup.sh)";
+    dir_ = fs::temp_directory_path() /
+           ("stlrefine-queue-" + std::to_string(::getpid()) + "-" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_ / "redis");
+    fs::create_directories(dir_ / "data");
+    redis_ = std::make_unique<Redis>(dir_ / "redis");
+    redis_->start();
+  }
+  void TearDown() override {
+    replicas_.clear();
+    redis_.reset();
+    std::error_code ignored;
+    fs::remove_all(dir_, ignored);
+  }
+
+  Replica& start_replica(const std::string& name, std::vector<std::string> extra = {},
+                         const std::string& grace = "1") {
+    std::vector<std::string> argv{STLREFINED,
+                                  "--port",
+                                  "0",
+                                  "--data-dir",
+                                  (dir_ / "data").string(),
+                                  "--queue",
+                                  redis_->url(),
+                                  "--instance",
+                                  name,
+                                  "--compute-slots",
+                                  "1",
+                                  "--lease-seconds",
+                                  "2",
+                                  "--shutdown-grace",
+                                  grace};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    Replica r;
+    r.name = name;
+    r.child = std::make_unique<Child>(argv);
+    r.port = listening_port(*r.child, 20s);
+    EXPECT_GT(r.port, 0) << r.child->stderr_text();
+    replicas_.push_back(std::move(r));
+    return replicas_.back();
+  }
+
+  static std::string submit(const Replica& r, const std::string& query, const std::string& body,
+                            const httplib::Headers& headers = {}) {
+    auto res = r.client()->Post(("/v1/jobs?" + query).c_str(), headers, body, "model/stl");
+    if (!res) return {};
+    EXPECT_EQ(res->status, 202) << res->body;
+    return res->status == 202 ? Json::parse(res->body).value("id", "") : std::string();
+  }
+
+  static Json job(const Replica& r, const std::string& id, const httplib::Headers& headers = {}) {
+    auto res = r.client()->Get(("/v1/jobs/" + id).c_str(), headers);
+    if (!res || res->status != 200) return Json();
+    return Json::parse(res->body);
+  }
+
+  // Polls until the job has ended (or `timeout`); its last JSON.
+  static Json wait_ended(const Replica& r, const std::string& id, std::chrono::seconds timeout) {
+    const auto until = Clock::now() + timeout;
+    Json j;
+    while (Clock::now() < until) {
+      j = job(r, id);
+      const std::string s = j.is_object() ? j.value("state", "") : "";
+      if (s == "done" || s == "failed" || s == "cancelled") return j;
+      std::this_thread::sleep_for(50ms);
+    }
+    return j;
+  }
+
+  // Polls until the job runs on some replica; that replica's name.
+  static std::string wait_running(const Replica& r, const std::string& id) {
+    const auto until = Clock::now() + 20s;
+    while (Clock::now() < until) {
+      const Json j = job(r, id);
+      if (j.is_object() && j.value("state", "") == "running" && j.contains("worker") &&
+          j.value("stage", "").find("level") != std::string::npos)
+        return j["worker"].get<std::string>();
+      std::this_thread::sleep_for(20ms);
+    }
+    return {};
+  }
+
+  fs::path dir_;
+  std::unique_ptr<Redis> redis_;
+  std::deque<Replica> replicas_;  // references stay valid as replicas are added
+};
+
+// A job that runs for seconds: 32 facets (the octahedron's, each split in four) refined 8
+// times, 2 M faces.
+const char* kLongJob = "scheme=butterfly&levels=8";
+std::string long_mesh() {
+  std::vector<Triangle> out;
+  for (const Triangle& t : octahedron_triangles()) {
+    auto mid = [](const Corner& a, const Corner& b) {
+      return Corner{(a[0] + b[0]) / 2, (a[1] + b[1]) / 2, (a[2] + b[2]) / 2};
+    };
+    const Corner ab = mid(t[0], t[1]), bc = mid(t[1], t[2]), ca = mid(t[2], t[0]);
+    out.push_back({t[0], ab, ca});
+    out.push_back({ab, t[1], bc});
+    out.push_back({ca, bc, t[2]});
+    out.push_back({ab, bc, ca});
+  }
+  return binary_stl(out);
+}
+
+TEST_F(QueueMode, ThirtyJobsThroughOneReplicaAllFinishOnSeveralReplicas) {
+  const Replica& api = start_replica("api", {"--role", "api"});
+  start_replica("w1");
+  start_replica("w2");
+  const std::string mesh = binary_stl(octahedron_triangles());
+  std::vector<std::string> ids;
+  for (int i = 0; i < 30; ++i) ids.push_back(submit(api, "levels=5&scheme=loop", mesh));
+  std::set<std::string> workers;
+  for (const std::string& id : ids) {
+    ASSERT_FALSE(id.empty());
+    const Json j = wait_ended(api, id, 40s);
+    ASSERT_EQ(j.value("state", ""), "done") << j.dump();
+    workers.insert(j.value("worker", ""));
+  }
+  EXPECT_GT(workers.size(), 1u) << "every job ran on " << *workers.begin();
+  EXPECT_EQ(workers.count("api"), 0u);  // --role api runs none
+  // Any replica serves any job's results.
+  auto stl = replicas_[2].client()->Get(("/v1/jobs/" + ids.front() + "/result.stl").c_str());
+  ASSERT_TRUE(stl);
+  EXPECT_EQ(stl->status, 200);
+  EXPECT_EQ(read_binary_stl(stl->body).size(), 8u << 10);
+  // The queue's figures (refreshed four times a second): every entry acknowledged and gone.
+  std::string body;
+  const auto until = Clock::now() + 5s;
+  while (Clock::now() < until) {
+    auto metrics = api.client()->Get("/metrics");
+    ASSERT_TRUE(metrics);
+    body = metrics->body;
+    if (body.find("stlrefine_queue_depth 0\n") != std::string::npos &&
+        body.find("stlrefine_queue_pending_entries 0\n") != std::string::npos)
+      break;
+    std::this_thread::sleep_for(100ms);
+  }
+  EXPECT_NE(body.find("stlrefine_queue_depth 0\n"), std::string::npos) << body;
+  EXPECT_NE(body.find("stlrefine_queue_pending_entries 0\n"), std::string::npos) << body;
+  EXPECT_NE(body.find("stlrefine_queue_up 1\n"), std::string::npos);
+}
+
+TEST_F(QueueMode, KilledReplicasJobFinishesOnAnotherWithOneResult) {
+  Replica& a = start_replica("a");
+  Replica& b = start_replica("b");
+  const std::string id = submit(a, kLongJob, long_mesh());
+  ASSERT_FALSE(id.empty());
+  const std::string first = wait_running(a, id);
+  ASSERT_FALSE(first.empty()) << job(a, id).dump();
+  Replica& victim = first == "a" ? a : b;
+  const Replica& survivor = first == "a" ? b : a;
+  const auto killed = Clock::now();
+  victim.child->signal(SIGKILL);
+  victim.child->wait(5s);
+  const Json j = wait_ended(survivor, id, 45s);
+  const double seconds = std::chrono::duration<double>(Clock::now() - killed).count();
+  ASSERT_EQ(j.value("state", ""), "done") << j.dump();
+  EXPECT_EQ(j.value("worker", ""), survivor.name);
+  // Within the lease (2 s) + a reclaim look (1 s) + the second run, and a few seconds for a
+  // machine loaded by parallel tests.
+  const double run = j["timings"].value("run_seconds", 0.0);
+  EXPECT_LT(seconds, 2 + 1 + run + 5) << "run " << run << " s";
+  EXPECT_EQ(j["links"].size(), 3u) << j.dump();  // self, result.stl, report.json
+  auto stl = survivor.client()->Get(("/v1/jobs/" + id + "/result.stl").c_str());
+  ASSERT_TRUE(stl);
+  ASSERT_EQ(stl->status, 200);
+  EXPECT_EQ(read_binary_stl(stl->body).size(), std::size_t{32} << 16);
+  // One result: no second copy or half file beside it (the killed run was still computing).
+  std::set<std::string> files;
+  for (const auto& e : fs::directory_iterator(dir_ / "data" / id))
+    files.insert(e.path().filename().string());
+  EXPECT_EQ(files, (std::set<std::string>{"result.stl", "report.json"}));
+  auto metrics = survivor.client()->Get("/metrics");
+  ASSERT_TRUE(metrics);
+  EXPECT_NE(metrics->body.find("stlrefine_queue_reclaims_total 1\n"), std::string::npos)
+      << metrics->body;
+}
+
+TEST_F(QueueMode, CancelThroughAReplicaThatDoesNotRunTheJob) {
+  const Replica& api = start_replica("api", {"--role", "api"});
+  start_replica("w");
+  const std::string id = submit(api, kLongJob, long_mesh());
+  ASSERT_EQ(wait_running(api, id), "w");
+  const auto asked = Clock::now();
+  auto del = api.client()->Delete(("/v1/jobs/" + id).c_str());
+  ASSERT_TRUE(del);
+  EXPECT_EQ(del->status, 200) << del->body;
+  EXPECT_EQ(Json::parse(del->body).value("cancel", ""), "cancelled");
+  const Json j = wait_ended(api, id, 10s);
+  EXPECT_EQ(j.value("state", ""), "cancelled") << j.dump();
+  // Seen at the runner's next heartbeat (0.25 s) and cancellation check (about 1 s here;
+  // room for a machine loaded by parallel tests).
+  EXPECT_LT(std::chrono::duration<double>(Clock::now() - asked).count(), 5.0);
+  // A queued job is cancelled at once: with the only runner busy, the second one waits.
+  const std::string busy = submit(api, kLongJob, long_mesh());
+  const std::string queued = submit(api, "levels=1", binary_stl(octahedron_triangles()));
+  ASSERT_EQ(wait_running(api, busy), "w");
+  del = api.client()->Delete(("/v1/jobs/" + queued).c_str());
+  ASSERT_TRUE(del);
+  EXPECT_EQ(Json::parse(del->body).value("state", ""), "cancelled") << del->body;
+  api.client()->Delete(("/v1/jobs/" + busy).c_str());
+  EXPECT_EQ(wait_ended(api, busy, 10s).value("state", ""), "cancelled");
+}
+
+TEST_F(QueueMode, SigtermHandsRunningAndQueuedJobsToAnotherReplica) {
+  const Replica& api = start_replica("api", {"--role", "api"});
+  Replica& a = start_replica("a", {}, "0");
+  const std::string running = submit(api, kLongJob, long_mesh());
+  const std::string queued = submit(api, kLongJob, long_mesh());
+  ASSERT_EQ(wait_running(api, running), "a");
+  // No grace: the run stops at once, and the job goes back to the queue.
+  a.child->signal(SIGTERM);
+  EXPECT_EQ(a.child->wait(20s), 0) << a.child->stderr_text();
+  EXPECT_EQ(job(api, running).value("state", ""), "queued") << job(api, running).dump();
+  start_replica("b");
+  for (const std::string& id : {running, queued}) {
+    const Json j = wait_ended(api, id, 60s);
+    EXPECT_EQ(j.value("state", ""), "done") << j.dump();
+    EXPECT_EQ(j.value("worker", ""), "b");
+  }
+}
+
+TEST_F(QueueMode, EventStreamFollowsAJobRunningOnAnotherReplica) {
+  const Replica& api = start_replica("api", {"--role", "api"});
+  start_replica("w");
+  const std::string id = submit(api, kLongJob, long_mesh());
+  auto client = api.client();
+  client->set_read_timeout(60, 0);
+  // The stream ends with the job: its body is every event.
+  auto res = client->Get(("/v1/jobs/" + id + "/events").c_str());
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200);
+  EXPECT_NE(res->body.find("event: progress"), std::string::npos) << res->body;
+  EXPECT_NE(res->body.find("\"state\":\"running\""), std::string::npos) << res->body;
+  const std::size_t end = res->body.find("event: end");
+  ASSERT_NE(end, std::string::npos) << res->body;
+  EXPECT_NE(res->body.find("\"state\":\"done\"", end), std::string::npos) << res->body;
+  EXPECT_NE(res->body.find("\"worker\":\"w\"", end), std::string::npos) << res->body;
+}
+
+TEST_F(QueueMode, RedisRestartedMidRunLosesNoJob) {
+  const Replica& a = start_replica("a");
+  start_replica("b");
+  std::vector<std::string> ids;
+  for (int i = 0; i < 4; ++i) ids.push_back(submit(a, kLongJob, long_mesh()));
+  // Killed while a job runs (the first, or the next one if the first was quick).
+  bool running = false;
+  for (const auto until = Clock::now() + 20s; !running && Clock::now() < until;)
+    for (const std::string& id : ids)
+      running = running || job(a, id).value("state", "") == "running";
+  ASSERT_TRUE(running);
+  redis_->kill();
+  // Away: submissions 503 with Retry-After and a problem body; the job routes too.
+  auto refused =
+      a.client()->Post("/v1/jobs?levels=1", binary_stl(octahedron_triangles()), "model/stl");
+  ASSERT_TRUE(refused);
+  EXPECT_EQ(refused->status, 503) << refused->body;
+  EXPECT_TRUE(refused->has_header("Retry-After"));
+  EXPECT_EQ(Json::parse(refused->body).value("reason", ""), "queue_unavailable") << refused->body;
+  std::this_thread::sleep_for(1500ms);
+  redis_->start();
+  for (const std::string& id : ids) {
+    const Json j = wait_ended(a, id, 50s);
+    EXPECT_EQ(j.value("state", ""), "done") << j.dump();
+  }
+}
+
+TEST_F(QueueMode, RedisStoppedRefusesSubmissionsButNotSynchronousRoutes) {
+  const Replica& a = start_replica("a");
+  redis_->kill();
+  const std::string mesh = binary_stl(octahedron_triangles());
+  auto submit = a.client()->Post("/v1/jobs?levels=1", mesh, "model/stl");
+  ASSERT_TRUE(submit);
+  EXPECT_EQ(submit->status, 503) << submit->body;
+  EXPECT_EQ(submit->get_header_value("Content-Type"), "application/problem+json");
+  EXPECT_TRUE(submit->has_header("Retry-After"));
+  const Json p = Json::parse(submit->body);
+  EXPECT_EQ(p.value("status", 0), 503);
+  EXPECT_NE(p.value("detail", "").find("Redis"), std::string::npos) << submit->body;
+  auto refine = a.client()->Post("/v1/refine?levels=1", mesh, "model/stl");
+  ASSERT_TRUE(refine);
+  EXPECT_EQ(refine->status, 200);
+  EXPECT_EQ(read_binary_stl(refine->body).size(), 32u);
+  auto health = a.client()->Get("/healthz");
+  ASSERT_TRUE(health);
+  EXPECT_EQ(health->status, 200);
+  // Back: submissions are taken again.
+  redis_->start();
+  const auto until = Clock::now() + 10s;
+  int status = 0;
+  while (Clock::now() < until && status != 202) {
+    auto r = a.client()->Post("/v1/jobs?levels=1", mesh, "model/stl");
+    status = r ? r->status : 0;
+    if (status != 202) std::this_thread::sleep_for(100ms);
+  }
+  EXPECT_EQ(status, 202);
+}
+
+TEST_F(QueueMode, TwoTenantsCannotSeeEachOthersJobs) {
+  const std::string key_a = "tenant-a-0123456789abcdef", key_b = "tenant-b-fedcba9876543210";
+  {
+    std::ofstream keys(dir_ / "keys");
+    keys << key_a << "\n" << key_b << "\n";
+  }
+  const Replica& r1 = start_replica("r1", {"--api-key-file", (dir_ / "keys").string()});
+  const Replica& r2 = start_replica("r2", {"--api-key-file", (dir_ / "keys").string()});
+  const httplib::Headers as_a{{"X-Api-Key", key_a}}, as_b{{"X-Api-Key", key_b}};
+  const std::string id = submit(r1, "levels=2", binary_stl(octahedron_triangles()), as_a);
+  ASSERT_FALSE(id.empty());
+  // Another replica: the owner sees it, the other tenant does not (404, as a made-up id).
+  EXPECT_EQ(job(r2, id, as_a).value("id", ""), id);
+  auto other = r2.client()->Get(("/v1/jobs/" + id).c_str(), as_b);
+  ASSERT_TRUE(other);
+  EXPECT_EQ(other->status, 404);
+  auto list = r2.client()->Get("/v1/jobs", as_b);
+  ASSERT_TRUE(list);
+  EXPECT_EQ(Json::parse(list->body)["jobs"].size(), 0u) << list->body;
+  list = r2.client()->Get("/v1/jobs", as_a);
+  ASSERT_TRUE(list);
+  ASSERT_EQ(Json::parse(list->body)["jobs"].size(), 1u) << list->body;
+  auto del = r2.client()->Delete(("/v1/jobs/" + id).c_str(), as_b);
+  ASSERT_TRUE(del);
+  EXPECT_EQ(del->status, 404);
+  auto file = r1.client()->Get(("/v1/jobs/" + id + "/result.stl").c_str(), as_b);
+  ASSERT_TRUE(file);
+  EXPECT_EQ(file->status, 404);
+}
+
+TEST(QueueModeFlags, ABadQueueAddressStopsTheDaemonWithThePreciseError) {
+  for (const auto& [url, says] : std::vector<std::pair<std::string, std::string>>{
+           {"redis://", "no host"},
+           {"redis://h:99999", "the port must be an integer in [1, 65535]"},
+           {"redis://h/16", "the database number must be an integer in [0, 15]"},
+           {"unix://relative.sock", "the socket path must be absolute"},
+           {"http://h:6379", "unknown scheme"},
+           {"redis://user:pw@h", "credentials"}}) {
+    const ProcessResult r = run_process(
+        {STLREFINED, "--port", "0", "--data-dir", "/tmp/unused-queue", "--queue", url}, 20s);
+    EXPECT_EQ(r.exit_code, 1) << url;
+    EXPECT_NE(r.err.find(says), std::string::npos) << url << ": " << r.err;
+  }
+  const ProcessResult r =
+      run_process({STLREFINED, "--port", "0", "--data-dir", "", "--queue", "redis://h"}, 20s);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("--queue needs --data-dir"), std::string::npos) << r.err;
+  const ProcessResult role = run_process({STLREFINED, "--role", "boss"}, 20s);
+  EXPECT_EQ(role.exit_code, 2) << role.err;
+  const ProcessResult api = run_process(
+      {STLREFINED, "--port", "0", "--data-dir", "/tmp/unused-queue", "--role", "api"}, 20s);
+  EXPECT_EQ(api.exit_code, 1);
+  EXPECT_NE(api.err.find("--role api needs --queue"), std::string::npos) << api.err;
+}
+
+}  // namespace
+}  // namespace stlrefine::test
