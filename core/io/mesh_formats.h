@@ -75,9 +75,11 @@ struct MeshInput {
 //!    defined, components nested over 32 deep; the message names the part and line),
 //!    too_large (over kMax3mfParts parts, parts declaring or really inflating to over
 //!    kMax3mfUncompressedBytes, too many objects, components or build items, one XML
-//!    token over 16 MiB), zero_triangles, bad_index, non_finite, coordinate_out_of_range
-//!    (after the build transforms), too_many_triangles (stored, or once components are
-//!    expanded: checked before expanding), too_many_vertices.
+//!    token over 16 MiB, a build whose expansion would cost over 8 max_triangles + 1024
+//!    instances, used vertices and triangles: field max_triangles, checked before
+//!    expanding), zero_triangles, bad_index, non_finite, coordinate_out_of_range (after
+//!    the build transforms, of the vertices triangles use), too_many_triangles (stored, or
+//!    once components are expanded: checked before expanding), too_many_vertices.
 MeshInput read_mesh(std::span<const std::uint8_t> bytes, const StlReadOptions& options = {});
 
 //! The readers read_mesh dispatches to (each checks its own format only).

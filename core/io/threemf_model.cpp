@@ -109,12 +109,34 @@ struct Object {
   std::string name;
   bool has_mesh = false;
   bool has_components = false;
+  // Once the object has ended, only the vertices its triangles use (numbered anew), and
+  // `used` holds the index each had in the file (for messages).
   std::vector<float> vertices;           // 3 per vertex, as the file has them (float)
   std::vector<std::uint32_t> triangles;  // 3 per triangle
-  std::vector<Instance> components;
-  int depth = 0;               // 0 for a mesh, 1 + the deepest component otherwise
-  std::uint64_t expanded = 0;  // triangles once flattened, saturating at max_triangles + 1
+  std::vector<std::uint32_t> used;
+  std::vector<Instance> components;  // once ended, only those with triangles
+  int depth = 0;                     // 0 for a mesh, 1 + the deepest component otherwise
+  std::uint64_t expanded = 0;        // triangles once flattened, saturating at max_triangles + 1
+  //! What expanding one instance costs (see work_limit), saturating at work_limit + 1.
+  std::uint64_t work = 0;
 };
+
+//! Keeps only the vertices `o`'s triangles use, in their order, renumbering the triangles.
+void drop_unused_vertices(Object& o) {
+  constexpr std::uint32_t kUnused = std::numeric_limits<std::uint32_t>::max();
+  std::vector<std::uint32_t> renumbered(o.vertices.size() / 3, kUnused);
+  for (const std::uint32_t v : o.triangles) renumbered[v] = 0;
+  std::uint32_t kept = 0;
+  for (std::size_t v = 0; v < renumbered.size(); ++v) {
+    if (renumbered[v] == kUnused) continue;
+    std::copy_n(o.vertices.begin() + 3 * std::ptrdiff_t(v), 3, o.vertices.begin() + 3 * kept);
+    o.used.push_back(static_cast<std::uint32_t>(v));
+    renumbered[v] = kept++;
+  }
+  o.vertices.resize(3 * std::size_t{kept});
+  o.vertices.shrink_to_fit();
+  for (std::uint32_t& v : o.triangles) v = renumbered[v];
+}
 
 }  // namespace
 
@@ -135,6 +157,18 @@ struct ThreeMfModel::Impl : XmlHandler {
   Impl(const StlReadOptions& o, std::string part) : options(o), xml(*this, std::move(part)) {}
 
   std::uint64_t cap() const { return options.max_triangles + 1; }
+
+  // What expanding the build may cost: each instance of an object with triangles in it
+  // costs 1, plus the vertices its triangles use and its triangles (each transformed or
+  // copied once per instance); objects without triangles are skipped and cost nothing. A
+  // build within max_triangles costs at most 4 per triangle and 1 per component level; more
+  // is a component tree built to burn time, refused before anything is expanded.
+  std::uint64_t work_limit() const {
+    return kMax3mfWorkPerTriangle * std::uint64_t{options.max_triangles} + kMax3mfWorkSlack;
+  }
+  std::uint64_t add_work(std::uint64_t a, std::uint64_t b) const {
+    return std::min(a + b, work_limit() + 1);  // a, b <= work_limit() + 1: no overflow
+  }
 
   const char* required(const XmlAttributes& attrs, std::string_view element, const char* name) {
     const char* v = attrs.find(name);
@@ -350,6 +384,7 @@ struct ThreeMfModel::Impl : XmlHandler {
   }
 
   void end_object() {
+    drop_unused_vertices(current);
     current.expanded = std::min<std::uint64_t>(current.triangles.size() / 3, cap());
     for (const Instance& c : current.components) {
       const Object& child = objects[c.object];
@@ -359,6 +394,14 @@ struct ThreeMfModel::Impl : XmlHandler {
     if (current.depth > kMax3mfComponentDepth)
       throw xml.error("object " + std::to_string(current.id) + ": components nested more than " +
                       std::to_string(kMax3mfComponentDepth) + " deep");
+    // Components that hold no triangle are dropped: expanding them would only cost time.
+    std::erase_if(current.components,
+                  [&](const Instance& c) { return objects[c.object].expanded == 0; });
+    if (current.expanded > 0) {
+      current.work = add_work(1, current.used.size() + current.triangles.size() / 3);
+      for (const Instance& c : current.components)
+        current.work = add_work(current.work, objects[c.object].work);
+    }
     by_id.emplace(current.id, objects.size());
     objects.push_back(std::move(current));
     current = Object{};
@@ -374,7 +417,7 @@ struct ThreeMfModel::Impl : XmlHandler {
   }
 
   void add_mesh(const Object& object, const Affine& m) {
-    const std::size_t count = object.vertices.size() / 3;
+    const std::size_t count = object.used.size();
     std::vector<float> positions(3 * count);
     const double limit = options.max_abs_coordinate;
     for (std::size_t v = 0; v < count; ++v) {
@@ -388,7 +431,7 @@ struct ThreeMfModel::Impl : XmlHandler {
         }
         // The refusal read_stl makes, with where it is.
         const std::string where = "object " + std::to_string(object.id) + ", vertex " +
-                                  std::to_string(v) + ": " + axis_name(i) +
+                                  std::to_string(object.used[v]) + ": " + axis_name(i) +
                                   " (after the build and component transforms)";
         checked_coordinate(x, options, where, [](Error& e) { e.at_byte(0); });
       }
@@ -408,6 +451,26 @@ struct ThreeMfModel::Impl : XmlHandler {
     for (const Instance& item : build)
       total = std::min(total + objects[item.object].expanded, cap());
     if (total > options.max_triangles) throw too_many_triangles(total, options).at_byte(0);
+    std::uint64_t work = 0;
+    for (const Instance& item : build) {
+      const Object& object = objects[item.object];
+      work = add_work(work, object.work);
+      if (work <= work_limit()) continue;
+      std::string m = object.work > work_limit() ? "object " : "the build (up to object ";
+      m.append(std::to_string(object.id))
+          .append(object.work > work_limit() ? " expands to " : ") expands to ")
+          .append(std::to_string(work))
+          .append(" or more instances, used vertices and triangles, more than the ")
+          .append(std::to_string(work_limit()))
+          .append(" max_triangles ")
+          .append(std::to_string(options.max_triangles))
+          .append(" allows (")
+          .append(std::to_string(kMax3mfWorkPerTriangle))
+          .append(" max_triangles + ")
+          .append(std::to_string(kMax3mfWorkSlack))
+          .append(")");
+      throw malformed("too_large", m).with_field("max_triangles").at_byte(0);
+    }
     out.soup.coords.reserve(9 * total);
     coords = &out.soup.coords;
     for (std::size_t n = 0; n < build.size(); ++n) {

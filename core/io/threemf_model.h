@@ -8,8 +8,9 @@
 // flattened with the item's transform into one part per build item; the model's unit is
 // reported. What the XML may cost is bounded by the options before the build is expanded:
 // the meshes' stored triangles and vertices (max_triangles, 3 max_triangles), the objects,
-// components and build items (kMax3mf*), and the build's expanded triangle count
-// (components may instance an object many times).
+// components and build items (kMax3mf*), and the build's expanded triangle count and the
+// work expanding it costs (components may instance an object many times; see
+// kMax3mfWorkPerTriangle).
 
 #include <cstddef>
 #include <cstdint>
@@ -26,6 +27,12 @@ inline constexpr std::size_t kMax3mfComponents = 1 << 20;
 inline constexpr std::size_t kMax3mfBuildItems = 1 << 16;
 //! Components nested deeper than this are refused (a chain, not only a cycle).
 inline constexpr int kMax3mfComponentDepth = 32;
+//! Expanding the build may cost at most kMax3mfWorkPerTriangle max_triangles +
+//! kMax3mfWorkSlack: 1 per instance of an object holding triangles, plus the vertices its
+//! triangles use and its triangles (objects without triangles are skipped). A triangle
+//! costs at most 4; the rest pays for component nesting.
+inline constexpr std::uint64_t kMax3mfWorkPerTriangle = 8;
+inline constexpr std::uint64_t kMax3mfWorkSlack = 1024;
 
 class ThreeMfModel {
  public:

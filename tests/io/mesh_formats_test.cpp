@@ -11,6 +11,7 @@
 
 #include <array>
 #include <bit>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <functional>
@@ -742,6 +743,107 @@ TEST(ThreeMfReader, BoundsCountsBeforeExpandingTheBuild) {
   const Error e = expect_refused(package_of(tree, "<item objectid=\"10\"/>"), "too_many_triangles");
   EXPECT_FALSE(probe.refused());
   EXPECT_EQ(e.field(), "max_triangles");
+}
+
+//! Objects first + 1 .. last, each holding `fanout` components of the object before.
+std::string component_levels(int first, int last, int fanout) {
+  std::string s;
+  for (int id = first + 1; id <= last; ++id) {
+    s += "<object id=\"" + std::to_string(id) + "\"><components>";
+    for (int i = 0; i < fanout; ++i)
+      s += "<component objectid=\"" + std::to_string(id - 1) + "\"/>";
+    s += "</components></object>";
+  }
+  return s;
+}
+
+//! Seconds `f` takes.
+template <class F>
+double seconds(F&& f) {
+  const auto start = std::chrono::steady_clock::now();
+  f();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+TEST(ThreeMfReader, RefusesAnInstanceBombOfEmptyObjectsAtOnce) {
+  // Object 1: one vertex, no triangle; objects 2..7: 100 components of the one before; the
+  // build: object 7. 15 KiB of XML, 10^12 instances of nothing: refused without visiting
+  // them (subtrees without triangles are skipped), in well under a second.
+  const std::string bomb =
+      "<object id=\"1\"><mesh><vertices><vertex x=\"0\" y=\"0\" z=\"0\"/></vertices><triangles>"
+      "</triangles></mesh></object>" +
+      component_levels(1, 7, 100);
+  const std::string file = package_of(bomb, "<item objectid=\"7\"/>");
+  EXPECT_LT(seconds([&] { expect_refused(file, "zero_triangles"); }), 1.0);
+  // Beside a real object, the empty tree adds nothing and costs nothing.
+  MeshInput in;
+  EXPECT_LT(seconds([&] {
+              in = read_mesh(span_of(package_of(
+                  bomb + "<object id=\"8\" name=\"cube\">" + cube_mesh_xml() + "</object>",
+                  "<item objectid=\"7\"/><item objectid=\"8\"/>")));
+            }),
+            1.0);
+  EXPECT_EQ(in.soup.coords, cube_coords());
+  ASSERT_EQ(in.parts.size(), 1u);
+  EXPECT_EQ(in.parts[0].name, "cube");
+}
+
+TEST(ThreeMfReader, TransformsOnlyTheVerticesTrianglesUse) {
+  // Object 1: 100000 vertices and one triangle; 10^5 instances of it. Transforming every
+  // vertex of every instance is 10^10 vertices; only the 3 the triangle uses are.
+  std::string mesh = "<object id=\"1\"><mesh><vertices>";
+  for (int i = 0; i < 100000; ++i)
+    mesh += "<vertex x=\"" + std::to_string(i) + "\" y=\"1\" z=\"2\"/>";
+  mesh +=
+      "</vertices><triangles><triangle v1=\"99999\" v2=\"7\" v3=\"50000\"/></triangles></mesh>"
+      "</object>";
+  const std::string file =
+      package_of(mesh + component_levels(1, 2, 10) + component_levels(2, 4, 100),
+                 "<item objectid=\"4\" transform=\"1 0 0 0 1 0 0 0 1 0 0 10\"/>");
+  MeshInput in;
+  EXPECT_LT(seconds([&] { in = read_mesh(span_of(file)); }), 1.0);
+  ASSERT_EQ(in.soup.triangle_count(), 100000u);
+  const std::vector<float> first(in.soup.coords.begin(), in.soup.coords.begin() + 9);
+  EXPECT_EQ(first, (std::vector<float>{99999, 1, 12, 7, 1, 12, 50000, 1, 12}));
+  // With 10^5 over max_triangles: refused on the count, as fast.
+  StlReadOptions tight;
+  tight.max_triangles = 99999;
+  EXPECT_LT(seconds([&] { expect_refused(file, "too_many_triangles", tight); }), 1.0);
+  // A coordinate out of range after the transforms names the vertex as the file numbers it.
+  const std::string far =
+      "<object id=\"1\"><mesh><vertices><vertex x=\"0\" y=\"0\" z=\"0\"/><vertex x=\"1\" "
+      "y=\"0\" z=\"0\"/><vertex x=\"0\" y=\"1\" z=\"0\"/><vertex x=\"0\" y=\"0\" z=\"1\"/>"
+      "</vertices><triangles><triangle v1=\"1\" v2=\"2\" v3=\"3\"/></triangles></mesh></object>";
+  expect_refused_saying(package_of(far,
+                                   "<item objectid=\"1\" transform=\"1 0 0 0 1 0 0 0 1e30 "
+                                   "0 0 0\"/>"),
+                        "coordinate_out_of_range", "object 1, vertex 3: z");
+}
+
+TEST(ThreeMfReader, BoundsTheWorkOfExpandingTheBuild) {
+  // 200 build items of a 32-deep chain of components around one triangle: 200 triangles,
+  // but 200 * 37 instances, vertices and triangles to expand, over 8 * 200 + 1024.
+  StlReadOptions tight;
+  tight.max_triangles = 200;
+  const std::string triangle =
+      "<object id=\"1\"><mesh><vertices><vertex x=\"0\" y=\"0\" z=\"0\"/><vertex x=\"1\" "
+      "y=\"0\" z=\"0\"/><vertex x=\"0\" y=\"1\" z=\"0\"/></vertices><triangles><triangle "
+      "v1=\"0\" v2=\"1\" v3=\"2\"/></triangles></mesh></object>";
+  std::string items;
+  for (int i = 0; i < 200; ++i) items += "<item objectid=\"33\"/>";
+  const Error e =
+      expect_refused(package_of(triangle + component_levels(1, 33, 1), items), "too_large", tight);
+  EXPECT_EQ(e.field(), "max_triangles");
+  EXPECT_TRUE(mentions(e,
+                       "the build (up to object 33) expands to 2625 or more instances, used "
+                       "vertices and triangles, more than the 2624 max_triangles 200 allows"))
+      << e.what();
+  // One such item is well within.
+  EXPECT_EQ(read_mesh(span_of(package_of(triangle + component_levels(1, 33, 1),
+                                         "<item objectid=\"33\"/>")),
+                      tight)
+                .soup.triangle_count(),
+            1u);
 }
 
 TEST(ThreeMfReader, IgnoresExtensionsAndMetadata) {
