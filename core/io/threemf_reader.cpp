@@ -76,9 +76,10 @@ void check_directory(zip_t* archive, std::uint64_t limit) {
   for (zip_int64_t i = 0; i < entries; ++i) {
     zip_stat_t st;
     zip_stat_init(&st);
+    // Saturating: a ZIP64 entry may declare up to 2^64 - 1 bytes, which would wrap total.
     if (zip_stat_index(archive, static_cast<zip_uint64_t>(i), 0, &st) == 0 &&
         (st.valid & ZIP_STAT_SIZE))
-      total += st.size;
+      total = st.size > limit - total ? limit + 1 : total + st.size;  // total <= limit here
     if (total > limit)
       throw malformed("too_large",
                       "the 3MF's parts inflate to more than " + std::to_string(limit) + " bytes")

@@ -540,6 +540,35 @@ void expect_refused_saying(const std::string& bytes, const char* reason, const s
   EXPECT_TRUE(mentions(e, what)) << "wanted '" << what << "' in: " << e.what();
 }
 
+TEST(ThreeMfReader, RefusesDeclaredSizesThatWrapWhenAdded) {
+  // Entry b declares (ZIP64) 2^64 - 8 bytes: added to entry a's 64 without saturating, the
+  // total wraps to 56 and the directory check let the bomb through.
+  std::string zip = zip_of({{"a", std::string(64, 'a')}, {"b", std::string(64, 'b')}});
+  std::size_t at = zip.find("PK\x01\x02");
+  at = zip.find("PK\x01\x02", at + 1);
+  ASSERT_NE(at, std::string::npos);
+  std::uint16_t name = 0, extra = 0;
+  std::memcpy(&name, zip.data() + at + 28, 2);
+  std::memcpy(&extra, zip.data() + at + 30, 2);
+  ASSERT_EQ(extra, 0u);  // b is the last entry: only the end record follows
+  const std::uint32_t in_zip64 = 0xFFFFFFFFu;
+  std::memcpy(zip.data() + at + 24, &in_zip64, 4);
+  const std::uint16_t zip64_extra = 12;
+  std::memcpy(zip.data() + at + 30, &zip64_extra, 2);
+  const std::uint64_t huge = ~std::uint64_t{0} - 7;
+  std::string field("\x01\x00\x08\x00", 4);
+  field.append(reinterpret_cast<const char*>(&huge), 8);
+  zip.insert(at + 46 + name, field);
+  const std::size_t end = zip.find("PK\x05\x06");
+  ASSERT_NE(end, std::string::npos);
+  std::uint32_t directory = 0;
+  std::memcpy(&directory, zip.data() + end + 12, 4);
+  directory += 12;
+  std::memcpy(zip.data() + end + 12, &directory, 4);
+  const Error e = expect_refused(zip, "too_large");
+  EXPECT_TRUE(mentions(e, "parts inflate to more than")) << e.what();
+}
+
 TEST(ThreeMfReader, FindsTheModelWhereRelsSaysAndNowhereElse) {
   const std::string model = model_xml("meter", kCubeObject, "<item objectid=\"1\"/>");
   const std::string types =
