@@ -5,8 +5,9 @@
 #include "server/job_parts.h"
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
-#include <map>
+#include <set>
 
 #include "api/pipeline.h"
 #include "core/error.h"
@@ -32,6 +33,33 @@ std::span<const std::uint8_t> span_of(const std::string& s) {
 // "parts/bracket.stl" -> "bracket.stl": what its downloads and labels are named after.
 std::string base_name(const std::string& entry) {
   return entry.substr(entry.rfind('/') + 1);
+}
+
+// What a part is called inside result.zip: its name's stem (base_name, download_stem) with
+// only the characters content_disposition keeps in a filename ('_' for any other, one per
+// multi-byte character), at most kMaxZipStem bytes, no leading or trailing dots or spaces.
+// A 3MF's object names are free text: "..\\..\\x", "C:x" or a newline must not reach an
+// extractor as a path.
+constexpr std::size_t kMaxZipStem = 100;
+
+std::string zip_stem(const std::string& name) {
+  std::string stem;
+  for (const char ch : download_stem(base_name(name))) {
+    const auto c = static_cast<unsigned char>(ch);
+    const bool keep = std::isalnum(c) || c == '-' || c == '_' || c == '.' || c == ' ' || c == '(' ||
+                      c == ')' || c == '+' || c == ',';
+    if (!keep && (c & 0xC0) == 0x80) continue;  // a multi-byte character's continuation
+    if (stem.size() >= kMaxZipStem) break;
+    stem.push_back(keep ? ch : '_');
+  }
+  while (!stem.empty() && (stem.front() == '.' || stem.front() == ' ')) stem.erase(0, 1);
+  while (!stem.empty() && (stem.back() == '.' || stem.back() == ' ')) stem.pop_back();
+  return stem.empty() ? std::string("part") : stem;
+}
+
+std::string lowered(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
 }
 
 // A part's error, its entry named (the parameters' field kept).
@@ -148,7 +176,10 @@ nlohmann::ordered_json run_parts_job(const api::RefinePlan& plan,
   const std::size_t n = parts.size();
   nlohmann::ordered_json listed = nlohmann::ordered_json::array();
   std::vector<api::ZipFile> bundle;
-  std::map<std::string, int> stems;  // names in result.zip, made unique
+  // Names in result.zip, lower-cased (extractors on Windows and macOS fold case): a part's
+  // stem gets "-2", "-3"... until none of its names is taken, whatever the parts are called
+  // (a/p.stl, b/p.stl and p-2.stl; a 3MF's objects p, p and p-2).
+  std::set<std::string> used = {"report.json"};
   std::uint64_t in_faces = 0, out_faces = 0;
   double done_work = 0;
   for (std::size_t k = 0; k < n; ++k) {
@@ -189,8 +220,20 @@ nlohmann::ordered_json run_parts_job(const api::RefinePlan& plan,
     }
     results.push_back(result);
     // In result.zip under the part's own name: bracket.stl -> bracket_refined.stl.
-    std::string stem = download_stem(base_name(parts[k].name));
-    if (const int seen = stems[stem]++; seen > 0) stem.append("-").append(std::to_string(seen + 1));
+    const std::string contours_ext =
+        out.contours ? slicer::file_extension(part_plan.request.slice->format) : "";
+    const std::string base_stem = zip_stem(parts[k].name);
+    std::string stem = base_stem;
+    for (int seen = 2;; ++seen) {
+      const std::string refined_name = lowered(stem + "_refined" + result.substr(result.find('.')));
+      const std::string slices_name = lowered(stem + "_slices" + contours_ext);
+      if (!used.contains(refined_name) && (!out.contours || !used.contains(slices_name))) {
+        used.insert(refined_name);
+        if (out.contours) used.insert(slices_name);
+        break;
+      }
+      stem = base_stem + "-" + std::to_string(seen);
+    }
     bundle.push_back({stem + "_refined" + result.substr(result.find('.')), dir / result});
     nlohmann::ordered_json entry;
     entry["name"] = parts[k].name;
@@ -198,7 +241,7 @@ nlohmann::ordered_json run_parts_job(const api::RefinePlan& plan,
     entry["output_faces"] = out.report["output"].value("faces", 0ull);
     entry["result"] = result;
     if (out.contours) {
-      const std::string ext = slicer::file_extension(part_plan.request.slice->format);
+      const std::string& ext = contours_ext;
       const std::string contours = base + ".contours" + ext;
       write_atomically(dir / contours, *out.contours);
       results.push_back(contours);
