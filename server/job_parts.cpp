@@ -111,6 +111,20 @@ std::optional<std::vector<api::ArchivePart>> job_parts(std::span<const std::uint
   if (api::is_part_archive(bytes)) return api::read_part_archive(bytes, limits);
   if (request.mesh_format == MeshFormat::ThreeMf || sniff_mesh_format(bytes) != MeshFormat::ThreeMf)
     return std::nullopt;
+  // Reading the objects (the reader's triangles, ~36 B each, then a binary STL copy of each
+  // object, 50 B more) takes memory the budget must allow before it is taken, as a zip's
+  // parts are: bounded by twice the bytes the package's XML inflates to (a triangle and its
+  // share of vertices take at least ~43 B of XML). 503 while the budget is busy, 422 beyond
+  // it (server/job_routes.cpp tells them apart).
+  if (limits.reserve) {
+    const std::uint64_t inflated = api::zip_inflated_bytes(bytes);
+    const std::uint64_t wanted = saturating_add(inflated, inflated);
+    if (!limits.reserve(wanted))
+      throw api::ArchiveError(ErrorCode::BudgetExceeded, "memory_budget",
+                              "the 3MF's objects take about " + std::to_string(wanted) +
+                                  " bytes to read, more than the memory budget has free now",
+                              "");
+  }
   const MeshInput input = read_mesh(bytes);
   if (input.parts.size() < 2) return std::nullopt;
   const float mm = static_cast<float>(input.unit ? input.unit->mm : 1.0);

@@ -407,3 +407,35 @@ TEST(JobParts, ObjectNamesAreMadeSafeInResultZip) {
 
 }  // namespace
 }  // namespace stlrefine::test
+
+namespace stlrefine::test {
+namespace {
+
+// A 3MF refined to STL is read at submit (its objects may be parts): that reading is
+// reserved in the memory budget first, as a zip's parts are, not done on an HTTP worker
+// outside it. A package whose model inflates past the budget is refused before it is read.
+TEST(JobParts, A3mfReadPastTheMemoryBudgetIsRefusedBeforeReading) {
+  const auto dir = fresh_job_dir("3mf-memory");
+  server::DaemonConfig config = jobs_config(dir);
+  config.memory_budget = std::uint64_t{128} << 20;  // 64 MiB for work beside the daemon's 64
+  InProcessDaemon d(config);
+  httplib::Client c = d.client();
+  std::string noise(1 << 20, '\0');
+  std::uint32_t x = 54321;
+  for (char& ch : noise) ch = static_cast<char>((x = x * 1103515245u + 12345u) >> 24);
+  auto r = c.Post("/v1/jobs?levels=1", raw_zip({{"3D/3dmodel.model", noise, false, 80u << 20}}),
+                  "model/3mf");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 422) << r->body;
+  const Json p = Json::parse(r->body);
+  EXPECT_EQ(p.value("reason", ""), "memory_budget") << r->body;
+  EXPECT_EQ(p.value("field", ""), "file");
+  // A 3MF that fits is read and planned as before, its reservation given back.
+  auto ok = c.Post("/v1/jobs?levels=1", three_mf({{"a", box(5)}, {"b", box(5, 10)}}), "model/3mf");
+  ASSERT_TRUE(ok);
+  ASSERT_EQ(ok->status, 202) << ok->body;
+  EXPECT_EQ(wait_job(c, ok->get_header_value("Location"))["state"], "done");
+}
+
+}  // namespace
+}  // namespace stlrefine::test
