@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <limits>
 #include <memory>
 #include <set>
 #include <system_error>
@@ -126,6 +127,31 @@ bool is_part_archive(std::span<const std::uint8_t> bytes) {
   if (!z) return code == ZIP_ER_EXISTS;  // a name twice: refused by read_part_archive
   return zip_name_locate(z.get(), "3D/3dmodel.model", ZIP_FL_NOCASE) < 0 &&
          zip_name_locate(z.get(), "[Content_Types].xml", ZIP_FL_NOCASE) < 0;
+}
+
+namespace {
+std::uint64_t saturated(std::uint64_t a, std::uint64_t b) {
+  return b > std::numeric_limits<std::uint64_t>::max() - a
+             ? std::numeric_limits<std::uint64_t>::max()
+             : a + b;
+}
+}  // namespace
+
+std::uint64_t zip_inflated_bytes(std::span<const std::uint8_t> bytes) {
+  if (!zip_magic(bytes)) return 0;
+  const Zip z = open_zip(bytes, nullptr);
+  if (!z) return 0;
+  const zip_int64_t n = zip_get_num_entries(z.get(), 0);
+  std::uint64_t total = 0;
+  for (zip_int64_t i = 0; i < n; ++i) {
+    zip_stat_t st;
+    zip_stat_init(&st);
+    if (zip_stat_index(z.get(), static_cast<zip_uint64_t>(i), 0, &st) != 0 ||
+        !(st.valid & ZIP_STAT_SIZE))
+      continue;
+    total = saturated(total, st.size);
+  }
+  return total;
 }
 
 std::vector<ArchivePart> read_part_archive(std::span<const std::uint8_t> bytes,

@@ -68,6 +68,11 @@ bool is_part_archive(std::span<const std::uint8_t> bytes);
 std::vector<ArchivePart> read_part_archive(std::span<const std::uint8_t> bytes,
                                            const ArchiveLimits& limits);
 
+//! The bytes a zip's entries (a 3MF package's parts) declare they inflate to, all added
+//! (saturating); 0 when `bytes` are not a readable zip. Read from the directory: nothing is
+//! inflated.
+std::uint64_t zip_inflated_bytes(std::span<const std::uint8_t> bytes);
+
 //! A file to bundle: its name in the zip and where it is.
 struct ZipFile {
   std::string name;

@@ -3,7 +3,9 @@
 // GET /v1/jobs/{id}/events: a job's progress as server-sent events. The stream is pulled by
 // the front end's event loop (Answer::stream), so a client reading slowly, or waiting for
 // a long job, holds a connection and no thread.
+#include <atomic>
 #include <chrono>
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
@@ -97,19 +99,23 @@ void serve_job_events(const RouteContext& ctx, const HttpRequest& req, const std
   stream->store = ctx.jobs;
   stream->id = id;
   stream->owner = ctx.tenant(req);
-  // Capped in all and per tenant (per client address without API keys): each open stream is
-  // a connection and a poll on the event loop.
+  // Capped in all and per tenant: each open stream is a connection and a poll on the event
+  // loop. Without API keys only in all: behind a reverse proxy (the shipped nginx) every
+  // client has the proxy's address, so a cap per address would let one client's streams
+  // shut out everyone else's. Each stream is then its own "tenant" for the store's count.
   bool whole = false;
   const bool keyed = !ctx.config.api_keys.empty();
-  stream->place = ctx.jobs->open_stream(keyed ? stream->owner : req.remote_addr, &whole);
+  static std::atomic<std::uint64_t> anonymous{0};
+  std::string who = stream->owner;
+  if (!keyed) who = std::string("\x01stream-").append(std::to_string(++anonymous));
+  stream->place = ctx.jobs->open_stream(who, &whole);
   if (!stream->place) {
     const JobsConfig& limits = ctx.jobs->config();
     api::Problem p = api::too_many_requests(
         "too-many-streams",
         whole ? "all " + std::to_string(limits.max_event_streams) +
                     " event streams of this server are open; retry later or poll the job"
-              : std::string(keyed ? "this API key" : "this client address") + " has " +
-                    std::to_string(limits.max_event_streams_per_tenant) +
+              : "this API key has " + std::to_string(limits.max_event_streams_per_tenant) +
                     " event streams open already; close one, or poll the job");
     p.extensions["reason"] = whole ? "max_event_streams" : "max_event_streams_per_tenant";
     p.extensions["limit"] = whole ? limits.max_event_streams : limits.max_event_streams_per_tenant;

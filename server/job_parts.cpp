@@ -5,8 +5,9 @@
 #include "server/job_parts.h"
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
-#include <map>
+#include <set>
 
 #include "api/pipeline.h"
 #include "core/error.h"
@@ -32,6 +33,33 @@ std::span<const std::uint8_t> span_of(const std::string& s) {
 // "parts/bracket.stl" -> "bracket.stl": what its downloads and labels are named after.
 std::string base_name(const std::string& entry) {
   return entry.substr(entry.rfind('/') + 1);
+}
+
+// What a part is called inside result.zip: its name's stem (base_name, download_stem) with
+// only the characters content_disposition keeps in a filename ('_' for any other, one per
+// multi-byte character), at most kMaxZipStem bytes, no leading or trailing dots or spaces.
+// A 3MF's object names are free text: "..\\..\\x", "C:x" or a newline must not reach an
+// extractor as a path.
+constexpr std::size_t kMaxZipStem = 100;
+
+std::string zip_stem(const std::string& name) {
+  std::string stem;
+  for (const char ch : download_stem(base_name(name))) {
+    const auto c = static_cast<unsigned char>(ch);
+    const bool keep = std::isalnum(c) || c == '-' || c == '_' || c == '.' || c == ' ' || c == '(' ||
+                      c == ')' || c == '+' || c == ',';
+    if (!keep && (c & 0xC0) == 0x80) continue;  // a multi-byte character's continuation
+    if (stem.size() >= kMaxZipStem) break;
+    stem.push_back(keep ? ch : '_');
+  }
+  while (!stem.empty() && (stem.front() == '.' || stem.front() == ' ')) stem.erase(0, 1);
+  while (!stem.empty() && (stem.back() == '.' || stem.back() == ' ')) stem.pop_back();
+  return stem.empty() ? std::string("part") : stem;
+}
+
+std::string lowered(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
 }
 
 // A part's error, its entry named (the parameters' field kept).
@@ -83,6 +111,20 @@ std::optional<std::vector<api::ArchivePart>> job_parts(std::span<const std::uint
   if (api::is_part_archive(bytes)) return api::read_part_archive(bytes, limits);
   if (request.mesh_format == MeshFormat::ThreeMf || sniff_mesh_format(bytes) != MeshFormat::ThreeMf)
     return std::nullopt;
+  // Reading the objects (the reader's triangles, ~36 B each, then a binary STL copy of each
+  // object, 50 B more) takes memory the budget must allow before it is taken, as a zip's
+  // parts are: bounded by twice the bytes the package's XML inflates to (a triangle and its
+  // share of vertices take at least ~43 B of XML). 503 while the budget is busy, 422 beyond
+  // it (server/job_routes.cpp tells them apart).
+  if (limits.reserve) {
+    const std::uint64_t inflated = api::zip_inflated_bytes(bytes);
+    const std::uint64_t wanted = saturating_add(inflated, inflated);
+    if (!limits.reserve(wanted))
+      throw api::ArchiveError(ErrorCode::BudgetExceeded, "memory_budget",
+                              "the 3MF's objects take about " + std::to_string(wanted) +
+                                  " bytes to read, more than the memory budget has free now",
+                              "");
+  }
   const MeshInput input = read_mesh(bytes);
   if (input.parts.size() < 2) return std::nullopt;
   const float mm = static_cast<float>(input.unit ? input.unit->mm : 1.0);
@@ -148,7 +190,10 @@ nlohmann::ordered_json run_parts_job(const api::RefinePlan& plan,
   const std::size_t n = parts.size();
   nlohmann::ordered_json listed = nlohmann::ordered_json::array();
   std::vector<api::ZipFile> bundle;
-  std::map<std::string, int> stems;  // names in result.zip, made unique
+  // Names in result.zip, lower-cased (extractors on Windows and macOS fold case): a part's
+  // stem gets "-2", "-3"... until none of its names is taken, whatever the parts are called
+  // (a/p.stl, b/p.stl and p-2.stl; a 3MF's objects p, p and p-2).
+  std::set<std::string> used = {"report.json"};
   std::uint64_t in_faces = 0, out_faces = 0;
   double done_work = 0;
   for (std::size_t k = 0; k < n; ++k) {
@@ -189,8 +234,20 @@ nlohmann::ordered_json run_parts_job(const api::RefinePlan& plan,
     }
     results.push_back(result);
     // In result.zip under the part's own name: bracket.stl -> bracket_refined.stl.
-    std::string stem = download_stem(base_name(parts[k].name));
-    if (const int seen = stems[stem]++; seen > 0) stem.append("-").append(std::to_string(seen + 1));
+    const std::string contours_ext =
+        out.contours ? slicer::file_extension(part_plan.request.slice->format) : "";
+    const std::string base_stem = zip_stem(parts[k].name);
+    std::string stem = base_stem;
+    for (int seen = 2;; ++seen) {
+      const std::string refined_name = lowered(stem + "_refined" + result.substr(result.find('.')));
+      const std::string slices_name = lowered(stem + "_slices" + contours_ext);
+      if (!used.contains(refined_name) && (!out.contours || !used.contains(slices_name))) {
+        used.insert(refined_name);
+        if (out.contours) used.insert(slices_name);
+        break;
+      }
+      stem = base_stem + "-" + std::to_string(seen);
+    }
     bundle.push_back({stem + "_refined" + result.substr(result.find('.')), dir / result});
     nlohmann::ordered_json entry;
     entry["name"] = parts[k].name;
@@ -198,7 +255,7 @@ nlohmann::ordered_json run_parts_job(const api::RefinePlan& plan,
     entry["output_faces"] = out.report["output"].value("faces", 0ull);
     entry["result"] = result;
     if (out.contours) {
-      const std::string ext = slicer::file_extension(part_plan.request.slice->format);
+      const std::string& ext = contours_ext;
       const std::string contours = base + ".contours" + ext;
       write_atomically(dir / contours, *out.contours);
       results.push_back(contours);

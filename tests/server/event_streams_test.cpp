@@ -138,5 +138,33 @@ TEST(EventStreams, ManyOpenStreamsDoNotHoldUpOtherConnections) {
   c.Delete(job.c_str());
 }
 
+// Without API keys the per-tenant cap is not applied per client address: behind the shipped
+// nginx every client has nginx's address, and one client's streams would shut out all the
+// others. Only the server's cap holds (all these streams come from 127.0.0.1).
+TEST(EventStreams, WithoutApiKeysOnlyTheServersCapHolds) {
+  const auto dir = fresh_job_dir("streams-nokeys");
+  server::DaemonConfig config = jobs_config(dir);
+  config.compute_slots = 1;
+  config.jobs.max_event_streams = 3;
+  config.jobs.max_event_streams_per_tenant = 1;
+  InProcessDaemon d(config);
+  httplib::Client c = d.client();
+  auto r = c.Post("/v1/jobs?scheme=butterfly&levels=4", fandisk(), "model/stl");
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 202) << r->body;
+  const std::string job = r->get_header_value("Location");
+  std::vector<std::unique_ptr<RawConnection>> streams;
+  std::string head;
+  for (int i = 0; i < 3; ++i) {
+    streams.push_back(open_stream(d.port(), job + "/events", "", &head));
+    ASSERT_EQ(status_of(head), 200) << i << head;
+  }
+  std::unique_ptr<RawConnection> refused = open_stream(d.port(), job + "/events", "", &head);
+  EXPECT_EQ(status_of(head), 429) << head;
+  const std::string body = refused->read_all(1s);
+  EXPECT_NE(body.find("\"max_event_streams\""), std::string::npos) << body;
+  c.Delete(job.c_str());
+}
+
 }  // namespace
 }  // namespace stlrefine::test

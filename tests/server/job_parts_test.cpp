@@ -329,3 +329,113 @@ TEST(JobParts, AZipInflatingPastTheMemoryBudgetIsRefusedBeforeInflating) {
 
 }  // namespace
 }  // namespace stlrefine::test
+
+namespace stlrefine::test {
+namespace {
+
+// result.zip's names of a done parts job (a test failure when the job did not end done).
+std::vector<std::string> result_zip_names(httplib::Client& c, const std::string& self) {
+  const Json job = wait_job(c, self);
+  EXPECT_EQ(job["state"], "done") << job.dump();
+  auto all = c.Get((self + "/result.zip").c_str());
+  EXPECT_TRUE(all && all->status == 200);
+  std::vector<std::string> names;
+  if (!all || all->status != 200) return names;
+  for (const auto& [name, bytes] : unzip(all->body)) names.push_back(name);
+  return names;
+}
+
+// Parts whose names make the same name in result.zip (a/p.stl and b/p.stl make p-2, and so
+// does p-2.stl; P.stl and p.stl are one file on Windows and macOS): each gets a free name
+// and the job ends done (zip_file_add refused the second "p-2_refined.stl": Internal).
+TEST(JobParts, PartsWhoseNamesCollideInResultZipGetDistinctNames) {
+  const auto dir = fresh_job_dir("zip-collide");
+  InProcessDaemon d(jobs_config(dir));
+  httplib::Client c = d.client();
+  const std::string part = stl_of(box(5));
+  auto r =
+      c.Post("/v1/jobs?levels=1",
+             raw_zip({{"a/p.stl", part}, {"b/p.stl", part}, {"p-2.stl", part}, {"P.stl", part}}),
+             "application/zip");
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 202) << r->body;
+  std::vector<std::string> names = result_zip_names(c, r->get_header_value("Location"));
+  std::sort(names.begin(), names.end());
+  EXPECT_EQ(names, (std::vector<std::string>{"P-3_refined.stl", "p-2-2_refined.stl",
+                                             "p-2_refined.stl", "p_refined.stl", "report.json"}));
+  // A 3MF's objects named p, p and p-2, likewise.
+  const std::string file = three_mf({{"p", box(5)}, {"p", box(5, 10)}, {"p-2", box(5, 20)}});
+  r = c.Post("/v1/jobs?levels=1", file, "model/3mf");
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 202) << r->body;
+  names = result_zip_names(c, r->get_header_value("Location"));
+  std::sort(names.begin(), names.end());
+  EXPECT_EQ(names, (std::vector<std::string>{"p-2-2_refined.stl", "p-2_refined.stl",
+                                             "p_refined.stl", "report.json"}));
+}
+
+// A 3MF's object names are free text: in result.zip they keep only the characters a
+// download's filename keeps, and at most 100 bytes of them (no "..\..\", "C:", newline or
+// 300-byte entry name reaches an extractor; the 3MF reader keeps names up to 4 KB).
+TEST(JobParts, ObjectNamesAreMadeSafeInResultZip) {
+  const auto dir = fresh_job_dir("zip-names");
+  InProcessDaemon d(jobs_config(dir));
+  httplib::Client c = d.client();
+  const std::string file = three_mf({{"..\\..\\Windows\\evil", box(5)},
+                                     {"C:evil", box(5, 10)},
+                                     {"two\nlines", box(5, 20)},
+                                     {std::string(300, 'x'), box(5, 30)}});
+  auto r = c.Post("/v1/jobs?levels=1", file, "model/3mf");
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 202) << r->body;
+  const std::vector<std::string> names = result_zip_names(c, r->get_header_value("Location"));
+  ASSERT_EQ(names.size(), 5u);
+  for (const std::string& name : names) {
+    EXPECT_EQ(name.find_first_of("\\/:\n"), std::string::npos) << name;
+    EXPECT_NE(name.front(), '.') << name;
+    EXPECT_LE(name.size(), 100u + std::string("_refined.stl").size()) << name;
+  }
+  EXPECT_NE(std::find(names.begin(), names.end(), "_.._Windows_evil_refined.stl"), names.end());
+  EXPECT_NE(std::find(names.begin(), names.end(), "C_evil_refined.stl"), names.end());
+  EXPECT_NE(std::find_if(names.begin(), names.end(),
+                         [](const std::string& n) { return n.rfind("two", 0) == 0; }),
+            names.end());
+  EXPECT_NE(std::find(names.begin(), names.end(), std::string(100, 'x') + "_refined.stl"),
+            names.end())
+      << ::testing::PrintToString(names);
+}
+
+}  // namespace
+}  // namespace stlrefine::test
+
+namespace stlrefine::test {
+namespace {
+
+// A 3MF refined to STL is read at submit (its objects may be parts): that reading is
+// reserved in the memory budget first, as a zip's parts are, not done on an HTTP worker
+// outside it. A package whose model inflates past the budget is refused before it is read.
+TEST(JobParts, A3mfReadPastTheMemoryBudgetIsRefusedBeforeReading) {
+  const auto dir = fresh_job_dir("3mf-memory");
+  server::DaemonConfig config = jobs_config(dir);
+  config.memory_budget = std::uint64_t{128} << 20;  // 64 MiB for work beside the daemon's 64
+  InProcessDaemon d(config);
+  httplib::Client c = d.client();
+  std::string noise(1 << 20, '\0');
+  std::uint32_t x = 54321;
+  for (char& ch : noise) ch = static_cast<char>((x = x * 1103515245u + 12345u) >> 24);
+  auto r = c.Post("/v1/jobs?levels=1", raw_zip({{"3D/3dmodel.model", noise, false, 80u << 20}}),
+                  "model/3mf");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 422) << r->body;
+  const Json p = Json::parse(r->body);
+  EXPECT_EQ(p.value("reason", ""), "memory_budget") << r->body;
+  EXPECT_EQ(p.value("field", ""), "file");
+  // A 3MF that fits is read and planned as before, its reservation given back.
+  auto ok = c.Post("/v1/jobs?levels=1", three_mf({{"a", box(5)}, {"b", box(5, 10)}}), "model/3mf");
+  ASSERT_TRUE(ok);
+  ASSERT_EQ(ok->status, 202) << ok->body;
+  EXPECT_EQ(wait_job(c, ok->get_header_value("Location"))["state"], "done");
+}
+
+}  // namespace
+}  // namespace stlrefine::test
