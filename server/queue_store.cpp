@@ -8,6 +8,7 @@
 // passes cancels on; any replica answers for any job from its hash.
 #include <algorithm>
 #include <limits>
+#include <map>
 #include <thread>
 
 #include "core/error.h"
@@ -351,8 +352,10 @@ bool JobStore::hand_back(Job& job) {
   }
   try {
     auto c = redis_->pool().take();
-    redis_->hand_back(*c, job.id, job.entry);
-    log_line("job " + job.id + " handed back to the queue at shutdown");
+    if (redis_->hand_back(*c, job.id, job.entry))
+      log_line("job " + job.id + " handed back to the queue at shutdown");
+    else
+      log_line("job " + job.id + ": its entry was taken over by another replica; not handed back");
   } catch (const std::exception& e) {
     // Its entry stays pending: another replica takes it over after the lease.
     log_line("job " + job.id + ": cannot hand it back (" + e.what() + "); left to the lease");
@@ -399,7 +402,12 @@ void JobStore::run_entry(RedisConnection& c, const QueueEntry& entry) {
   std::error_code ignored;
   if (start.kind == RedisQueue::Start::Kind::Exhausted) {
     log_line("job " + job->id + " failed: too many attempts");
-    if (finish_queued(c, *job)) fs::remove(job->dir / kInputFile, ignored);
+    job->state = JobState::Failed;
+    job->stage = to_string(JobState::Failed);
+    job->finished = Clock::now();
+    job->problem = nlohmann::ordered_json::parse(exhausted);
+    if (!finish_queued(c, *job)) return;  // told by whoever records it
+    fs::remove(job->dir / kInputFile, ignored);
     notify_ended(view(*job));
     return;
   }
@@ -419,7 +427,8 @@ void JobStore::run_entry(RedisConnection& c, const QueueEntry& entry) {
     job->stage = to_string(JobState::Failed);
     job->finished = Clock::now();
     job->problem = api::to_json(error ? api::problem_from_error(*error) : api::internal_error());
-    if (finish_queued(c, *job)) fs::remove(job->dir / kInputFile, ignored);
+    if (!finish_queued(c, *job)) return;  // told by whoever records it
+    fs::remove(job->dir / kInputFile, ignored);
     notify_ended(view(*job));
     return;
   }
@@ -436,9 +445,7 @@ void JobStore::run_entry(RedisConnection& c, const QueueEntry& entry) {
     hand_back(*job);
     return;
   }
-  run_one(job);
-  if (!job->handed_back && !job->superseded && finish_queued(c, *job))
-    fs::remove(job->dir / kInputFile, ignored);
+  run_one(job);  // records its end (finish_queued) before it tells anyone
   std::lock_guard lock(mutex_);
   jobs_.erase(job->id);
   --running_;
@@ -499,6 +506,22 @@ void JobStore::keep_leases() {
   const auto beat = std::clamp<std::chrono::milliseconds>(
       std::chrono::duration_cast<std::chrono::milliseconds>(config_.lease) / 4,
       std::chrono::milliseconds(50), std::chrono::milliseconds(250));
+  // A run stops itself once its lease may have lapsed (no heartbeat renewed it for 0.8 of
+  // it: a stall, Redis away): another replica may have taken its entry over meanwhile, and
+  // this replica may not be able to ask Redis whether it did.
+  const auto stale_after =
+      std::chrono::duration_cast<std::chrono::milliseconds>(config_.lease) * 4 / 5;
+  std::map<std::string, std::chrono::steady_clock::time_point> renewed;  // by entry
+  const auto stop_stale = [&](const std::shared_ptr<Job>& job, const std::string& entry) {
+    const auto it = renewed.find(entry);
+    if (it == renewed.end() || std::chrono::steady_clock::now() - it->second < stale_after) return;
+    std::lock_guard lock(mutex_);
+    if (finished(job->state) || job->superseded) return;
+    log_line("job " + job->id + ": lease not renewed for " + std::to_string(stale_after.count()) +
+             " ms; stopping this run");
+    job->superseded = true;
+    request_cancel(*job, CancelReason::ShutdownNow);
+  };
   for (;;) {
     struct Running {
       std::shared_ptr<Job> job;
@@ -512,10 +535,21 @@ void JobStore::keep_leases() {
       for (const auto& [id, job] : jobs_)
         if (!finished(job->state)) running.push_back({job, job->entry, job->stage, job->progress});
     }
+    {
+      std::map<std::string, std::chrono::steady_clock::time_point> kept;
+      for (const Running& r : running) {
+        const auto it = renewed.find(r.entry);
+        kept[r.entry] = it == renewed.end() ? std::chrono::steady_clock::now() : it->second;
+        stop_stale(r.job, r.entry);
+      }
+      renewed = std::move(kept);
+    }
     try {
       for (const Running& r : running) {
+        const auto asked = std::chrono::steady_clock::now();
         const RedisQueue::Beat b =
             redis_->heartbeat(c, r.job->id, r.entry, r.progress, r.stage, now_ms());
+        if (b.owned) renewed[r.entry] = asked;
         std::lock_guard lock(mutex_);
         if (finished(r.job->state)) continue;
         if (!b.owned && !r.job->superseded) {

@@ -10,10 +10,12 @@
 
 #include <gtest/gtest.h>
 #include <httplib.h>
+#include <poll.h>
 #include <sys/socket.h>
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <csignal>
 #include <deque>
 #include <filesystem>
@@ -59,11 +61,24 @@ class Redis {
   explicit Redis(fs::path dir) : dir_(std::move(dir)) {}
   fs::path socket() const { return dir_ / "redis.sock"; }
   std::string url() const { return "unix://" + socket().string(); }
-  void start() {
-    child_ = std::make_unique<Child>(std::vector<std::string>{
-        redis_server_path(), "--port", "0", "--unixsocket", socket().string(), "--dir",
-        dir_.string(), "--appendonly", "yes", "--appendfsync", "always", "--save", "",
-        "--maxmemory-policy", "noeviction"});
+  void start(const std::vector<std::string>& extra = {}) {
+    std::vector<std::string> argv{redis_server_path(),
+                                  "--port",
+                                  "0",
+                                  "--unixsocket",
+                                  socket().string(),
+                                  "--dir",
+                                  dir_.string(),
+                                  "--appendonly",
+                                  "yes",
+                                  "--appendfsync",
+                                  "always",
+                                  "--save",
+                                  "",
+                                  "--maxmemory-policy",
+                                  "noeviction"};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    child_ = std::make_unique<Child>(argv);
     const auto until = Clock::now() + 10s;
     while (!can_connect(socket()) && Clock::now() < until) std::this_thread::sleep_for(20ms);
     ASSERT_TRUE(can_connect(socket())) << child_->stderr_text();
@@ -78,6 +93,80 @@ class Redis {
  private:
   fs::path dir_;
   std::unique_ptr<Child> child_;
+};
+
+// A unix-socket proxy in front of the Redis socket: one replica's way to Redis, which the
+// test can cut (bytes held, not forwarded) while every other replica still reaches Redis.
+class RedisProxy {
+ public:
+  RedisProxy(fs::path listen, fs::path target)
+      : path_(std::move(listen)), target_(std::move(target)) {
+    fd_ = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    sockaddr_un addr{};
+    addr.sun_family = AF_UNIX;
+    std::snprintf(addr.sun_path, sizeof addr.sun_path, "%s", path_.c_str());
+    EXPECT_EQ(::bind(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
+    EXPECT_EQ(::listen(fd_, 16), 0);
+    accept_ = std::thread([this] { accept_loop(); });
+  }
+  ~RedisProxy() {
+    stop_ = true;
+    accept_.join();
+    for (std::thread& t : threads_) t.join();
+    for (int fd : fds_) ::close(fd);
+    ::close(fd_);
+  }
+  std::string url() const { return "unix://" + path_.string(); }
+  void cut(bool cut) { cut_ = cut; }
+
+ private:
+  static bool readable(int fd) {
+    pollfd p{fd, POLLIN, 0};
+    return ::poll(&p, 1, 20) > 0;
+  }
+  void accept_loop() {
+    while (!stop_) {
+      if (!readable(fd_)) continue;
+      const int in = ::accept4(fd_, nullptr, nullptr, SOCK_CLOEXEC);
+      if (in < 0) continue;
+      const int out = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+      sockaddr_un addr{};
+      addr.sun_family = AF_UNIX;
+      std::snprintf(addr.sun_path, sizeof addr.sun_path, "%s", target_.c_str());
+      if (::connect(out, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
+        ::close(in);
+        ::close(out);
+        continue;
+      }
+      fds_.push_back(in);
+      fds_.push_back(out);
+      threads_.emplace_back([this, in, out] { pump(in, out); });
+      threads_.emplace_back([this, in, out] { pump(out, in); });
+    }
+  }
+  void pump(int from, int to) {
+    char buffer[65536];
+    while (!stop_) {
+      if (cut_ || !readable(from)) continue;
+      const ssize_t n = ::read(from, buffer, sizeof buffer);
+      if (n <= 0) {
+        ::shutdown(to, SHUT_RDWR);
+        return;
+      }
+      for (ssize_t done = 0; done < n;) {
+        const ssize_t w = ::write(to, buffer + done, static_cast<std::size_t>(n - done));
+        if (w <= 0) return;
+        done += w;
+      }
+    }
+  }
+
+  fs::path path_, target_;
+  int fd_ = -1;
+  std::atomic<bool> stop_{false}, cut_{false};
+  std::vector<int> fds_;  // written by the accept thread only
+  std::thread accept_;
+  std::vector<std::thread> threads_;  // the accept thread's, joined after it
 };
 
 struct Replica {
@@ -112,14 +201,14 @@ class QueueMode : public ::testing::Test {
   }
 
   Replica& start_replica(const std::string& name, std::vector<std::string> extra = {},
-                         const std::string& grace = "1") {
+                         const std::string& grace = "1", const std::string& queue = {}) {
     std::vector<std::string> argv{STLREFINED,
                                   "--port",
                                   "0",
                                   "--data-dir",
                                   (dir_ / "data").string(),
                                   "--queue",
-                                  redis_->url(),
+                                  queue.empty() ? redis_->url() : queue,
                                   "--instance",
                                   name,
                                   "--compute-slots",
@@ -317,6 +406,102 @@ TEST_F(QueueMode, SigtermHandsRunningAndQueuedJobsToAnotherReplica) {
     EXPECT_EQ(j.value("state", ""), "done") << j.dump();
     EXPECT_EQ(j.value("worker", ""), "b");
   }
+}
+
+// A replica stalled past its lease (SIGSTOP) whose job another replica took over, then
+// stopped (SIGTERM): it neither hands the job back (which would queue a third run beside the
+// one taking it over and leave that run's result unrecorded) nor records or reports it; the
+// job ends once, on the replica that took it over, with one result.
+TEST_F(QueueMode, StalledReplicaStoppedAfterItsLeaseDoesNotHandBackTheJob) {
+  Replica& a = start_replica("a", {}, "0");
+  Replica& b = start_replica("b", {}, "0");
+  const std::string id = submit(a, kLongJob, long_mesh());
+  ASSERT_FALSE(id.empty());
+  const std::string first = wait_running(a, id);
+  ASSERT_FALSE(first.empty()) << job(a, id).dump();
+  Replica& victim = first == "a" ? a : b;
+  const Replica& survivor = first == "a" ? b : a;
+  victim.child->signal(SIGSTOP);
+  // Taken over after the lease (2 s) and a reclaim look (1 s).
+  std::string worker;
+  const auto until = Clock::now() + 15s;
+  while (Clock::now() < until && worker != survivor.name) {
+    const Json j = job(survivor, id);
+    worker = j.is_object() ? j.value("worker", "") : "";
+    std::this_thread::sleep_for(50ms);
+  }
+  ASSERT_EQ(worker, survivor.name) << job(survivor, id).dump();
+  // The stop is seen as the process resumes, before its keeper can ask Redis anything.
+  victim.child->signal(SIGTERM);
+  victim.child->signal(SIGCONT);
+  EXPECT_EQ(victim.child->wait(20s), 0) << victim.child->stderr_text();
+  const Json now = job(survivor, id);
+  EXPECT_EQ(now.value("state", ""), "running") << now.dump();
+  EXPECT_EQ(now.value("worker", ""), survivor.name) << now.dump();
+  EXPECT_EQ(victim.child->stderr_text().find("handed back to the queue"), std::string::npos)
+      << victim.child->stderr_text();
+  const Json j = wait_ended(survivor, id, 60s);
+  ASSERT_EQ(j.value("state", ""), "done") << j.dump();
+  EXPECT_EQ(j.value("worker", ""), survivor.name);
+  std::set<std::string> files;
+  for (const auto& e : fs::directory_iterator(dir_ / "data" / id))
+    files.insert(e.path().filename().string());
+  EXPECT_EQ(files, (std::set<std::string>{"result.stl", "report.json"}));
+  auto stl = survivor.client()->Get(("/v1/jobs/" + id + "/result.stl").c_str());
+  ASSERT_TRUE(stl);
+  ASSERT_EQ(stl->status, 200);
+  EXPECT_EQ(read_binary_stl(stl->body).size(), std::size_t{32} << 16);
+  // One run recorded it: no entry left behind for another run.
+  auto metrics = survivor.client()->Get("/metrics");
+  ASSERT_TRUE(metrics);
+  std::this_thread::sleep_for(600ms);
+  metrics = survivor.client()->Get("/metrics");
+  EXPECT_NE(metrics->body.find("stlrefine_queue_depth 0\n"), std::string::npos) << metrics->body;
+  EXPECT_NE(metrics->body.find("stlrefine_queue_pending_entries 0\n"), std::string::npos)
+      << metrics->body;
+}
+
+// A replica cut off from Redis (and stalled) while it runs a job: its run stops itself as its
+// lease may have lapsed, and once the job is taken over and the replica stopped (SIGTERM, Redis
+// reachable again) it does not hand the job back: the job ends once, on the other replica.
+TEST_F(QueueMode, ReplicaCutOffFromRedisStopsItsRunAndDoesNotHandItBack) {
+  RedisProxy proxy(dir_ / "proxy.sock", redis_->socket());
+  Replica& a = start_replica("a", {}, "0", proxy.url());
+  const std::string id = submit(a, kLongJob, long_mesh());
+  ASSERT_FALSE(id.empty());
+  ASSERT_EQ(wait_running(a, id), "a") << job(a, id).dump();
+  proxy.cut(true);
+  a.child->signal(SIGSTOP);  // its run stays unfinished (a short job on a fast machine)
+  const Replica& b = start_replica("b", {}, "0");
+  std::string worker;
+  const auto until = Clock::now() + 15s;
+  while (Clock::now() < until && worker != "b") {
+    const Json j = job(b, id);
+    worker = j.is_object() ? j.value("worker", "") : "";
+    std::this_thread::sleep_for(50ms);
+  }
+  ASSERT_EQ(worker, "b") << job(b, id).dump();
+  a.child->signal(SIGCONT);  // still cut off: its keeper cannot learn of the takeover
+  std::this_thread::sleep_for(500ms);
+  a.child->signal(SIGTERM);
+  proxy.cut(false);
+  EXPECT_EQ(a.child->wait(40s), 0) << a.child->stderr_text();
+  const std::string log = a.child->stderr_text();
+  EXPECT_NE(log.find("lease not renewed"), std::string::npos) << log;
+  EXPECT_EQ(log.find("handed back to the queue"), std::string::npos) << log;
+  const Json now = job(b, id);
+  EXPECT_NE(now.value("state", ""), "queued") << now.dump();
+  const Json j = wait_ended(b, id, 60s);
+  ASSERT_EQ(j.value("state", ""), "done") << j.dump();
+  EXPECT_EQ(j.value("worker", ""), "b");
+  std::set<std::string> files;
+  for (const auto& e : fs::directory_iterator(dir_ / "data" / id))
+    files.insert(e.path().filename().string());
+  EXPECT_EQ(files, (std::set<std::string>{"result.stl", "report.json"}));
+  auto stl = b.client()->Get(("/v1/jobs/" + id + "/result.stl").c_str());
+  ASSERT_TRUE(stl);
+  ASSERT_EQ(stl->status, 200);
+  EXPECT_EQ(read_binary_stl(stl->body).size(), std::size_t{32} << 16);
 }
 
 TEST_F(QueueMode, EventStreamFollowsAJobRunningOnAnotherReplica) {
