@@ -580,6 +580,20 @@ TEST_F(QueueMode, RedisStoppedRefusesSubmissionsButNotSynchronousRoutes) {
   EXPECT_EQ(status, 202);
 }
 
+// A full Redis (maxmemory reached, noeviction) refuses the submission's write with OOM: the
+// client is told to retry later (503 + Retry-After, a problem), not a server error.
+TEST_F(QueueMode, RedisOutOfMemoryRefusesSubmissionsWith503) {
+  redis_->kill();
+  redis_->start({"--maxmemory", "1mb"});  // below what an empty Redis uses
+  const Replica& r = start_replica("r");
+  auto res = r.client()->Post("/v1/jobs?levels=1", binary_stl(octahedron_triangles()), "model/stl");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 503) << res->body;
+  EXPECT_TRUE(res->has_header("Retry-After"));
+  EXPECT_EQ(res->get_header_value("Content-Type"), "application/problem+json");
+  EXPECT_EQ(Json::parse(res->body).value("reason", ""), "queue_out_of_memory") << res->body;
+}
+
 TEST_F(QueueMode, TwoTenantsCannotSeeEachOthersJobs) {
   const std::string key_a = "tenant-a-0123456789abcdef", key_b = "tenant-b-fedcba9876543210";
   {
