@@ -301,12 +301,12 @@ void RedisQueue::mark_expired(RedisConnection& c, const std::string& id) const {
   c.command({"EVAL", kMarkExpired, "1", job_key(id)});
 }
 
-std::vector<std::pair<std::int64_t, std::string>> RedisQueue::tenant_jobs(RedisConnection& c,
-                                                                          const std::string& owner,
-                                                                          std::int64_t max_ms,
-                                                                          std::size_t count) const {
-  const RedisReply r = c.command({"ZREVRANGEBYSCORE", tenant_key(owner), std::to_string(max_ms),
-                                  "-inf", "WITHSCORES", "LIMIT", "0", std::to_string(count)});
+std::vector<std::pair<std::int64_t, std::string>> RedisQueue::tenant_jobs(
+    RedisConnection& c, const std::string& owner, std::int64_t max_ms, std::size_t count,
+    std::size_t offset) const {
+  const RedisReply r =
+      c.command({"ZREVRANGEBYSCORE", tenant_key(owner), std::to_string(max_ms), "-inf",
+                 "WITHSCORES", "LIMIT", std::to_string(offset), std::to_string(count)});
   std::vector<std::pair<std::int64_t, std::string>> out;
   for (std::size_t i = 0; i + 1 < r.size(); i += 2)
     out.emplace_back(r.at(i + 1).integer(), r.at(i).str());

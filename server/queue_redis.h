@@ -100,11 +100,13 @@ class RedisQueue {
   //! Marks a finished job's results removed (410 from now on).
   void mark_expired(RedisConnection& c, const std::string& id) const;
 
-  //! (created_ms, id) of `owner`'s jobs, newest first, created at or before `max_ms`.
+  //! (created_ms, id) of `owner`'s jobs, newest first, created at or before `max_ms`: `count`
+  //! of them after the first `offset`.
   std::vector<std::pair<std::int64_t, std::string>> tenant_jobs(RedisConnection& c,
                                                                 const std::string& owner,
                                                                 std::int64_t max_ms,
-                                                                std::size_t count) const;
+                                                                std::size_t count,
+                                                                std::size_t offset = 0) const;
   //! Removes ids whose hash has expired from `owner`'s index.
   void forget(RedisConnection& c, const std::string& owner,
               const std::vector<std::string>& ids) const;

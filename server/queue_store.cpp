@@ -36,8 +36,9 @@ constexpr auto kFinishingWait = std::chrono::seconds(5);
 constexpr auto kRetryPause = std::chrono::milliseconds(250);
 // Finished jobs one janitor pass expires at most.
 constexpr std::size_t kExpireBatch = 256;
-// Ids a job list looks at, at most (newest first).
+// Ids a job list reads per page (newest first), and pages it reads at most.
 constexpr std::size_t kListScan = 2000;
+constexpr std::size_t kListPages = 50;
 
 std::int64_t now_ms() {
   return epoch_ms(Clock::now());
@@ -248,30 +249,47 @@ std::vector<JobView> JobStore::list_queued(const std::string& owner, std::option
                                            std::size_t limit, bool* more) const {
   auto c = redis_->pool().take();
   const std::int64_t max_ms = after ? after->created_ms : std::numeric_limits<std::int64_t>::max();
-  const auto ids = redis_->tenant_jobs(*c, owner, max_ms, kListScan);
-  std::vector<std::string> wanted;
-  for (const auto& [created, id] : ids)
-    if (!after || std::make_pair(created, id) < std::make_pair(after->created_ms, after->id))
-      wanted.push_back(id);
-  const auto found = redis_->load_many(*c, wanted);
   std::vector<JobView> out;
-  std::vector<std::string> gone;
   bool over = false;
-  for (std::size_t i = 0; i < wanted.size(); ++i) {
-    if (!found[i]) {
-      gone.push_back(wanted[i]);  // its hash outlived its retention
-      continue;
-    }
-    if (!same_tenant(get(*found[i], "tenant"), owner)) continue;
-    const std::shared_ptr<Job> job = job_of(*found[i]);
-    if (state && job->state != *state) continue;
-    if (out.size() == limit) {
-      over = true;
+  // Page through the tenant's index (newest first) until one job more than `limit` matches:
+  // a state filter may skip any number of newer jobs. New jobs sort before the offset and
+  // shift it: the cursor test drops what was already seen.
+  std::size_t offset = 0;
+  for (std::size_t page = 0; !over; ++page) {
+    if (page == kListPages) {
+      over = !out.empty();  // looked far enough: the client pages on from the last one
       break;
     }
-    out.push_back(view(*job));
+    const auto ids = redis_->tenant_jobs(*c, owner, max_ms, kListScan, offset);
+    offset += ids.size();
+    std::vector<std::pair<std::int64_t, std::string>> wanted;
+    for (const auto& entry : ids) {
+      if (after && !(entry < std::make_pair(after->created_ms, after->id))) continue;
+      if (!out.empty() && !(entry < std::make_pair(epoch_ms(out.back().created), out.back().id)))
+        continue;
+      wanted.push_back(entry);
+    }
+    std::vector<std::string> keys;
+    for (const auto& [created, id] : wanted) keys.push_back(id);
+    const auto found = redis_->load_many(*c, keys);
+    std::vector<std::string> gone;
+    for (std::size_t i = 0; i < keys.size(); ++i) {
+      if (!found[i]) {
+        gone.push_back(keys[i]);  // its hash outlived its retention
+        continue;
+      }
+      if (!same_tenant(get(*found[i], "tenant"), owner)) continue;
+      const std::shared_ptr<Job> job = job_of(*found[i]);
+      if (state && job->state != *state) continue;
+      if (out.size() == limit) {
+        over = true;
+        break;
+      }
+      out.push_back(view(*job));
+    }
+    redis_->forget(*c, owner, gone);
+    if (ids.size() < kListScan) break;
   }
-  redis_->forget(*c, owner, gone);
   if (more) *more = over;
   return out;
 }

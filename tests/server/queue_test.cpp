@@ -594,6 +594,45 @@ TEST_F(QueueMode, RedisOutOfMemoryRefusesSubmissionsWith503) {
   EXPECT_EQ(Json::parse(res->body).value("reason", ""), "queue_out_of_memory") << res->body;
 }
 
+// A job list filtered by state finds a job behind more than one page (2000) of newer jobs
+// in another state: the tenant's index is read page after page.
+TEST_F(QueueMode, ListByStateFindsAJobBehindThousandsOfNewerOnes) {
+  const Replica& api = start_replica("api", {"--role", "api", "--job-queue", "3000"});
+  const std::string mesh = binary_stl(octahedron_triangles());
+  const std::string old = submit(api, "levels=1", mesh);
+  ASSERT_FALSE(old.empty());
+  auto del = api.client()->Delete(("/v1/jobs/" + old).c_str());
+  ASSERT_TRUE(del);
+  ASSERT_EQ(Json::parse(del->body).value("state", ""), "cancelled") << del->body;
+  auto client = api.client();
+  for (int i = 0; i < 2005; ++i) {
+    auto res = client->Post("/v1/jobs?levels=1", mesh, "model/stl");
+    ASSERT_TRUE(res);
+    ASSERT_EQ(res->status, 202) << res->body;
+  }
+  auto res = client->Get("/v1/jobs?state=cancelled&limit=5");
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 200) << res->body;
+  const Json j = Json::parse(res->body);
+  ASSERT_EQ(j["jobs"].size(), 1u) << res->body;
+  EXPECT_EQ(j["jobs"][0].value("id", ""), old);
+  EXPECT_FALSE(j.contains("next_cursor")) << res->body;
+  // And a page of the newer ones goes on past the first 2000 with its cursor.
+  res = client->Get("/v1/jobs?state=queued&limit=100");
+  ASSERT_TRUE(res);
+  std::string cursor = Json::parse(res->body).value("next_cursor", "");
+  std::size_t seen = Json::parse(res->body)["jobs"].size();
+  while (!cursor.empty()) {
+    res = client->Get(("/v1/jobs?state=queued&limit=100&cursor=" + cursor).c_str());
+    ASSERT_TRUE(res);
+    ASSERT_EQ(res->status, 200) << res->body;
+    const Json page = Json::parse(res->body);
+    seen += page["jobs"].size();
+    cursor = page.value("next_cursor", "");
+  }
+  EXPECT_EQ(seen, 2005u);
+}
+
 TEST_F(QueueMode, TwoTenantsCannotSeeEachOthersJobs) {
   const std::string key_a = "tenant-a-0123456789abcdef", key_b = "tenant-b-fedcba9876543210";
   {
