@@ -96,6 +96,9 @@ JobFields JobStore::fields_of(const Job& job) const {
 std::shared_ptr<JobStore::Job> JobStore::job_of(const JobFields& f) const {
   auto job = std::make_shared<Job>();
   job->id = get(f, "id");
+  // The id names a directory whose files are read and removed: only what a store writes.
+  if (!well_formed_id(job->id))
+    throw std::runtime_error("a job's hash in Redis has a malformed id: " + job->id.substr(0, 64));
   job->dir = config_.data_dir / job->id;
   job->tenant = get(f, "tenant");
   job->instance = get(f, "worker");

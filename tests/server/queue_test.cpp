@@ -633,6 +633,23 @@ TEST_F(QueueMode, ListByStateFindsAJobBehindThousandsOfNewerOnes) {
   EXPECT_EQ(seen, 2005u);
 }
 
+// A job's hash whose id is not one a store writes (Redis written by something else) never
+// names a directory: a DELETE of it removes nothing outside the data directory.
+TEST_F(QueueMode, AHashWithAMalformedIdNamesNoDirectory) {
+  const Replica& api = start_replica("api", {"--role", "api"});
+  const std::string id = submit(api, "levels=1", binary_stl(octahedron_triangles()));
+  ASSERT_FALSE(id.empty());
+  fs::create_directories(dir_ / "victim");
+  std::ofstream(dir_ / "victim" / "result.stl") << "not the job's";
+  Child cli({"/usr/bin/redis-cli", "-s", redis_->socket().string(), "HSET", "stlrefine:job:" + id,
+             "id", "../victim", "state", "done", "results", "[\"result.stl\"]"});
+  ASSERT_EQ(cli.wait(10s), 0);
+  auto del = api.client()->Delete(("/v1/jobs/" + id).c_str());
+  ASSERT_TRUE(del);
+  EXPECT_NE(del->status, 200) << del->body;
+  EXPECT_TRUE(fs::exists(dir_ / "victim" / "result.stl"));
+}
+
 TEST_F(QueueMode, TwoTenantsCannotSeeEachOthersJobs) {
   const std::string key_a = "tenant-a-0123456789abcdef", key_b = "tenant-b-fedcba9876543210";
   {
