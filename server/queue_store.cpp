@@ -179,6 +179,17 @@ SubmitResult JobStore::submit_queued(const std::shared_ptr<Job>& job, std::strin
     const api::RefineRequest& r = job->plan.request;
     fields["accept_3mf"] = r.mesh_format == MeshFormat::ThreeMf && !r.mesh_format_given ? "1" : "0";
     redis_->enqueue(*c, job->id, job->tenant, epoch_ms(job->created), fields);
+  } catch (const RedisUnavailable&) {
+    // No reply (a timeout, a connection lost): the script may have run and the job be queued.
+    // Its input goes only once Redis says the job is not there (else it stays, logged).
+    try {
+      auto check = redis_->pool().take();
+      std::error_code ignored;
+      if (!redis_->load(*check, job->id)) fs::remove_all(job->dir, ignored);
+    } catch (const std::exception&) {
+      log_line("job " + job->id + ": unknown whether it was queued; its input stays");
+    }
+    throw;  // 503: the client retries (a duplicate at worst, never a queued job without input)
   } catch (const std::exception& e) {
     std::error_code ignored;
     fs::remove_all(job->dir, ignored);
