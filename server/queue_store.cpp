@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <limits>
 #include <map>
+#include <optional>
 #include <thread>
 
 #include "core/error.h"
@@ -326,6 +327,9 @@ std::optional<JobStore::Lookup> JobStore::try_find_queued(const std::string& id,
 }
 
 void JobStore::refresh_watched() {
+  // Its own connection (this thread's): the reads never delay the lease keeper's heartbeats.
+  thread_local std::optional<RedisConnection> c;
+  if (!c) c.emplace(redis_->pool().address(), kCallTimeout);
   QueueFigures& f = *figures_;
   std::vector<std::pair<std::string, std::string>> keys;
   {
@@ -334,13 +338,22 @@ void JobStore::refresh_watched() {
     std::erase_if(f.watched, [&](const auto& w) { return w.second.asked < stale; });
     for (const auto& [key, w] : f.watched) keys.push_back(key);
   }
-  for (const auto& [id, owner] : keys) {
+  std::vector<std::string> ids;
+  for (const auto& [id, owner] : keys) ids.push_back(id);
+  const auto found = redis_->load_many(*c, ids);  // one round trip
+  for (std::size_t i = 0; i < keys.size(); ++i) {
+    const auto& [id, owner] = keys[i];
     JobView view;
-    const Lookup found = find_queued(id, owner, &view);
+    Lookup lookup = Lookup::Unknown;
+    if (found[i] && same_tenant(get(*found[i], "tenant"), owner)) {
+      const std::shared_ptr<Job> job = job_of(*found[i]);
+      view = this->view(*job);
+      lookup = job->expired ? Lookup::Expired : Lookup::Found;
+    }
     std::lock_guard lock(f.watch_mutex);
     const auto it = f.watched.find({id, owner});
     if (it == f.watched.end()) continue;
-    it->second.found = found;
+    it->second.found = lookup;
     it->second.view = std::move(view);
   }
 }
@@ -554,6 +567,21 @@ void JobStore::keep_leases() {
     job->superseded = true;
     request_cancel(*job, CancelReason::ShutdownNow);
   };
+  // Jobs followed by event streams here are read on a thread of their own.
+  std::thread watcher([this, beat] {
+    for (;;) {
+      {
+        std::lock_guard lock(mutex_);
+        if (stopping_) return;
+      }
+      try {
+        refresh_watched();
+      } catch (const std::exception&) {
+        // Redis away: the keeper tells (queue_up); streams keep their last view.
+      }
+      std::this_thread::sleep_for(beat);
+    }
+  });
   for (;;) {
     struct Running {
       std::shared_ptr<Job> job;
@@ -563,7 +591,7 @@ void JobStore::keep_leases() {
     std::vector<Running> running;
     {
       std::lock_guard lock(mutex_);
-      if (stopping_ && running_ == 0) return;
+      if (stopping_ && running_ == 0) break;
       for (const auto& [id, job] : jobs_)
         if (!finished(job->state)) running.push_back({job, job->entry, job->stage, job->progress});
     }
@@ -593,7 +621,6 @@ void JobStore::keep_leases() {
           request_cancel(*r.job, CancelReason::Client);
         }
       }
-      refresh_watched();
       const RedisQueue::Stats s = redis_->stats(c);
       figures_->depth = static_cast<std::uint64_t>(s.depth);
       figures_->pending = static_cast<std::uint64_t>(s.pending);
@@ -609,6 +636,7 @@ void JobStore::keep_leases() {
     }
     std::this_thread::sleep_for(beat);
   }
+  watcher.join();
 }
 
 void JobStore::expire_queued() {
