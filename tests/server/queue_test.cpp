@@ -8,8 +8,10 @@
 // and tenants stay apart. Skipped only when redis-server is not installed (setup.sh installs
 // it).
 
+#include <arpa/inet.h>
 #include <gtest/gtest.h>
 #include <httplib.h>
+#include <netinet/in.h>
 #include <poll.h>
 #include <sys/socket.h>
 #include <sys/un.h>
@@ -650,6 +652,34 @@ TEST_F(QueueMode, AHashWithAMalformedIdNamesNoDirectory) {
   EXPECT_TRUE(fs::exists(dir_ / "victim" / "result.stl"));
 }
 
+// A Redis with a password (requirepass): the daemon AUTHs with the one in its --queue URL;
+// a wrong one is a Redis it cannot reach (503), and its log never shows the password.
+TEST_F(QueueMode, PasswordInTheQueueUrlAuthenticates) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  ASSERT_EQ(::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
+  socklen_t len = sizeof addr;
+  ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len);
+  const std::string port = std::to_string(ntohs(addr.sin_port));
+  ::close(fd);
+  redis_->kill();
+  redis_->start({"--port", port, "--bind", "127.0.0.1", "--requirepass", "s3cret"});
+  const Replica& good = start_replica("good", {}, "1", "redis://:s3cret@127.0.0.1:" + port);
+  const std::string id = submit(good, "levels=1", binary_stl(octahedron_triangles()));
+  ASSERT_FALSE(id.empty());
+  EXPECT_EQ(wait_ended(good, id, 20s).value("state", ""), "done");
+  Replica& bad = start_replica("bad", {}, "1", "redis://:wrong-s3cret@127.0.0.1:" + port);
+  auto res =
+      bad.client()->Post("/v1/jobs?levels=1", binary_stl(octahedron_triangles()), "model/stl");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 503) << res->body;
+  bad.child->signal(SIGTERM);
+  bad.child->wait(20s);
+  EXPECT_EQ(bad.child->stderr_text().find("s3cret"), std::string::npos) << bad.child->stderr_text();
+}
+
 TEST_F(QueueMode, TwoTenantsCannotSeeEachOthersJobs) {
   const std::string key_a = "tenant-a-0123456789abcdef", key_b = "tenant-b-fedcba9876543210";
   {
@@ -687,11 +717,14 @@ TEST(QueueModeFlags, ABadQueueAddressStopsTheDaemonWithThePreciseError) {
            {"redis://h/16", "the database number must be an integer in [0, 15]"},
            {"unix://relative.sock", "the socket path must be absolute"},
            {"http://h:6379", "unknown scheme"},
-           {"redis://user:pw@h", "credentials"}}) {
+           {"redis://user@h", "credentials are [USER]:PASSWORD@"},
+           {"redis://:@h", "an empty password"},
+           {"redis://:s3cret@h:99999", "the port must be an integer in [1, 65535]"}}) {
     const ProcessResult r = run_process(
         {STLREFINED, "--port", "0", "--data-dir", "/tmp/unused-queue", "--queue", url}, 20s);
     EXPECT_EQ(r.exit_code, 1) << url;
     EXPECT_NE(r.err.find(says), std::string::npos) << url << ": " << r.err;
+    EXPECT_EQ(r.err.find("s3cret"), std::string::npos) << r.err;  // never the password
   }
   const ProcessResult r =
       run_process({STLREFINED, "--port", "0", "--data-dir", "", "--queue", "redis://h"}, 20s);
