@@ -23,6 +23,7 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <string>
@@ -467,14 +468,36 @@ TEST_F(QueueMode, StalledReplicaStoppedAfterItsLeaseDoesNotHandBackTheJob) {
 // lease may have lapsed, and once the job is taken over and the replica stopped (SIGTERM, Redis
 // reachable again) it does not hand the job back: the job ends once, on the other replica.
 TEST_F(QueueMode, ReplicaCutOffFromRedisStopsItsRunAndDoesNotHandItBack) {
+  // Callbacks: one, from the run that recorded the job's end.
+  httplib::Server receiver;
+  std::mutex mutex;
+  std::vector<std::string> received;
+  receiver.Post("/hook", [&](const httplib::Request& req, httplib::Response& res) {
+    std::lock_guard lock(mutex);
+    received.push_back(req.body);
+    res.status = 204;
+  });
+  const int port = receiver.bind_to_any_port("127.0.0.1");
+  std::thread serving([&] { receiver.listen_after_bind(); });
+  struct Stop {
+    httplib::Server& s;
+    std::thread& t;
+    ~Stop() {
+      s.stop();
+      t.join();
+    }
+  } stop{receiver, serving};
+  const std::string allow = "127.0.0.1:" + std::to_string(port);
+  const std::string hook = "callback_url=http://" + allow + "/hook";
   RedisProxy proxy(dir_ / "proxy.sock", redis_->socket());
-  Replica& a = start_replica("a", {}, "0", proxy.url());
-  const std::string id = submit(a, kLongJob, long_mesh());
+  Replica& a =
+      start_replica("a", {"--callback-allow", allow, "--callback-secret", "s"}, "0", proxy.url());
+  const std::string id = submit(a, std::string(kLongJob) + "&" + hook, long_mesh());
   ASSERT_FALSE(id.empty());
   ASSERT_EQ(wait_running(a, id), "a") << job(a, id).dump();
   proxy.cut(true);
   a.child->signal(SIGSTOP);  // its run stays unfinished (a short job on a fast machine)
-  const Replica& b = start_replica("b", {}, "0");
+  const Replica& b = start_replica("b", {"--callback-allow", allow, "--callback-secret", "s"}, "0");
   std::string worker;
   const auto until = Clock::now() + 15s;
   while (Clock::now() < until && worker != "b") {
@@ -504,6 +527,18 @@ TEST_F(QueueMode, ReplicaCutOffFromRedisStopsItsRunAndDoesNotHandItBack) {
   ASSERT_TRUE(stl);
   ASSERT_EQ(stl->status, 200);
   EXPECT_EQ(read_binary_stl(stl->body).size(), std::size_t{32} << 16);
+  const auto delivered = Clock::now() + 10s;
+  while (Clock::now() < delivered) {
+    {
+      std::lock_guard lock(mutex);
+      if (!received.empty()) break;
+    }
+    std::this_thread::sleep_for(50ms);
+  }
+  std::this_thread::sleep_for(1s);  // a second one would come meanwhile
+  std::lock_guard lock(mutex);
+  ASSERT_EQ(received.size(), 1u) << (received.empty() ? "" : received.front());
+  EXPECT_EQ(Json::parse(received.front()).value("state", ""), "done") << received.front();
 }
 
 TEST_F(QueueMode, EventStreamFollowsAJobRunningOnAnotherReplica) {
