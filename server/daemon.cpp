@@ -404,6 +404,24 @@ Answer Daemon::Impl::serve(ReadRequest& read) {
         "queue-unavailable", "the job queue (Redis) cannot be reached; retry later");
     p.extensions["reason"] = "queue_unavailable";
     ctx.respond(res, p);
+  } catch (const RedisError& e) {
+    // A full Redis (maxmemory, noeviction) refuses writes with OOM: retry later, like a
+    // full queue; any other error reply is ours (a 500 below).
+    if (std::string_view(e.what()).find("OOM") == std::string_view::npos) {
+      log_line("stlrefined: internal error on " + req.method + " " + shortened(req.path) + ": " +
+               e.what());
+      res = HttpAnswer();
+      ranges = false;
+      send_problem(res, api::internal_error());
+    } else {
+      log_line(std::string("stlrefined: ") + e.what());
+      res = HttpAnswer();
+      ranges = false;
+      api::Problem p = api::service_unavailable(
+          "queue-full", "the job queue (Redis) is out of memory; retry later");
+      p.extensions["reason"] = "queue_out_of_memory";
+      ctx.respond(res, p);
+    }
   } catch (...) {
     std::string what = "unknown exception";
     try {

@@ -57,8 +57,11 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
     std::lock_guard lock(mutex_);
     job->started = Clock::now();
     job->stage = "starting";
-    persist_or_log(*job);
+    if (!redis_) persist_or_log(*job);
   }
+  // Queue mode: a call to Redis, not under the store's lock (only this thread writes these
+  // fields now).
+  if (redis_) persist_or_log(*job);
   // Done: results written; Cancelled: stopped by a cancel (which one is decided below,
   // under the lock); Failed: `problem`.
   JobState state = JobState::Failed;
@@ -218,19 +221,28 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
   memory.reset();
   std::error_code ignored;
   if (!redis_) fs::remove(job->dir / kInputFile, ignored);  // queue mode: once recorded
+  // Called under mutex_ (job->superseded is written under it).
   const auto discard = [&] {
-    for (const std::string& name : results) fs::remove(job->dir / name, ignored);
+    // A run whose lease lapsed wrote under the names the run that took it over writes (and
+    // may have recorded): those files are not its to remove.
+    if (!job->superseded)
+      for (const std::string& name : results) fs::remove(job->dir / name, ignored);
     results.clear();
     bytes = 0;
   };
-  if (state != JobState::Done) discard();  // a write that failed half-way
+  if (state != JobState::Done) {  // a write that failed half-way
+    std::lock_guard lock(mutex_);
+    discard();
+  }
 
   JobView done;
   {
     // Another replica's cancel note is either here now, or it finds the job finished.
     DirLock dir_lock(job->dir);
+    // Queue mode: the seal script, before the store's lock is taken.
+    const bool cancel_came = cancel_arrived(*job);
     std::lock_guard lock(mutex_);
-    if (cancel_arrived(*job)) request_cancel(*job, CancelReason::Client);
+    if (cancel_came) request_cancel(*job, CancelReason::Client);
     const CancelReason why = job->cancel_reason;
     if (why == CancelReason::Client) {
       // A cancel answered Found before this point: it wins, even over finished work.
@@ -279,7 +291,24 @@ void JobStore::run_one(const std::shared_ptr<Job>& job) {
     }
     done = view(*job);
   }
-  if (redis_ && done.state == JobState::Cancelled && hand_back(*job)) return;  // runs elsewhere
+  if (redis_) {
+    // Queue mode: told (callback, metrics) only once its end is recorded in Redis, and only
+    // by the run that recorded it; a run handed back or taken over runs again elsewhere.
+    if (done.state == JobState::Cancelled && hand_back(*job)) return;
+    {
+      std::lock_guard lock(mutex_);
+      if (job->superseded) return;
+    }
+    try {
+      auto c = redis_->pool().take();
+      if (!finish_queued(*c, *job)) return;
+    } catch (const std::exception& e) {
+      log_line("job " + job->id + ": cannot record its end (" + e.what() +
+               "); it runs again once its lease lapses");
+      return;
+    }
+    fs::remove(job->dir / kInputFile, ignored);
+  }
   if (on_finished_)
     on_finished_(done, std::chrono::duration<double>(done.finished - done.started).count());
   notify_ended(done);

@@ -60,8 +60,8 @@ local state = redis.call('HGET', KEYS[1], 'state')
 if state ~= 'queued' and state ~= 'running' then return {'skip'} end
 local n = redis.call('HINCRBY', KEYS[1], 'attempts', 1)
 if n > tonumber(ARGV[1]) then
-  redis.call('HSET', KEYS[1], 'state', 'failed', 'stage', 'failed', 'finished_ms', ARGV[3],
-             'problem', ARGV[4])
+  -- Recorded failed by the runner's finish (with its TTL and the expiry index), or, should
+  -- that fail, by the runner that takes the entry over next.
   return {'exhausted', redis.call('HGETALL', KEYS[1])}
 end
 redis.call('HSET', KEYS[1], 'state', 'running', 'stage', 'waiting for a compute slot',
@@ -80,6 +80,14 @@ local c = 0
 if redis.call('HGET', KEYS[2], 'cancel') == '1' then c = 1 end
 return {owned, c})";
 
+// Only the runner the job is running on writes its progress (not a stale one whose entry
+// was taken over, nor over a final state).
+constexpr const char* kRecord = R"(
+if redis.call('HGET', KEYS[1], 'state') ~= 'running' then return 0 end
+if redis.call('HGET', KEYS[1], 'worker') ~= ARGV[1] then return 0 end
+redis.call('HSET', KEYS[1], unpack(ARGV, 2))
+return 1)";
+
 constexpr const char* kSeal = R"(
 if redis.call('HGET', KEYS[1], 'cancel') == '1' then return 1 end
 redis.call('HSET', KEYS[1], 'sealed', '1')
@@ -95,7 +103,11 @@ redis.call('XACK', KEYS[3], ARGV[1], ARGV[2])
 redis.call('XDEL', KEYS[3], ARGV[2])
 return 1)";
 
+// Only while this consumer still owns the entry (as kFinish): a runner whose lease lapsed
+// must not take back an entry another replica claimed and runs.
 constexpr const char* kHandBack = R"(
+local p = redis.call('XPENDING', KEYS[1], ARGV[1], ARGV[2], ARGV[2], 1)
+if not (p[1] and p[1][2] == ARGV[4]) then return 0 end
 redis.call('XACK', KEYS[1], ARGV[1], ARGV[2])
 redis.call('XDEL', KEYS[1], ARGV[2])
 if redis.call('EXISTS', KEYS[2]) == 1 then
@@ -214,7 +226,7 @@ RedisQueue::Beat RedisQueue::heartbeat(RedisConnection& c, const std::string& id
 }
 
 void RedisQueue::record(RedisConnection& c, const std::string& id, const JobFields& fields) const {
-  std::vector<std::string> argv{"HSET", job_key(id)};
+  std::vector<std::string> argv{"EVAL", kRecord, "1", job_key(id), consumer_};
   append_fields(argv, fields);
   c.command(argv);
 }
@@ -246,9 +258,10 @@ void RedisQueue::drop(RedisConnection& c, const std::string& entry) const {
   c.pipeline({{"XACK", kStream, kGroup, entry}, {"XDEL", kStream, entry}});
 }
 
-void RedisQueue::hand_back(RedisConnection& c, const std::string& id,
+bool RedisQueue::hand_back(RedisConnection& c, const std::string& id,
                            const std::string& entry) const {
-  c.command({"EVAL", kHandBack, "2", kStream, job_key(id), kGroup, entry, id});
+  return c.command({"EVAL", kHandBack, "2", kStream, job_key(id), kGroup, entry, id, consumer_})
+             .integer() == 1;
 }
 
 std::optional<JobFields> RedisQueue::load(RedisConnection& c, const std::string& id) const {
@@ -288,12 +301,12 @@ void RedisQueue::mark_expired(RedisConnection& c, const std::string& id) const {
   c.command({"EVAL", kMarkExpired, "1", job_key(id)});
 }
 
-std::vector<std::pair<std::int64_t, std::string>> RedisQueue::tenant_jobs(RedisConnection& c,
-                                                                          const std::string& owner,
-                                                                          std::int64_t max_ms,
-                                                                          std::size_t count) const {
-  const RedisReply r = c.command({"ZREVRANGEBYSCORE", tenant_key(owner), std::to_string(max_ms),
-                                  "-inf", "WITHSCORES", "LIMIT", "0", std::to_string(count)});
+std::vector<std::pair<std::int64_t, std::string>> RedisQueue::tenant_jobs(
+    RedisConnection& c, const std::string& owner, std::int64_t max_ms, std::size_t count,
+    std::size_t offset) const {
+  const RedisReply r =
+      c.command({"ZREVRANGEBYSCORE", tenant_key(owner), std::to_string(max_ms), "-inf",
+                 "WITHSCORES", "LIMIT", std::to_string(offset), std::to_string(count)});
   std::vector<std::pair<std::int64_t, std::string>> out;
   for (std::size_t i = 0; i + 1 < r.size(); i += 2)
     out.emplace_back(r.at(i + 1).integer(), r.at(i).str());

@@ -60,8 +60,8 @@ class RedisQueue {
     JobFields fields;  //!< Run: the job, now running here; Exhausted: failed now
   };
   //! Counts an attempt and marks the job running here. Skip: it has ended or is gone (the
-  //! entry is only to be acknowledged); Exhausted: more than `max_attempts`, failed with
-  //! `exhausted_problem` (to be finished).
+  //! entry is only to be acknowledged); Exhausted: more than `max_attempts`, to be recorded
+  //! failed (finish) with `exhausted_problem` by the caller.
   Start start(RedisConnection& c, const std::string& id, int max_attempts,
               const std::string& exhausted_problem, std::int64_t now_ms) const;
 
@@ -72,7 +72,7 @@ class RedisQueue {
   //! Renews a running job's lease and publishes its progress (only while it owns the entry).
   Beat heartbeat(RedisConnection& c, const std::string& id, const std::string& entry,
                  double progress, const std::string& stage, std::int64_t now_ms) const;
-  //! Some fields of a job (HSET).
+  //! Some fields of a job running on this consumer (else nothing).
   void record(RedisConnection& c, const std::string& id, const JobFields& fields) const;
   //! Before a runner records a final state: true when a cancel had arrived; from here a
   //! cancel sees the job finishing.
@@ -84,8 +84,8 @@ class RedisQueue {
   //! Acknowledges and deletes an entry with nothing to run.
   void drop(RedisConnection& c, const std::string& entry) const;
   //! An unstarted job back at the end of the queue (shutdown): a new entry, the attempt
-  //! not counted.
-  void hand_back(RedisConnection& c, const std::string& id, const std::string& entry) const;
+  //! not counted. Only while this consumer still owns `entry` (else false, nothing done).
+  bool hand_back(RedisConnection& c, const std::string& id, const std::string& entry) const;
 
   std::optional<JobFields> load(RedisConnection& c, const std::string& id) const;
   std::vector<std::optional<JobFields>> load_many(RedisConnection& c,
@@ -100,11 +100,13 @@ class RedisQueue {
   //! Marks a finished job's results removed (410 from now on).
   void mark_expired(RedisConnection& c, const std::string& id) const;
 
-  //! (created_ms, id) of `owner`'s jobs, newest first, created at or before `max_ms`.
+  //! (created_ms, id) of `owner`'s jobs, newest first, created at or before `max_ms`: `count`
+  //! of them after the first `offset`.
   std::vector<std::pair<std::int64_t, std::string>> tenant_jobs(RedisConnection& c,
                                                                 const std::string& owner,
                                                                 std::int64_t max_ms,
-                                                                std::size_t count) const;
+                                                                std::size_t count,
+                                                                std::size_t offset = 0) const;
   //! Removes ids whose hash has expired from `owner`'s index.
   void forget(RedisConnection& c, const std::string& owner,
               const std::vector<std::string>& ids) const;

@@ -8,6 +8,8 @@
 // passes cancels on; any replica answers for any job from its hash.
 #include <algorithm>
 #include <limits>
+#include <map>
+#include <optional>
 #include <thread>
 
 #include "core/error.h"
@@ -35,8 +37,9 @@ constexpr auto kFinishingWait = std::chrono::seconds(5);
 constexpr auto kRetryPause = std::chrono::milliseconds(250);
 // Finished jobs one janitor pass expires at most.
 constexpr std::size_t kExpireBatch = 256;
-// Ids a job list looks at, at most (newest first).
+// Ids a job list reads per page (newest first), and pages it reads at most.
 constexpr std::size_t kListScan = 2000;
+constexpr std::size_t kListPages = 50;
 
 std::int64_t now_ms() {
   return epoch_ms(Clock::now());
@@ -94,6 +97,9 @@ JobFields JobStore::fields_of(const Job& job) const {
 std::shared_ptr<JobStore::Job> JobStore::job_of(const JobFields& f) const {
   auto job = std::make_shared<Job>();
   job->id = get(f, "id");
+  // The id names a directory whose files are read and removed: only what a store writes.
+  if (!well_formed_id(job->id))
+    throw std::runtime_error("a job's hash in Redis has a malformed id: " + job->id.substr(0, 64));
   job->dir = config_.data_dir / job->id;
   job->tenant = get(f, "tenant");
   job->instance = get(f, "worker");
@@ -174,6 +180,17 @@ SubmitResult JobStore::submit_queued(const std::shared_ptr<Job>& job, std::strin
     const api::RefineRequest& r = job->plan.request;
     fields["accept_3mf"] = r.mesh_format == MeshFormat::ThreeMf && !r.mesh_format_given ? "1" : "0";
     redis_->enqueue(*c, job->id, job->tenant, epoch_ms(job->created), fields);
+  } catch (const RedisUnavailable&) {
+    // No reply (a timeout, a connection lost): the script may have run and the job be queued.
+    // Its input goes only once Redis says the job is not there (else it stays, logged).
+    try {
+      auto check = redis_->pool().take();
+      std::error_code ignored;
+      if (!redis_->load(*check, job->id)) fs::remove_all(job->dir, ignored);
+    } catch (const std::exception&) {
+      log_line("job " + job->id + ": unknown whether it was queued; its input stays");
+    }
+    throw;  // 503: the client retries (a duplicate at worst, never a queued job without input)
   } catch (const std::exception& e) {
     std::error_code ignored;
     fs::remove_all(job->dir, ignored);
@@ -247,30 +264,47 @@ std::vector<JobView> JobStore::list_queued(const std::string& owner, std::option
                                            std::size_t limit, bool* more) const {
   auto c = redis_->pool().take();
   const std::int64_t max_ms = after ? after->created_ms : std::numeric_limits<std::int64_t>::max();
-  const auto ids = redis_->tenant_jobs(*c, owner, max_ms, kListScan);
-  std::vector<std::string> wanted;
-  for (const auto& [created, id] : ids)
-    if (!after || std::make_pair(created, id) < std::make_pair(after->created_ms, after->id))
-      wanted.push_back(id);
-  const auto found = redis_->load_many(*c, wanted);
   std::vector<JobView> out;
-  std::vector<std::string> gone;
   bool over = false;
-  for (std::size_t i = 0; i < wanted.size(); ++i) {
-    if (!found[i]) {
-      gone.push_back(wanted[i]);  // its hash outlived its retention
-      continue;
-    }
-    if (!same_tenant(get(*found[i], "tenant"), owner)) continue;
-    const std::shared_ptr<Job> job = job_of(*found[i]);
-    if (state && job->state != *state) continue;
-    if (out.size() == limit) {
-      over = true;
+  // Page through the tenant's index (newest first) until one job more than `limit` matches:
+  // a state filter may skip any number of newer jobs. New jobs sort before the offset and
+  // shift it: the cursor test drops what was already seen.
+  std::size_t offset = 0;
+  for (std::size_t page = 0; !over; ++page) {
+    if (page == kListPages) {
+      over = !out.empty();  // looked far enough: the client pages on from the last one
       break;
     }
-    out.push_back(view(*job));
+    const auto ids = redis_->tenant_jobs(*c, owner, max_ms, kListScan, offset);
+    offset += ids.size();
+    std::vector<std::pair<std::int64_t, std::string>> wanted;
+    for (const auto& entry : ids) {
+      if (after && !(entry < std::make_pair(after->created_ms, after->id))) continue;
+      if (!out.empty() && !(entry < std::make_pair(epoch_ms(out.back().created), out.back().id)))
+        continue;
+      wanted.push_back(entry);
+    }
+    std::vector<std::string> keys;
+    for (const auto& [created, id] : wanted) keys.push_back(id);
+    const auto found = redis_->load_many(*c, keys);
+    std::vector<std::string> gone;
+    for (std::size_t i = 0; i < keys.size(); ++i) {
+      if (!found[i]) {
+        gone.push_back(keys[i]);  // its hash outlived its retention
+        continue;
+      }
+      if (!same_tenant(get(*found[i], "tenant"), owner)) continue;
+      const std::shared_ptr<Job> job = job_of(*found[i]);
+      if (state && job->state != *state) continue;
+      if (out.size() == limit) {
+        over = true;
+        break;
+      }
+      out.push_back(view(*job));
+    }
+    redis_->forget(*c, owner, gone);
+    if (ids.size() < kListScan) break;
   }
-  redis_->forget(*c, owner, gone);
   if (more) *more = over;
   return out;
 }
@@ -293,6 +327,9 @@ std::optional<JobStore::Lookup> JobStore::try_find_queued(const std::string& id,
 }
 
 void JobStore::refresh_watched() {
+  // Its own connection (this thread's): the reads never delay the lease keeper's heartbeats.
+  thread_local std::optional<RedisConnection> c;
+  if (!c) c.emplace(redis_->pool().address(), kCallTimeout);
   QueueFigures& f = *figures_;
   std::vector<std::pair<std::string, std::string>> keys;
   {
@@ -301,13 +338,22 @@ void JobStore::refresh_watched() {
     std::erase_if(f.watched, [&](const auto& w) { return w.second.asked < stale; });
     for (const auto& [key, w] : f.watched) keys.push_back(key);
   }
-  for (const auto& [id, owner] : keys) {
+  std::vector<std::string> ids;
+  for (const auto& [id, owner] : keys) ids.push_back(id);
+  const auto found = redis_->load_many(*c, ids);  // one round trip
+  for (std::size_t i = 0; i < keys.size(); ++i) {
+    const auto& [id, owner] = keys[i];
     JobView view;
-    const Lookup found = find_queued(id, owner, &view);
+    Lookup lookup = Lookup::Unknown;
+    if (found[i] && same_tenant(get(*found[i], "tenant"), owner)) {
+      const std::shared_ptr<Job> job = job_of(*found[i]);
+      view = this->view(*job);
+      lookup = job->expired ? Lookup::Expired : Lookup::Found;
+    }
     std::lock_guard lock(f.watch_mutex);
     const auto it = f.watched.find({id, owner});
     if (it == f.watched.end()) continue;
-    it->second.found = found;
+    it->second.found = lookup;
     it->second.view = std::move(view);
   }
 }
@@ -351,8 +397,10 @@ bool JobStore::hand_back(Job& job) {
   }
   try {
     auto c = redis_->pool().take();
-    redis_->hand_back(*c, job.id, job.entry);
-    log_line("job " + job.id + " handed back to the queue at shutdown");
+    if (redis_->hand_back(*c, job.id, job.entry))
+      log_line("job " + job.id + " handed back to the queue at shutdown");
+    else
+      log_line("job " + job.id + ": its entry was taken over by another replica; not handed back");
   } catch (const std::exception& e) {
     // Its entry stays pending: another replica takes it over after the lease.
     log_line("job " + job.id + ": cannot hand it back (" + e.what() + "); left to the lease");
@@ -399,7 +447,12 @@ void JobStore::run_entry(RedisConnection& c, const QueueEntry& entry) {
   std::error_code ignored;
   if (start.kind == RedisQueue::Start::Kind::Exhausted) {
     log_line("job " + job->id + " failed: too many attempts");
-    if (finish_queued(c, *job)) fs::remove(job->dir / kInputFile, ignored);
+    job->state = JobState::Failed;
+    job->stage = to_string(JobState::Failed);
+    job->finished = Clock::now();
+    job->problem = nlohmann::ordered_json::parse(exhausted);
+    if (!finish_queued(c, *job)) return;  // told by whoever records it
+    fs::remove(job->dir / kInputFile, ignored);
     notify_ended(view(*job));
     return;
   }
@@ -419,7 +472,8 @@ void JobStore::run_entry(RedisConnection& c, const QueueEntry& entry) {
     job->stage = to_string(JobState::Failed);
     job->finished = Clock::now();
     job->problem = api::to_json(error ? api::problem_from_error(*error) : api::internal_error());
-    if (finish_queued(c, *job)) fs::remove(job->dir / kInputFile, ignored);
+    if (!finish_queued(c, *job)) return;  // told by whoever records it
+    fs::remove(job->dir / kInputFile, ignored);
     notify_ended(view(*job));
     return;
   }
@@ -436,9 +490,7 @@ void JobStore::run_entry(RedisConnection& c, const QueueEntry& entry) {
     hand_back(*job);
     return;
   }
-  run_one(job);
-  if (!job->handed_back && !job->superseded && finish_queued(c, *job))
-    fs::remove(job->dir / kInputFile, ignored);
+  run_one(job);  // records its end (finish_queued) before it tells anyone
   std::lock_guard lock(mutex_);
   jobs_.erase(job->id);
   --running_;
@@ -499,6 +551,37 @@ void JobStore::keep_leases() {
   const auto beat = std::clamp<std::chrono::milliseconds>(
       std::chrono::duration_cast<std::chrono::milliseconds>(config_.lease) / 4,
       std::chrono::milliseconds(50), std::chrono::milliseconds(250));
+  // A run stops itself once its lease may have lapsed (no heartbeat renewed it for 0.8 of
+  // it: a stall, Redis away): another replica may have taken its entry over meanwhile, and
+  // this replica may not be able to ask Redis whether it did.
+  const auto stale_after =
+      std::chrono::duration_cast<std::chrono::milliseconds>(config_.lease) * 4 / 5;
+  std::map<std::string, std::chrono::steady_clock::time_point> renewed;  // by entry
+  const auto stop_stale = [&](const std::shared_ptr<Job>& job, const std::string& entry) {
+    const auto it = renewed.find(entry);
+    if (it == renewed.end() || std::chrono::steady_clock::now() - it->second < stale_after) return;
+    std::lock_guard lock(mutex_);
+    if (finished(job->state) || job->superseded) return;
+    log_line("job " + job->id + ": lease not renewed for " + std::to_string(stale_after.count()) +
+             " ms; stopping this run");
+    job->superseded = true;
+    request_cancel(*job, CancelReason::ShutdownNow);
+  };
+  // Jobs followed by event streams here are read on a thread of their own.
+  std::thread watcher([this, beat] {
+    for (;;) {
+      {
+        std::lock_guard lock(mutex_);
+        if (stopping_) return;
+      }
+      try {
+        refresh_watched();
+      } catch (const std::exception&) {
+        // Redis away: the keeper tells (queue_up); streams keep their last view.
+      }
+      std::this_thread::sleep_for(beat);
+    }
+  });
   for (;;) {
     struct Running {
       std::shared_ptr<Job> job;
@@ -508,14 +591,25 @@ void JobStore::keep_leases() {
     std::vector<Running> running;
     {
       std::lock_guard lock(mutex_);
-      if (stopping_ && running_ == 0) return;
+      if (stopping_ && running_ == 0) break;
       for (const auto& [id, job] : jobs_)
         if (!finished(job->state)) running.push_back({job, job->entry, job->stage, job->progress});
     }
+    {
+      std::map<std::string, std::chrono::steady_clock::time_point> kept;
+      for (const Running& r : running) {
+        const auto it = renewed.find(r.entry);
+        kept[r.entry] = it == renewed.end() ? std::chrono::steady_clock::now() : it->second;
+        stop_stale(r.job, r.entry);
+      }
+      renewed = std::move(kept);
+    }
     try {
       for (const Running& r : running) {
+        const auto asked = std::chrono::steady_clock::now();
         const RedisQueue::Beat b =
             redis_->heartbeat(c, r.job->id, r.entry, r.progress, r.stage, now_ms());
+        if (b.owned) renewed[r.entry] = asked;
         std::lock_guard lock(mutex_);
         if (finished(r.job->state)) continue;
         if (!b.owned && !r.job->superseded) {
@@ -527,7 +621,6 @@ void JobStore::keep_leases() {
           request_cancel(*r.job, CancelReason::Client);
         }
       }
-      refresh_watched();
       const RedisQueue::Stats s = redis_->stats(c);
       figures_->depth = static_cast<std::uint64_t>(s.depth);
       figures_->pending = static_cast<std::uint64_t>(s.pending);
@@ -543,6 +636,7 @@ void JobStore::keep_leases() {
     }
     std::this_thread::sleep_for(beat);
   }
+  watcher.join();
 }
 
 void JobStore::expire_queued() {

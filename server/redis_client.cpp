@@ -19,20 +19,30 @@ timeval to_timeval(std::chrono::milliseconds t) {
   return tv;
 }
 
+// The URL as an error message shows it: credentials replaced by "***".
+std::string shown(std::string_view url) {
+  const std::size_t scheme = url.find("://");
+  const std::size_t at = url.rfind('@');
+  if (scheme == std::string_view::npos || at == std::string_view::npos || at < scheme)
+    return std::string(url);
+  return std::string(url.substr(0, scheme + 3)) + "***" + std::string(url.substr(at));
+}
+
 int parse_int(std::string_view text, int lo, int hi, const char* what, std::string_view url) {
   int n = 0;
   const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), n);
   if (text.empty() || ec != std::errc() || end != text.data() + text.size() || n < lo || n > hi)
-    throw std::invalid_argument(std::string("--queue '").append(url).append("': ").append(what) +
-                                " must be an integer in [" + std::to_string(lo) + ", " +
-                                std::to_string(hi) + "], not '" + std::string(text) + "'");
+    throw std::invalid_argument(
+        std::string("--queue '").append(shown(url)).append("': ").append(what) +
+        " must be an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], not '" +
+        std::string(text) + "'");
   return n;
 }
 
 [[noreturn]] void bad(std::string_view url, const std::string& why) {
   std::string m = "--queue '";
-  m.append(url).append("': ").append(why);
-  m.append(" (expected redis://HOST[:PORT][/DB] or unix:///PATH[?db=N])");
+  m.append(shown(url)).append("': ").append(why);
+  m.append(" (expected redis://[[USER]:PASSWORD@]HOST[:PORT][/DB] or unix:///PATH[?db=N])");
   throw std::invalid_argument(m);
 }
 
@@ -76,8 +86,16 @@ RedisAddress parse_redis_address(std::string_view url) {
   if (url.starts_with("rediss://")) bad(url, "TLS (rediss://) is not supported");
   if (!url.starts_with(kRedis)) bad(url, "unknown scheme");
   std::string_view rest = url.substr(kRedis.size());
-  if (rest.find('@') != std::string_view::npos)
-    bad(url, "credentials in the URL are not supported");
+  if (const std::size_t at = rest.rfind('@'); at != std::string_view::npos) {
+    // [USER]:PASSWORD@ (requirepass, or an ACL user); taken as written, not percent-decoded.
+    const std::string_view credentials = rest.substr(0, at);
+    const std::size_t colon = credentials.find(':');
+    if (colon == std::string_view::npos) bad(url, "credentials are [USER]:PASSWORD@");
+    a.user = std::string(credentials.substr(0, colon));
+    a.password = std::string(credentials.substr(colon + 1));
+    if (a.password.empty()) bad(url, "an empty password");
+    rest = rest.substr(at + 1);
+  }
   const std::size_t slash = rest.find('/');
   std::string_view hostport = rest.substr(0, slash);
   if (slash != std::string_view::npos) {
@@ -176,6 +194,16 @@ void RedisConnection::connect() {
   if (context_->err) broken(std::string("cannot connect: ") + context_->errstr);
   set_timeout(timeout_);
   backoff_ = std::chrono::milliseconds(0);
+  if (!address_.password.empty()) {
+    try {
+      if (address_.user.empty())
+        command({"AUTH", address_.password});
+      else
+        command({"AUTH", address_.user, address_.password});
+    } catch (const RedisError& e) {
+      broken(std::string("authentication refused (") + e.what() + ")");  // never the password
+    }
+  }
   if (address_.db != 0) command({"SELECT", std::to_string(address_.db)});
 }
 

@@ -21,13 +21,16 @@ struct redisReply;
 
 namespace stlrefine::server {
 
-//! Where Redis is: `redis://HOST:PORT[/DB]` (PORT optional, 6379) or `unix:///PATH[?db=N]`.
+//! Where Redis is: `redis://[[USER]:PASSWORD@]HOST:PORT[/DB]` (PORT optional, 6379) or
+//! `unix:///PATH[?db=N]`.
 struct RedisAddress {
-  std::string host;       //!< TCP host (name or address; IPv6 in brackets in the URL)
-  int port = 6379;        //!< TCP port
-  std::string unix_path;  //!< socket path; set for unix:// (then host is empty)
-  int db = 0;             //!< SELECTed after connecting, in [0, 15]
-  std::string text() const;
+  std::string host;          //!< TCP host (name or address; IPv6 in brackets in the URL)
+  int port = 6379;           //!< TCP port
+  std::string unix_path;     //!< socket path; set for unix:// (then host is empty)
+  int db = 0;                //!< SELECTed after connecting, in [0, 15]
+  std::string user;          //!< AUTH user (ACL); empty: the default user
+  std::string password;      //!< AUTH after connecting when not empty
+  std::string text() const;  //!< the address without its credentials
 };
 
 //! \throw std::invalid_argument naming what is wrong with `url`.

@@ -8,17 +8,22 @@
 // and tenants stay apart. Skipped only when redis-server is not installed (setup.sh installs
 // it).
 
+#include <arpa/inet.h>
 #include <gtest/gtest.h>
 #include <httplib.h>
+#include <netinet/in.h>
+#include <poll.h>
 #include <sys/socket.h>
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <csignal>
 #include <deque>
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <string>
@@ -59,11 +64,24 @@ class Redis {
   explicit Redis(fs::path dir) : dir_(std::move(dir)) {}
   fs::path socket() const { return dir_ / "redis.sock"; }
   std::string url() const { return "unix://" + socket().string(); }
-  void start() {
-    child_ = std::make_unique<Child>(std::vector<std::string>{
-        redis_server_path(), "--port", "0", "--unixsocket", socket().string(), "--dir",
-        dir_.string(), "--appendonly", "yes", "--appendfsync", "always", "--save", "",
-        "--maxmemory-policy", "noeviction"});
+  void start(const std::vector<std::string>& extra = {}) {
+    std::vector<std::string> argv{redis_server_path(),
+                                  "--port",
+                                  "0",
+                                  "--unixsocket",
+                                  socket().string(),
+                                  "--dir",
+                                  dir_.string(),
+                                  "--appendonly",
+                                  "yes",
+                                  "--appendfsync",
+                                  "always",
+                                  "--save",
+                                  "",
+                                  "--maxmemory-policy",
+                                  "noeviction"};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    child_ = std::make_unique<Child>(argv);
     const auto until = Clock::now() + 10s;
     while (!can_connect(socket()) && Clock::now() < until) std::this_thread::sleep_for(20ms);
     ASSERT_TRUE(can_connect(socket())) << child_->stderr_text();
@@ -78,6 +96,80 @@ class Redis {
  private:
   fs::path dir_;
   std::unique_ptr<Child> child_;
+};
+
+// A unix-socket proxy in front of the Redis socket: one replica's way to Redis, which the
+// test can cut (bytes held, not forwarded) while every other replica still reaches Redis.
+class RedisProxy {
+ public:
+  RedisProxy(fs::path listen, fs::path target)
+      : path_(std::move(listen)), target_(std::move(target)) {
+    fd_ = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    sockaddr_un addr{};
+    addr.sun_family = AF_UNIX;
+    std::snprintf(addr.sun_path, sizeof addr.sun_path, "%s", path_.c_str());
+    EXPECT_EQ(::bind(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
+    EXPECT_EQ(::listen(fd_, 16), 0);
+    accept_ = std::thread([this] { accept_loop(); });
+  }
+  ~RedisProxy() {
+    stop_ = true;
+    accept_.join();
+    for (std::thread& t : threads_) t.join();
+    for (int fd : fds_) ::close(fd);
+    ::close(fd_);
+  }
+  std::string url() const { return "unix://" + path_.string(); }
+  void cut(bool cut) { cut_ = cut; }
+
+ private:
+  static bool readable(int fd) {
+    pollfd p{fd, POLLIN, 0};
+    return ::poll(&p, 1, 20) > 0;
+  }
+  void accept_loop() {
+    while (!stop_) {
+      if (!readable(fd_)) continue;
+      const int in = ::accept4(fd_, nullptr, nullptr, SOCK_CLOEXEC);
+      if (in < 0) continue;
+      const int out = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+      sockaddr_un addr{};
+      addr.sun_family = AF_UNIX;
+      std::snprintf(addr.sun_path, sizeof addr.sun_path, "%s", target_.c_str());
+      if (::connect(out, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
+        ::close(in);
+        ::close(out);
+        continue;
+      }
+      fds_.push_back(in);
+      fds_.push_back(out);
+      threads_.emplace_back([this, in, out] { pump(in, out); });
+      threads_.emplace_back([this, in, out] { pump(out, in); });
+    }
+  }
+  void pump(int from, int to) {
+    char buffer[65536];
+    while (!stop_) {
+      if (cut_ || !readable(from)) continue;
+      const ssize_t n = ::read(from, buffer, sizeof buffer);
+      if (n <= 0) {
+        ::shutdown(to, SHUT_RDWR);
+        return;
+      }
+      for (ssize_t done = 0; done < n;) {
+        const ssize_t w = ::write(to, buffer + done, static_cast<std::size_t>(n - done));
+        if (w <= 0) return;
+        done += w;
+      }
+    }
+  }
+
+  fs::path path_, target_;
+  int fd_ = -1;
+  std::atomic<bool> stop_{false}, cut_{false};
+  std::vector<int> fds_;  // written by the accept thread only
+  std::thread accept_;
+  std::vector<std::thread> threads_;  // the accept thread's, joined after it
 };
 
 struct Replica {
@@ -112,14 +204,14 @@ class QueueMode : public ::testing::Test {
   }
 
   Replica& start_replica(const std::string& name, std::vector<std::string> extra = {},
-                         const std::string& grace = "1") {
+                         const std::string& grace = "1", const std::string& queue = {}) {
     std::vector<std::string> argv{STLREFINED,
                                   "--port",
                                   "0",
                                   "--data-dir",
                                   (dir_ / "data").string(),
                                   "--queue",
-                                  redis_->url(),
+                                  queue.empty() ? redis_->url() : queue,
                                   "--instance",
                                   name,
                                   "--compute-slots",
@@ -319,6 +411,136 @@ TEST_F(QueueMode, SigtermHandsRunningAndQueuedJobsToAnotherReplica) {
   }
 }
 
+// A replica stalled past its lease (SIGSTOP) whose job another replica took over, then
+// stopped (SIGTERM): it neither hands the job back (which would queue a third run beside the
+// one taking it over and leave that run's result unrecorded) nor records or reports it; the
+// job ends once, on the replica that took it over, with one result.
+TEST_F(QueueMode, StalledReplicaStoppedAfterItsLeaseDoesNotHandBackTheJob) {
+  Replica& a = start_replica("a", {}, "0");
+  Replica& b = start_replica("b", {}, "0");
+  const std::string id = submit(a, kLongJob, long_mesh());
+  ASSERT_FALSE(id.empty());
+  const std::string first = wait_running(a, id);
+  ASSERT_FALSE(first.empty()) << job(a, id).dump();
+  Replica& victim = first == "a" ? a : b;
+  const Replica& survivor = first == "a" ? b : a;
+  victim.child->signal(SIGSTOP);
+  // Taken over after the lease (2 s) and a reclaim look (1 s).
+  std::string worker;
+  const auto until = Clock::now() + 15s;
+  while (Clock::now() < until && worker != survivor.name) {
+    const Json j = job(survivor, id);
+    worker = j.is_object() ? j.value("worker", "") : "";
+    std::this_thread::sleep_for(50ms);
+  }
+  ASSERT_EQ(worker, survivor.name) << job(survivor, id).dump();
+  // The stop is seen as the process resumes, before its keeper can ask Redis anything.
+  victim.child->signal(SIGTERM);
+  victim.child->signal(SIGCONT);
+  EXPECT_EQ(victim.child->wait(20s), 0) << victim.child->stderr_text();
+  const Json now = job(survivor, id);
+  EXPECT_EQ(now.value("state", ""), "running") << now.dump();
+  EXPECT_EQ(now.value("worker", ""), survivor.name) << now.dump();
+  EXPECT_EQ(victim.child->stderr_text().find("handed back to the queue"), std::string::npos)
+      << victim.child->stderr_text();
+  const Json j = wait_ended(survivor, id, 60s);
+  ASSERT_EQ(j.value("state", ""), "done") << j.dump();
+  EXPECT_EQ(j.value("worker", ""), survivor.name);
+  std::set<std::string> files;
+  for (const auto& e : fs::directory_iterator(dir_ / "data" / id))
+    files.insert(e.path().filename().string());
+  EXPECT_EQ(files, (std::set<std::string>{"result.stl", "report.json"}));
+  auto stl = survivor.client()->Get(("/v1/jobs/" + id + "/result.stl").c_str());
+  ASSERT_TRUE(stl);
+  ASSERT_EQ(stl->status, 200);
+  EXPECT_EQ(read_binary_stl(stl->body).size(), std::size_t{32} << 16);
+  // One run recorded it: no entry left behind for another run.
+  auto metrics = survivor.client()->Get("/metrics");
+  ASSERT_TRUE(metrics);
+  std::this_thread::sleep_for(600ms);
+  metrics = survivor.client()->Get("/metrics");
+  EXPECT_NE(metrics->body.find("stlrefine_queue_depth 0\n"), std::string::npos) << metrics->body;
+  EXPECT_NE(metrics->body.find("stlrefine_queue_pending_entries 0\n"), std::string::npos)
+      << metrics->body;
+}
+
+// A replica cut off from Redis (and stalled) while it runs a job: its run stops itself as its
+// lease may have lapsed, and once the job is taken over and the replica stopped (SIGTERM, Redis
+// reachable again) it does not hand the job back: the job ends once, on the other replica.
+TEST_F(QueueMode, ReplicaCutOffFromRedisStopsItsRunAndDoesNotHandItBack) {
+  // Callbacks: one, from the run that recorded the job's end.
+  httplib::Server receiver;
+  std::mutex mutex;
+  std::vector<std::string> received;
+  receiver.Post("/hook", [&](const httplib::Request& req, httplib::Response& res) {
+    std::lock_guard lock(mutex);
+    received.push_back(req.body);
+    res.status = 204;
+  });
+  const int port = receiver.bind_to_any_port("127.0.0.1");
+  std::thread serving([&] { receiver.listen_after_bind(); });
+  struct Stop {
+    httplib::Server& s;
+    std::thread& t;
+    ~Stop() {
+      s.stop();
+      t.join();
+    }
+  } stop{receiver, serving};
+  const std::string allow = "127.0.0.1:" + std::to_string(port);
+  const std::string hook = "callback_url=http://" + allow + "/hook";
+  RedisProxy proxy(dir_ / "proxy.sock", redis_->socket());
+  Replica& a =
+      start_replica("a", {"--callback-allow", allow, "--callback-secret", "s"}, "0", proxy.url());
+  const std::string id = submit(a, std::string(kLongJob) + "&" + hook, long_mesh());
+  ASSERT_FALSE(id.empty());
+  ASSERT_EQ(wait_running(a, id), "a") << job(a, id).dump();
+  proxy.cut(true);
+  a.child->signal(SIGSTOP);  // its run stays unfinished (a short job on a fast machine)
+  const Replica& b = start_replica("b", {"--callback-allow", allow, "--callback-secret", "s"}, "0");
+  std::string worker;
+  const auto until = Clock::now() + 15s;
+  while (Clock::now() < until && worker != "b") {
+    const Json j = job(b, id);
+    worker = j.is_object() ? j.value("worker", "") : "";
+    std::this_thread::sleep_for(50ms);
+  }
+  ASSERT_EQ(worker, "b") << job(b, id).dump();
+  a.child->signal(SIGCONT);  // still cut off: its keeper cannot learn of the takeover
+  std::this_thread::sleep_for(500ms);
+  a.child->signal(SIGTERM);
+  proxy.cut(false);
+  EXPECT_EQ(a.child->wait(40s), 0) << a.child->stderr_text();
+  const std::string log = a.child->stderr_text();
+  EXPECT_NE(log.find("lease not renewed"), std::string::npos) << log;
+  EXPECT_EQ(log.find("handed back to the queue"), std::string::npos) << log;
+  const Json now = job(b, id);
+  EXPECT_NE(now.value("state", ""), "queued") << now.dump();
+  const Json j = wait_ended(b, id, 60s);
+  ASSERT_EQ(j.value("state", ""), "done") << j.dump();
+  EXPECT_EQ(j.value("worker", ""), "b");
+  std::set<std::string> files;
+  for (const auto& e : fs::directory_iterator(dir_ / "data" / id))
+    files.insert(e.path().filename().string());
+  EXPECT_EQ(files, (std::set<std::string>{"result.stl", "report.json"}));
+  auto stl = b.client()->Get(("/v1/jobs/" + id + "/result.stl").c_str());
+  ASSERT_TRUE(stl);
+  ASSERT_EQ(stl->status, 200);
+  EXPECT_EQ(read_binary_stl(stl->body).size(), std::size_t{32} << 16);
+  const auto delivered = Clock::now() + 10s;
+  while (Clock::now() < delivered) {
+    {
+      std::lock_guard lock(mutex);
+      if (!received.empty()) break;
+    }
+    std::this_thread::sleep_for(50ms);
+  }
+  std::this_thread::sleep_for(1s);  // a second one would come meanwhile
+  std::lock_guard lock(mutex);
+  ASSERT_EQ(received.size(), 1u) << (received.empty() ? "" : received.front());
+  EXPECT_EQ(Json::parse(received.front()).value("state", ""), "done") << received.front();
+}
+
 TEST_F(QueueMode, EventStreamFollowsAJobRunningOnAnotherReplica) {
   const Replica& api = start_replica("api", {"--role", "api"});
   start_replica("w");
@@ -395,6 +617,104 @@ TEST_F(QueueMode, RedisStoppedRefusesSubmissionsButNotSynchronousRoutes) {
   EXPECT_EQ(status, 202);
 }
 
+// A full Redis (maxmemory reached, noeviction) refuses the submission's write with OOM: the
+// client is told to retry later (503 + Retry-After, a problem), not a server error.
+TEST_F(QueueMode, RedisOutOfMemoryRefusesSubmissionsWith503) {
+  redis_->kill();
+  redis_->start({"--maxmemory", "1mb"});  // below what an empty Redis uses
+  const Replica& r = start_replica("r");
+  auto res = r.client()->Post("/v1/jobs?levels=1", binary_stl(octahedron_triangles()), "model/stl");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 503) << res->body;
+  EXPECT_TRUE(res->has_header("Retry-After"));
+  EXPECT_EQ(res->get_header_value("Content-Type"), "application/problem+json");
+  EXPECT_EQ(Json::parse(res->body).value("reason", ""), "queue_out_of_memory") << res->body;
+}
+
+// A job list filtered by state finds a job behind more than one page (2000) of newer jobs
+// in another state: the tenant's index is read page after page.
+TEST_F(QueueMode, ListByStateFindsAJobBehindThousandsOfNewerOnes) {
+  const Replica& api = start_replica("api", {"--role", "api", "--job-queue", "3000"});
+  const std::string mesh = binary_stl(octahedron_triangles());
+  const std::string old = submit(api, "levels=1", mesh);
+  ASSERT_FALSE(old.empty());
+  auto del = api.client()->Delete(("/v1/jobs/" + old).c_str());
+  ASSERT_TRUE(del);
+  ASSERT_EQ(Json::parse(del->body).value("state", ""), "cancelled") << del->body;
+  auto client = api.client();
+  for (int i = 0; i < 2005; ++i) {
+    auto res = client->Post("/v1/jobs?levels=1", mesh, "model/stl");
+    ASSERT_TRUE(res);
+    ASSERT_EQ(res->status, 202) << res->body;
+  }
+  auto res = client->Get("/v1/jobs?state=cancelled&limit=5");
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 200) << res->body;
+  const Json j = Json::parse(res->body);
+  ASSERT_EQ(j["jobs"].size(), 1u) << res->body;
+  EXPECT_EQ(j["jobs"][0].value("id", ""), old);
+  EXPECT_FALSE(j.contains("next_cursor")) << res->body;
+  // And a page of the newer ones goes on past the first 2000 with its cursor.
+  res = client->Get("/v1/jobs?state=queued&limit=100");
+  ASSERT_TRUE(res);
+  std::string cursor = Json::parse(res->body).value("next_cursor", "");
+  std::size_t seen = Json::parse(res->body)["jobs"].size();
+  while (!cursor.empty()) {
+    res = client->Get(("/v1/jobs?state=queued&limit=100&cursor=" + cursor).c_str());
+    ASSERT_TRUE(res);
+    ASSERT_EQ(res->status, 200) << res->body;
+    const Json page = Json::parse(res->body);
+    seen += page["jobs"].size();
+    cursor = page.value("next_cursor", "");
+  }
+  EXPECT_EQ(seen, 2005u);
+}
+
+// A job's hash whose id is not one a store writes (Redis written by something else) never
+// names a directory: a DELETE of it removes nothing outside the data directory.
+TEST_F(QueueMode, AHashWithAMalformedIdNamesNoDirectory) {
+  const Replica& api = start_replica("api", {"--role", "api"});
+  const std::string id = submit(api, "levels=1", binary_stl(octahedron_triangles()));
+  ASSERT_FALSE(id.empty());
+  fs::create_directories(dir_ / "victim");
+  std::ofstream(dir_ / "victim" / "result.stl") << "not the job's";
+  Child cli({"/usr/bin/redis-cli", "-s", redis_->socket().string(), "HSET", "stlrefine:job:" + id,
+             "id", "../victim", "state", "done", "results", "[\"result.stl\"]"});
+  ASSERT_EQ(cli.wait(10s), 0);
+  auto del = api.client()->Delete(("/v1/jobs/" + id).c_str());
+  ASSERT_TRUE(del);
+  EXPECT_NE(del->status, 200) << del->body;
+  EXPECT_TRUE(fs::exists(dir_ / "victim" / "result.stl"));
+}
+
+// A Redis with a password (requirepass): the daemon AUTHs with the one in its --queue URL;
+// a wrong one is a Redis it cannot reach (503), and its log never shows the password.
+TEST_F(QueueMode, PasswordInTheQueueUrlAuthenticates) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  ASSERT_EQ(::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
+  socklen_t len = sizeof addr;
+  ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len);
+  const std::string port = std::to_string(ntohs(addr.sin_port));
+  ::close(fd);
+  redis_->kill();
+  redis_->start({"--port", port, "--bind", "127.0.0.1", "--requirepass", "s3cret"});
+  const Replica& good = start_replica("good", {}, "1", "redis://:s3cret@127.0.0.1:" + port);
+  const std::string id = submit(good, "levels=1", binary_stl(octahedron_triangles()));
+  ASSERT_FALSE(id.empty());
+  EXPECT_EQ(wait_ended(good, id, 20s).value("state", ""), "done");
+  Replica& bad = start_replica("bad", {}, "1", "redis://:wrong-s3cret@127.0.0.1:" + port);
+  auto res =
+      bad.client()->Post("/v1/jobs?levels=1", binary_stl(octahedron_triangles()), "model/stl");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 503) << res->body;
+  bad.child->signal(SIGTERM);
+  bad.child->wait(20s);
+  EXPECT_EQ(bad.child->stderr_text().find("s3cret"), std::string::npos) << bad.child->stderr_text();
+}
+
 TEST_F(QueueMode, TwoTenantsCannotSeeEachOthersJobs) {
   const std::string key_a = "tenant-a-0123456789abcdef", key_b = "tenant-b-fedcba9876543210";
   {
@@ -432,11 +752,14 @@ TEST(QueueModeFlags, ABadQueueAddressStopsTheDaemonWithThePreciseError) {
            {"redis://h/16", "the database number must be an integer in [0, 15]"},
            {"unix://relative.sock", "the socket path must be absolute"},
            {"http://h:6379", "unknown scheme"},
-           {"redis://user:pw@h", "credentials"}}) {
+           {"redis://user@h", "credentials are [USER]:PASSWORD@"},
+           {"redis://:@h", "an empty password"},
+           {"redis://:s3cret@h:99999", "the port must be an integer in [1, 65535]"}}) {
     const ProcessResult r = run_process(
         {STLREFINED, "--port", "0", "--data-dir", "/tmp/unused-queue", "--queue", url}, 20s);
     EXPECT_EQ(r.exit_code, 1) << url;
     EXPECT_NE(r.err.find(says), std::string::npos) << url << ": " << r.err;
+    EXPECT_EQ(r.err.find("s3cret"), std::string::npos) << r.err;  // never the password
   }
   const ProcessResult r =
       run_process({STLREFINED, "--port", "0", "--data-dir", "", "--queue", "redis://h"}, 20s);
