@@ -56,6 +56,8 @@ struct Outcome {
   // ended nearer it than kCurveSnapLand of their edge.
   std::uint8_t curve_land = 0;
   std::uint8_t is_new = 0, snapped = 0, to_curve = 0, refused = 0, pulled = 0;
+  // The regions it was snapped onto: one, or the two whose curve it is on; -1 for none.
+  std::array<std::int32_t, 2> region{-1, -1};
 };
 
 }  // namespace
@@ -615,10 +617,11 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
       if (accept_curve(t)) {
         o.to_curve = 1;
         o.allowance = std::max(o.allowance, crease_allowance);
+        o.region = {crease_a, crease_b};
         return t;
       }
     }
-    std::vector<std::optional<Vec3>> tries;
+    std::vector<std::pair<std::optional<Vec3>, std::int32_t>> tries;
     if (found.size() == 2) {
       const Primitive& a = m.regions[std::size_t(found[0].second)].primitive;
       const Primitive& b = m.regions[std::size_t(found[1].second)].primitive;
@@ -626,19 +629,24 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
         const std::optional<Vec3> t = project_to_intersection(a, b, p, curve_tol);
         if (accept_curve(t)) {
           o.to_curve = 1;
+          o.region = {found[0].second, found[1].second};
           return t;
         }
       }
       // Off a crease, or the curve is out of reach: keep planes planar; else the region
       // most of its faces voted for (a tangent join).
-      if (a.type == PrimitiveType::Plane) tries.push_back(a.project(p));
-      if (b.type == PrimitiveType::Plane) tries.push_back(b.project(p));
-      if (!on_crease && tries.empty()) tries.push_back(a.project(p));
+      if (a.type == PrimitiveType::Plane) tries.emplace_back(a.project(p), found[0].second);
+      if (b.type == PrimitiveType::Plane) tries.emplace_back(b.project(p), found[1].second);
+      if (!on_crease && tries.empty()) tries.emplace_back(a.project(p), found[0].second);
     } else if (found.size() == 1) {
-      tries.push_back(m.regions[std::size_t(found[0].second)].primitive.project(p));
+      tries.emplace_back(m.regions[std::size_t(found[0].second)].primitive.project(p),
+                         found[0].second);
     }
-    for (const std::optional<Vec3>& t : tries)
-      if (accept(t)) return t;
+    for (const auto& [t, id] : tries)
+      if (accept(t)) {
+        o.region = {id, -1};
+        return t;
+      }
     o.refused = 1;
     return std::nullopt;
   };
@@ -752,6 +760,65 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
     const Vec3 a = at(vs[0]), b = at(vs[1]), c = at(vs[2]);
     return std::min({distance(a, b), distance(b, c), distance(c, a)});
   };
+  // The primitives' own normals, oriented like the input faces of their regions (a
+  // primitive's normal_at points away from its axis; a bore's faces point towards it).
+  std::vector<double> orientation(m.regions.size(), 0.0);
+  for (std::size_t f = 0; f < m.faces.size(); ++f) {
+    const std::int32_t r = m.face_region[f];
+    if (r < 0) continue;
+    const auto& t = m.faces[f];
+    const Vec3 c = (m.positions[t[0]] + m.positions[t[1]] + m.positions[t[2]]) * (1.0 / 3);
+    orientation[std::size_t(r)] +=
+        dot(m.normals[f], m.regions[std::size_t(r)].primitive.normal_at(c));
+  }
+  // Whether a face is more than kFoldDegrees from every normal of its own surface: the
+  // regions its snapped corners share (a cap sliver's rim corner is on the cap and the side,
+  // its others on the cap alone: the cap), all of theirs when they share none. Measured
+  // against the input's faces instead (agreement), a cap sliver tilted 68 degrees next to a
+  // frustum's rim agrees with the side wall and was kept. (The region of the input face
+  // nearest to the face's centroid was tried instead: more faces turned, more withdrawals.)
+  auto turned_from_own = [&](FaceId face, bool before) {
+    const auto vs = refined.face_vertices(face);
+    std::array<std::int32_t, 6> own{};
+    std::size_t n_own = 0;
+    bool first = true;
+    for (VertexId v : vs) {
+      const Outcome& o = out[v.idx];
+      if (!o.snapped) continue;
+      if (first) {
+        for (std::int32_t r : o.region)
+          if (r >= 0) own[n_own++] = r;
+        first = false;
+        continue;
+      }
+      std::size_t kept = 0;
+      for (std::size_t i = 0; i < n_own; ++i)
+        if (own[i] == o.region[0] || own[i] == o.region[1]) own[kept++] = own[i];
+      if (kept > 0) {
+        n_own = kept;
+      } else {
+        // No shared region: every region of the corners.
+        for (std::int32_t r : o.region)
+          if (r >= 0 && n_own < own.size()) own[n_own++] = r;
+      }
+    }
+    if (n_own == 0) return false;
+    auto at = [&](VertexId v) {
+      const Outcome& o = out[v.idx];
+      return before && o.is_new ? o.original : positions[v.idx];
+    };
+    const Vec3 a = at(vs[0]), b = at(vs[1]), c = at(vs[2]);
+    const Vec3 n = normalized(cross(b - a, c - a));
+    if (n == Vec3{}) return false;  // collapsed: see below
+    const Vec3 centre = (a + b + c) * (1.0 / 3);
+    for (std::size_t i = 0; i < n_own; ++i) {
+      const std::size_t r = std::size_t(own[i]);
+      const Vec3 g = m.regions[r].primitive.normal_at(centre);
+      if (g == Vec3{} || orientation[r] == 0) return false;  // no normal here: cannot tell
+      if (dot(n, g) * (orientation[r] > 0 ? 1 : -1) >= kCosTurn) return false;
+    }
+    return true;
+  };
   for (int round = 0; round < 3; ++round) {
     std::vector<std::uint32_t> revert;
     for (std::size_t g = 0; g < refined.num_faces(); ++g) {
@@ -765,6 +832,23 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
       // the report do not see it) is treated as turned.
       const bool collapsed =
           shortest_edge(face, false) < collapse && shortest_edge(face, true) >= collapse;
+      // Turned from its own primitive's normal by the snaps (the scheme's face was within
+      // kFoldDegrees of its surface): its snapped corners go back, a curve's too when it is
+      // the face's only corner on the curve (a cap sliver reversed by its rim corner's snap).
+      // With two or more on the curve the face runs along it: only its corners off the curve
+      // go back (the rim stays on its circle); with all three on it, see below.
+      std::size_t on_curve = 0;
+      for (VertexId v : refined.face_vertices(face))
+        on_curve += !out[v.idx].is_new || out[v.idx].to_curve;
+      if (!collapsed && on_curve < 3 && turned_from_own(face, false) &&
+          !turned_from_own(face, true)) {
+        std::size_t curve_snaps = 0;
+        for (VertexId v : refined.face_vertices(face)) curve_snaps += out[v.idx].to_curve;
+        for (VertexId v : refined.face_vertices(face))
+          if (out[v.idx].snapped && (curve_snaps < 2 || !out[v.idx].to_curve))
+            revert.push_back(v.idx);
+        continue;
+      }
       const double after = agreement(face, false);
       if (!collapsed) {
         if (after < -1.5 || after >= kCosTurn) continue;
@@ -783,6 +867,7 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
       Outcome& o = out[i];
       if (!o.snapped) continue;
       o.snapped = o.to_curve = 0;
+      o.region = {-1, -1};
       o.reverted = 1;
       o.position = positions[i] = o.fallback;
       o.face = o.fallback_face;

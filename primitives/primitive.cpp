@@ -395,6 +395,26 @@ Vec3 Primitive::project(const Vec3& p) const {
   return p;
 }
 
+Vec3 Primitive::normal_at(const Vec3& p) const {
+  if (type == PrimitiveType::Plane) return axis;
+  if (type == PrimitiveType::Sphere) return normalized(p - point);
+  const Meridian m = meridian(point, axis, p);
+  if (!(m.rho > 0)) return {};
+  switch (type) {
+    case PrimitiveType::Cylinder:
+      return m.e;
+    case PrimitiveType::Cone:
+      // Perpendicular to the generator (sin a, cos a) in (rho, h).
+      return std::cos(angle) * m.e - std::sin(angle) * axis;
+    case PrimitiveType::Torus: {
+      const Vec3 core = point + radius * m.e;
+      return normalized(p - core);
+    }
+    default:
+      return {};
+  }
+}
+
 std::optional<Vec3> project_to_intersection(const Primitive& a, const Primitive& b, const Vec3& p,
                                             double tolerance) {
   if (a.type == PrimitiveType::Plane && b.type == PrimitiveType::Plane) {

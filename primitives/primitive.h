@@ -35,6 +35,9 @@ struct Primitive {
   Vec3 project(const Vec3& p) const;
   //! |p - project(p)|.
   double distance(const Vec3& p) const { return stlrefine::distance(p, project(p)); }
+  //! The unit normal of the surface at project(p), pointing away from the axis or centre
+  //! (a plane: `axis`); zero where it has none (p on the axis of a surface of revolution).
+  Vec3 normal_at(const Vec3& p) const;
 };
 
 //! The point nearest to p on the intersection curve of a and b: closed form for two planes

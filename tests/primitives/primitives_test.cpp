@@ -103,11 +103,18 @@ void expect_on_truth(CadFamily family, std::uint64_t seed, const std::string& sc
   EXPECT_GE(count_type(r.regions, PrimitiveType::Plane), 2u);
   expect_inputs_unmoved(r);
   double worst = 0, worst_rim = 0;
-  std::size_t rim = 0;
+  std::size_t rim = 0, off = 0;
   for (std::size_t i = 0; i < r.output.num_vertices(); ++i) {
     const VertexId v(static_cast<std::uint32_t>(i));
     const Vec3& p = r.output.position(v);
-    worst = std::max(worst, distance(p, shape.surface->closest_point(p).point));
+    const double to_truth = distance(p, shape.surface->closest_point(p).point);
+    // A snap taken back (it turned a face more than 60 degrees from its primitive: a cap
+    // sliver reversed by its rim corner's snap) leaves its vertex where the scheme put it.
+    if (to_truth > 1e-9 * diag) {
+      ++off;
+      continue;
+    }
+    worst = std::max(worst, to_truth);
     // Rim vertices: the crease vertices the refinement carried along the rims, within a
     // small fraction of an edge of the rim. (A cap vertex of a fan sliver may lie a
     // hundredth of an edge inside the rim: on its plane, inside the disc, it is on the
@@ -121,10 +128,12 @@ void expect_on_truth(CadFamily family, std::uint64_t seed, const std::string& sc
       worst_rim = std::max(worst_rim, to_crease);
     }
   }
+  EXPECT_LE(off, r.post.snaps_reverted);
+  EXPECT_LE(r.post.snaps_reverted, 4u);
   EXPECT_LE(worst, 1e-9 * diag);
   EXPECT_LE(worst_rim, 1e-9 * diag);
   // Every rim edge was split twice: 3 new rim vertices per input rim edge.
-  EXPECT_GE(rim, shape.crease_edges.size() * 4);
+  EXPECT_GE(rim + r.post.snaps_reverted, shape.crease_edges.size() * 4);
   EXPECT_EQ(r.post.snap_refused, 0u);
 }
 
@@ -469,6 +478,55 @@ TEST(PrimitivesApi, ReportListsRegions) {
   EXPECT_EQ(dev.at("bound"), "auto");
   EXPECT_GT(dev.at("max_distance_from_input").get<double>(), 0);
   EXPECT_TRUE(dev.contains("pulled_back"));
+}
+
+// The primitives' own normals: unit, perpendicular to the surface at the projection,
+// pointing away from the axis or centre (a plane: its axis); none on an axis.
+TEST(PrimitivesFolds, NormalAtIsTheSurfacesNormal) {
+  const Vec3 p{3, -2, 5};
+  Primitive cyl;
+  cyl.type = PrimitiveType::Cylinder;
+  cyl.radius = 2;
+  const Vec3 nc = cyl.normal_at(p);
+  EXPECT_NEAR(norm(nc), 1, 1e-12);
+  EXPECT_NEAR(dot(nc, Vec3{0, 0, 1}), 0, 1e-12);
+  EXPECT_GT(dot(nc, Vec3{3, -2, 0}), 0);
+  EXPECT_EQ(cyl.normal_at(Vec3{0, 0, 4}), Vec3{});
+  Primitive cone;
+  cone.type = PrimitiveType::Cone;
+  cone.angle = 0.4;
+  // Perpendicular to the generator through the projection, pointing outwards.
+  const Vec3 q = cone.project(p), n = cone.normal_at(p);
+  EXPECT_NEAR(norm(n), 1, 1e-12);
+  EXPECT_NEAR(dot(n, normalized(q - cone.point)), 0, 1e-12);
+  EXPECT_GT(dot(n, Vec3{3, -2, 0}), 0);
+  Primitive sphere;
+  sphere.type = PrimitiveType::Sphere;
+  sphere.radius = 1;
+  EXPECT_NEAR(dot(sphere.normal_at(p), normalized(p)), 1, 1e-12);
+  Primitive torus;
+  torus.type = PrimitiveType::Torus;
+  torus.radius = 5;
+  torus.minor = 1;
+  const Vec3 on{6, 0, 0};
+  EXPECT_NEAR(distance(torus.normal_at(on), Vec3{1, 0, 0}), 0, 1e-12);
+  Primitive plane;
+  plane.axis = Vec3{0, 1, 0};
+  EXPECT_EQ(plane.normal_at(p), plane.axis);
+}
+
+// Issue 17: a snap that turns a face more than 60 degrees from its own primitive's normal is
+// taken back, a curve snap too (sqrt3-interp's thin cap faces along a cylinder's rims were
+// reversed by their rim corner's snap onto the circle, and the pipeline then withdrew every
+// snap: RMS 0.49x the input at 6 steps on seeds 6000-6005, against 0.01x at 4).
+TEST(PrimitivesFolds, SnapsTurningAFaceFromItsPrimitiveAreTakenBack) {
+  const std::string stl = stl_of(cad_mesh(CadFamily::CappedCylinder, 6002));
+  const api::RefineOutcome out =
+      run(stl, {{"scheme", "sqrt3-interp"}, {"levels", "6"}, {"primitives", "auto"}});
+  const auto& prim = out.report.at("primitives");
+  EXPECT_FALSE(prim.contains("withdrawn")) << prim.dump();
+  EXPECT_GT(prim.at("snapped_to_curve").get<std::size_t>(), 0u);
+  EXPECT_GT(prim.at("snaps_reverted").get<std::size_t>(), 0u) << prim.dump();
 }
 
 TEST(PrimitivesApi, OffIsTheOldOutput) {
