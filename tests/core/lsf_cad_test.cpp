@@ -29,34 +29,6 @@ using namespace test;
 
 constexpr std::array<std::uint64_t, 3> kSeeds{1, 2, 3};
 
-// Area-weighted RMS distance to the surface over the centroids of a k x k split of every
-// face; coarse meshes get a finer split, so every level is sampled about as densely.
-double rms_distance(const Mesh& m, const TrueSurface& surface, int k) {
-  double sum = 0, area = 0;
-  for (std::uint32_t f = 0; f < m.num_faces(); ++f) {
-    const auto [i, j, l] = m.face_vertices(FaceId(f));
-    const Vec3 a = m.position(i), b = m.position(j), c = m.position(l);
-    const double face_area = 0.5 * norm(triangle_normal(a, b, c));
-    double face_sum = 0;
-    for (int r = 0; r < k; ++r) {
-      for (int s = 0; s + r < k; ++s) {
-        // The upright sub-triangle (r, s) and, when there is one, the inverted one.
-        for (int inverted = 0; inverted < 2; ++inverted) {
-          if (inverted && r + s + 1 >= k) continue;
-          const double u = (r + (inverted ? 2.0 : 1.0) / 3.0) / k;
-          const double v = (s + (inverted ? 2.0 : 1.0) / 3.0) / k;
-          const Vec3 p = a + u * (b - a) + v * (c - a);
-          const double d = distance(p, surface.closest_point(p).point);
-          face_sum += d * d;
-        }
-      }
-    }
-    sum += face_area * face_sum / (k * k);
-    area += face_area;
-  }
-  return std::sqrt(sum / area);
-}
-
 // The largest angle (degrees) between a face's normal and the true normal at its centroid's
 // closest point (at a crease: to the arc of normals there).
 double worst_normal_deg(const Mesh& m, const TrueSurface& surface) {
@@ -93,13 +65,14 @@ void check_targets(CreaseAngleOf&& crease_angle_of, bool check_normals_everywher
     for (const std::uint64_t seed : kSeeds) {
       const CadShape shape = make_cad_shape(family, {seed, 1.0});
       const Level coarse = make_level(to_mesh(shape.soup), crease_angle_of(family));
-      const double input_rms = rms_distance(coarse.mesh, *shape.surface, 8);
+      const double input_rms = sampled_rms_distance(coarse.mesh, *shape.surface, 8);
       Level level = coarse;
       for (int l = 1; l <= 3; ++l) {
         level = refine_level("lsf", level);
         const std::string where =
             shape.name + " seed " + std::to_string(seed) + " level " + std::to_string(l);
-        const double rms = rms_distance(level.mesh, *shape.surface, l == 1 ? 4 : (l == 2 ? 2 : 1));
+        const double rms =
+            sampled_rms_distance(level.mesh, *shape.surface, l == 1 ? 4 : (l == 2 ? 2 : 1));
         EXPECT_LE(rms, input_rms) << where;
         if (l == 2) sum += rms / input_rms;
         // Open at the default 35 degrees (see bench/results-issue17-lsf.md): the torus, which

@@ -33,34 +33,6 @@ using namespace test;
 
 constexpr std::array<std::uint64_t, 3> kSeeds{1, 2, 3};
 
-// Area-weighted RMS distance to the surface over the centroids of a k x k split of each face.
-double rms_distance(const Mesh& m, const TrueSurface& surface, int k) {
-  double sum = 0, area = 0;
-  for (std::uint32_t f = 0; f < m.num_faces(); ++f) {
-    const auto [i, j, l] = m.face_vertices(FaceId(f));
-    const Vec3 a = m.position(i), b = m.position(j), c = m.position(l);
-    const double face_area = 0.5 * norm(triangle_normal(a, b, c));
-    double face_sum = 0;
-    int count = 0;
-    for (int r = 0; r < k; ++r) {
-      for (int s = 0; s + r < k; ++s) {
-        for (int inverted = 0; inverted < 2; ++inverted) {
-          if (inverted && r + s + 1 >= k) continue;
-          const double u = (r + (inverted ? 2.0 : 1.0) / 3.0) / k;
-          const double v = (s + (inverted ? 2.0 : 1.0) / 3.0) / k;
-          const Vec3 p = a + u * (b - a) + v * (c - a);
-          const double d = distance(p, surface.closest_point(p).point);
-          face_sum += d * d;
-          ++count;
-        }
-      }
-    }
-    sum += face_area * face_sum / count;
-    area += face_area;
-  }
-  return std::sqrt(sum / area);
-}
-
 // `levels` 1-to-4 splits of the shape's soup whose edge points are the chord midpoints moved
 // onto the truth (the crease's nearest point for halves of a crease chord).
 IndexedSoup ideal_refinement(const CadShape& shape, int levels) {
@@ -108,9 +80,10 @@ Ratios two_level_ratios(CadFamily family) {
     const Mesh input = to_mesh(shape.soup);
     Level level{Mesh(input), detect_features(input, FeatureParams{})};
     level = refine_levels("lsf", std::move(level), 2);
-    const double rms = rms_distance(level.mesh, *shape.surface, 2);
-    const double ideal = rms_distance(to_mesh(ideal_refinement(shape, 2)), *shape.surface, 2);
-    const double in = rms_distance(input, *shape.surface, 8);
+    const double rms = sampled_rms_distance(level.mesh, *shape.surface, 2);
+    const double ideal =
+        sampled_rms_distance(to_mesh(ideal_refinement(shape, 2)), *shape.surface, 2);
+    const double in = sampled_rms_distance(input, *shape.surface, 8);
     r.to_ideal += rms / ideal / kSeeds.size();
     r.to_input += rms / in / kSeeds.size();
   }

@@ -770,6 +770,32 @@ double face_truth_angle_deg(const TrueSurface& surface, const Vec3& n, const Vec
   return best;
 }
 
+double sampled_rms_distance(const Mesh& m, const TrueSurface& surface, int k) {
+  double sum = 0, area = 0;
+  for (std::uint32_t f = 0; f < m.num_faces(); ++f) {
+    const auto [i, j, l] = m.face_vertices(FaceId(f));
+    const Vec3 a = m.position(i), b = m.position(j), c = m.position(l);
+    const double face_area = 0.5 * norm(triangle_normal(a, b, c));
+    double face_sum = 0;
+    for (int r = 0; r < k; ++r) {
+      for (int s = 0; s + r < k; ++s) {
+        // The upright sub-triangle (r, s) and, when there is one, the inverted one.
+        for (int inverted = 0; inverted < 2; ++inverted) {
+          if (inverted && r + s + 1 >= k) continue;
+          const double u = (r + (inverted ? 2.0 : 1.0) / 3.0) / k;
+          const double v = (s + (inverted ? 2.0 : 1.0) / 3.0) / k;
+          const Vec3 p = a + u * (b - a) + v * (c - a);
+          const double d = distance(p, surface.closest_point(p).point);
+          face_sum += d * d;
+        }
+      }
+    }
+    sum += face_area * face_sum / (k * k);
+    area += face_area;
+  }
+  return std::sqrt(sum / area);
+}
+
 std::size_t faces_off_truth(const Mesh& m, const TrueSurface& surface, double limit) {
   std::size_t off = 0;
   for (std::uint32_t f = 0; f < m.num_faces(); ++f) {

@@ -149,4 +149,8 @@ double face_truth_angle_deg(const TrueSurface& surface, const Vec3& n, const Vec
 //! degenerate faces are not counted.
 std::size_t faces_off_truth(const Mesh& m, const TrueSurface& surface, double limit);
 
+//! Area-weighted RMS distance to the surface over the centroids of a k x k split of every
+//! face (coarse meshes take a larger k, so that every level is sampled about as densely).
+double sampled_rms_distance(const Mesh& m, const TrueSurface& surface, int k);
+
 }  // namespace stlrefine::test
