@@ -262,8 +262,10 @@ class QueueMode : public ::testing::Test {
     const auto until = Clock::now() + 20s;
     while (Clock::now() < until) {
       const Json j = job(r, id);
+      // Running on a worker, whatever its stage: the worker records the stage at its 250 ms
+      // heartbeats, and a 1 s job can pass its refinement levels between two of them.
       if (j.is_object() && j.value("state", "") == "running" && j.contains("worker") &&
-          j.value("stage", "").find("level") != std::string::npos)
+          !j["worker"].get<std::string>().empty())
         return j["worker"].get<std::string>();
       std::this_thread::sleep_for(20ms);
     }
@@ -276,21 +278,26 @@ class QueueMode : public ::testing::Test {
 };
 
 // A job that runs for seconds: 32 facets (the octahedron's, each split in four) refined 8
-// times, 2 M faces.
+// times, 2 M faces (about 1 s on an idle 2-core machine). `splits` = 2: 128 facets, 8 M
+// faces, for a test that must catch the job running (about 4 s).
 const char* kLongJob = "scheme=butterfly&levels=8";
-std::string long_mesh() {
-  std::vector<Triangle> out;
-  for (const Triangle& t : octahedron_triangles()) {
-    auto mid = [](const Corner& a, const Corner& b) {
-      return Corner{(a[0] + b[0]) / 2, (a[1] + b[1]) / 2, (a[2] + b[2]) / 2};
-    };
-    const Corner ab = mid(t[0], t[1]), bc = mid(t[1], t[2]), ca = mid(t[2], t[0]);
-    out.push_back({t[0], ab, ca});
-    out.push_back({ab, t[1], bc});
-    out.push_back({ca, bc, t[2]});
-    out.push_back({ab, bc, ca});
+std::string long_mesh(int splits = 1) {
+  std::vector<Triangle> facets = octahedron_triangles();
+  for (int s = 0; s < splits; ++s) {
+    std::vector<Triangle> out;
+    for (const Triangle& t : facets) {
+      auto mid = [](const Corner& a, const Corner& b) {
+        return Corner{(a[0] + b[0]) / 2, (a[1] + b[1]) / 2, (a[2] + b[2]) / 2};
+      };
+      const Corner ab = mid(t[0], t[1]), bc = mid(t[1], t[2]), ca = mid(t[2], t[0]);
+      out.push_back({t[0], ab, ca});
+      out.push_back({ab, t[1], bc});
+      out.push_back({ca, bc, t[2]});
+      out.push_back({ab, bc, ca});
+    }
+    facets = std::move(out);
   }
-  return binary_stl(out);
+  return binary_stl(facets);
 }
 
 TEST_F(QueueMode, ThirtyJobsThroughOneReplicaAllFinishOnSeveralReplicas) {
@@ -370,8 +377,10 @@ TEST_F(QueueMode, KilledReplicasJobFinishesOnAnotherWithOneResult) {
 TEST_F(QueueMode, CancelThroughAReplicaThatDoesNotRunTheJob) {
   const Replica& api = start_replica("api", {"--role", "api"});
   start_replica("w");
-  const std::string id = submit(api, kLongJob, long_mesh());
-  ASSERT_EQ(wait_running(api, id), "w");
+  // 8 M faces: a 1 s job could end between two of the worker's progress records (one per
+  // 250 ms heartbeat) unseen as running.
+  const std::string id = submit(api, kLongJob, long_mesh(2));
+  ASSERT_EQ(wait_running(api, id), "w") << job(api, id).dump();
   const auto asked = Clock::now();
   auto del = api.client()->Delete(("/v1/jobs/" + id).c_str());
   ASSERT_TRUE(del);
@@ -383,7 +392,7 @@ TEST_F(QueueMode, CancelThroughAReplicaThatDoesNotRunTheJob) {
   // room for a machine loaded by parallel tests).
   EXPECT_LT(std::chrono::duration<double>(Clock::now() - asked).count(), 5.0);
   // A queued job is cancelled at once: with the only runner busy, the second one waits.
-  const std::string busy = submit(api, kLongJob, long_mesh());
+  const std::string busy = submit(api, kLongJob, long_mesh(2));
   const std::string queued = submit(api, "levels=1", binary_stl(octahedron_triangles()));
   ASSERT_EQ(wait_running(api, busy), "w");
   del = api.client()->Delete(("/v1/jobs/" + queued).c_str());
@@ -438,8 +447,11 @@ TEST_F(QueueMode, StalledReplicaStoppedAfterItsLeaseDoesNotHandBackTheJob) {
   victim.child->signal(SIGTERM);
   victim.child->signal(SIGCONT);
   EXPECT_EQ(victim.child->wait(20s), 0) << victim.child->stderr_text();
+  // Not handed back: still the survivor's run, or already its result (a 1 s run can end
+  // while the victim shuts down).
   const Json now = job(survivor, id);
-  EXPECT_EQ(now.value("state", ""), "running") << now.dump();
+  EXPECT_TRUE(now.value("state", "") == "running" || now.value("state", "") == "done")
+      << now.dump();
   EXPECT_EQ(now.value("worker", ""), survivor.name) << now.dump();
   EXPECT_EQ(victim.child->stderr_text().find("handed back to the queue"), std::string::npos)
       << victim.child->stderr_text();
@@ -492,9 +504,12 @@ TEST_F(QueueMode, ReplicaCutOffFromRedisStopsItsRunAndDoesNotHandItBack) {
   RedisProxy proxy(dir_ / "proxy.sock", redis_->socket());
   Replica& a =
       start_replica("a", {"--callback-allow", allow, "--callback-secret", "s"}, "0", proxy.url());
-  const std::string id = submit(a, std::string(kLongJob) + "&" + hook, long_mesh());
+  const std::string id =
+      submit(a, std::string(kLongJob) + "&" + hook, long_mesh(2));  // 8 M faces: ~4 s
   ASSERT_FALSE(id.empty());
   ASSERT_EQ(wait_running(a, id), "a") << job(a, id).dump();
+  // Past a heartbeat (250 ms): a's lease keeper has taken the run on, and the run computes.
+  std::this_thread::sleep_for(400ms);
   proxy.cut(true);
   a.child->signal(SIGSTOP);  // its run stays unfinished (a short job on a fast machine)
   const Replica& b = start_replica("b", {"--callback-allow", allow, "--callback-secret", "s"}, "0");
@@ -526,7 +541,7 @@ TEST_F(QueueMode, ReplicaCutOffFromRedisStopsItsRunAndDoesNotHandItBack) {
   auto stl = b.client()->Get(("/v1/jobs/" + id + "/result.stl").c_str());
   ASSERT_TRUE(stl);
   ASSERT_EQ(stl->status, 200);
-  EXPECT_EQ(read_binary_stl(stl->body).size(), std::size_t{32} << 16);
+  EXPECT_EQ(read_binary_stl(stl->body).size(), std::size_t{128} << 16);
   const auto delivered = Clock::now() + 10s;
   while (Clock::now() < delivered) {
     {
