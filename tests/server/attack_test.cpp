@@ -469,11 +469,13 @@ TEST_P(WorstAdaptiveRequestOfEveryHost, StaysInsideTheMemoryBudget) {
   ASSERT_GT(port, 0);
   {
     const std::string query = GetParam();
-    const auto started = std::chrono::steady_clock::now();
+    const double cpu_before = proc_cpu_seconds(child.pid());
     const RawResponse r =
         one_response(port, post_text("/v1/refine?" + query, "model/stl", fandisk()), 120s);
-    const double seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+    // The daemon's CPU time, not the wall clock: the bound is on the work a hostile request
+    // buys, and a wall bound failed at 50.3 s on a loaded machine (load 10) for ~15 s of work.
+    // one_response's 120 s is the hang guard.
+    const double cpu_seconds = proc_cpu_seconds(child.pid()) - cpu_before;
     SCOPED_TRACE(query);
     // Refused (422: never fits; 503: not now) or done, but within the budget either way.
     EXPECT_TRUE(r.status == 422 || r.status == 503 || r.status == 200) << r.status;
@@ -481,7 +483,8 @@ TEST_P(WorstAdaptiveRequestOfEveryHost, StaysInsideTheMemoryBudget) {
       EXPECT_EQ(r.header("content-type"), "application/problem+json");
       EXPECT_NE(r.body.find("\"field\""), std::string::npos) << r.body;
     }
-    EXPECT_LT(seconds, 50.0);
+    EXPECT_GT(cpu_seconds, 0.0) << "/proc/<pid>/stat unreadable";
+    EXPECT_LT(cpu_seconds, 40.0);
     EXPECT_LT(peak_rss_bytes(child.pid()), kBudget) << r.body.substr(0, 400);
   }
   EXPECT_EQ(one_response(port, get_text("/healthz")).status, 200);

@@ -2,6 +2,8 @@
 // Copyright (c) 2026 stlrefine authors
 #pragma once
 
+#include "subprocess.h"  // proc_cpu_seconds
+
 // Drives a running stlrefined with many concurrent clients on loopback, probes /healthz and
 // samples the daemon's RSS and descriptors meanwhile: the load test (tests/server) and the
 // soak program (bench/reliability) share it.
@@ -83,7 +85,5 @@ double percentile(std::vector<double> samples, double p);
 long long proc_status_bytes(pid_t pid, const std::string& key);
 //! Entries of /proc/<pid>/fd.
 std::size_t proc_open_fds(pid_t pid);
-//! User + system CPU seconds of the process so far.
-double proc_cpu_seconds(pid_t pid);
 
 }  // namespace stlrefine::test

@@ -167,4 +167,20 @@ int listening_port(Child& child, std::chrono::milliseconds timeout) {
   return std::regex_match(line, m, expected) ? std::stoi(m[1]) : 0;
 }
 
+double proc_cpu_seconds(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  // The command may hold spaces: fields count from after the last ')'.
+  const std::size_t paren = text.rfind(')');
+  if (paren == std::string::npos) return 0;
+  std::istringstream fields(text.substr(paren + 2));
+  std::string field;
+  double ticks = 0;
+  for (int i = 3; fields >> field; ++i) {
+    if (i == 14 || i == 15) ticks += std::stod(field);  // utime, stime
+    if (i == 15) break;
+  }
+  return ticks / double(::sysconf(_SC_CLK_TCK));
+}
+
 }  // namespace stlrefine::test

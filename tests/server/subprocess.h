@@ -50,4 +50,7 @@ class Child {
 //! 127.0.0.1; 0 when the line is not that. (No gtest here: bench/reliability links this too.)
 int listening_port(Child& child, std::chrono::milliseconds timeout = std::chrono::seconds(20));
 
+//! User + system CPU seconds of the process so far (0 when unreadable).
+double proc_cpu_seconds(pid_t pid);
+
 }  // namespace stlrefine::test
