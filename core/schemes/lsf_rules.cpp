@@ -119,17 +119,24 @@ Vec3 across_crease(const Mesh& m, const Features& f, VertexId v, const Vec3& nor
   return dot(n, n) > 0.25 ? normalized(n) : normal;
 }
 
-// The unit tangent at v of the sharp polyline that leaves it towards w: the derivative at v of
-// the quadratic through v, w and the curve vertex beyond w in chord-length parameters (the
-// chord where w ends the curve).
+// The unit tangent at v of the sharp polyline that leaves it towards w: of the circle through
+// v, w and the curve vertex beyond w (the chord where w ends the curve).
 Vec3 curve_tangent_towards(const Mesh& m, const Features& f, VertexId v, VertexId w) {
   const Vec3 p0 = m.position(v), p1 = m.position(w);
   const double s1 = distance(p0, p1);
   const VertexId beyond = f.curve_beyond(w, v);
   if (!beyond.valid() || !(s1 > 0)) return normalized(p1 - p0);
   const Vec3 p2 = m.position(beyond);
-  const double s2 = s1 + distance(p1, p2);
-  return normalized((s2 / (s1 * (s2 - s1))) * (p1 - p0) - (s1 / (s2 * (s2 - s1))) * (p2 - p0));
+  // The tangent at p0 of the circle through p0, p1, p2: exact on arcs and lines, where the
+  // chord-length quadratic at its end leans by ~a sixth of the turn per chord squared (the
+  // plate's outline arcs: 0.5-0.9 deg at its corners, which a 305 mm strip's Hermite midpoint
+  // multiplies by the arc's sagitta).
+  const Vec3 a = p1 - p0, b = p2 - p0, n = cross(a, b);
+  const double n2 = dot(n, n);
+  if (!(n2 > 1e-24 * dot(a, a) * dot(b, b))) return normalized(a);  // (nearly) a line
+  const Vec3 centre = (1.0 / (2.0 * n2)) * cross(dot(a, a) * b - dot(b, b) * a, n);  // from p0
+  const Vec3 t = normalized(cross(n, -1.0 * centre));
+  return dot(t, a) >= 0 ? t : -1.0 * t;
 }
 
 // The sines below which two curves leaving a corner count as one line (their cross product
@@ -545,12 +552,11 @@ void relax_sliver_normals(const Mesh& m, const Features& f, std::span<GuardVerte
     });
   }
   if (sliver_spokes.empty()) return;
-  // One node per normal that moves: a one-sector vertex, or a crease vertex's sector. Every
-  // outgoing half-edge of its sector maps to it (spoke_node), so a neighbour's normal is found
-  // from the spoke's twin.
+  // One node per crease sector with a sliver edge. Every outgoing half-edge of its sector maps
+  // to it (spoke_node), so the node at an edge's far end is found from the spoke's twin.
   struct Node {
-    Vec3 base, along;     // the unrelaxed unit normal; the unit direction it may tilt in
-    bool anchor = false;  // a flat sector, or one not all slivers
+    Vec3 base, along;                   // the sector normal; the unit direction it may tilt in
+    bool anchor = false;                // a flat sector, or one not all slivers
     std::vector<std::uint32_t> spokes;  // its sliver spokes
   };
   std::vector<Node> nodes;
@@ -562,20 +568,16 @@ void relax_sliver_normals(const Mesh& m, const Features& f, std::span<GuardVerte
   for (const std::uint32_t s : sliver_spokes) {
     const HalfedgeId h(s);
     const VertexId v = m.from(h);
-    const VertexKind kind = f.kind(v);
-    if (kind != VertexKind::Crease) continue;
     if (const std::int64_t k = node_of(h); k >= 0) {
       nodes[static_cast<std::size_t>(k)].spokes.push_back(s);
       continue;
     }
     Node node;
-    node.base = kind <= VertexKind::Dart ? guard[v.idx].normal : sector_normal(m, f, h);
+    node.base = sector_normal(m, f, h);
     if (!(norm(node.base) > 0)) continue;
     node.spokes.push_back(s);
     const auto index = static_cast<std::uint32_t>(nodes.size());
-    if (kind <= VertexKind::Dart) {
-      for_each_outgoing(m, v, [&](HalfedgeId o) { spoke_node.emplace(o.idx, index); });
-    } else {  // the sector's spokes, as sector_normal walks it
+    {  // the sector's spokes, as sector_normal walks it
       // Only a sector of slivers (a strip's end) moves: a flat sector's normal is its plane's,
       // exact (a cap fanned into slivers), and a sector with a wider face holds another piece
       // of surface (a flat face beyond a shallow crease the angle did not mark).
@@ -600,23 +602,11 @@ void relax_sliver_normals(const Mesh& m, const Features& f, std::span<GuardVerte
     }
     nodes.push_back(std::move(node));
   }
-  // The direction each node tilts in: about the crease curve for a crease vertex's sector
-  // (so it stays across the curve); along its sliver spokes for the others.
+  // The direction each node tilts in: about the crease curve (so it stays across the curve).
   std::vector<std::uint8_t> fixed(nodes.size(), 0);
   for (std::size_t k = 0; k < nodes.size(); ++k) {
     Node& node = nodes[k];
-    const VertexId v = m.from(HalfedgeId(node.spokes[0]));
-    Vec3 along;
-    if (f.kind(v) == VertexKind::Crease) {
-      along = cross(crease_tangent(m, f, v), node.base);
-    } else {
-      const Vec3 first = m.position(m.to(HalfedgeId(node.spokes[0]))) - m.position(v);
-      for (const std::uint32_t s : node.spokes) {
-        const Vec3 d = normalized(m.position(m.to(HalfedgeId(s))) - m.position(v));
-        along += dot(d, first) >= 0 ? d : -d;
-      }
-      along -= dot(along, node.base) * node.base;
-    }
+    const Vec3 along = cross(crease_tangent(m, f, m.from(HalfedgeId(node.spokes[0]))), node.base);
     if (node.anchor || !(dot(along, along) > 0.25))
       fixed[k] = 1;
     else
@@ -680,18 +670,10 @@ void relax_sliver_normals(const Mesh& m, const Features& f, std::span<GuardVerte
     if (size[root(k)] < kSliverRunNodes) fixed[k] = 1;
     current[k] = fixed[k] ? nodes[k].base : normalized(nodes[k].base + tilt[k] * nodes[k].along);
   }
-  for (std::size_t k = 0; k < nodes.size(); ++k) {
-    if (fixed[k]) continue;
-    const VertexId v = m.from(HalfedgeId(nodes[k].spokes[0]));
-    if (f.kind(v) <= VertexKind::Dart) {
-      guard[v.idx].normal = current[k];
-      continue;
-    }
-    guard[v.idx].sectors_relaxed = 1;
-  }
+  for (std::size_t k = 0; k < nodes.size(); ++k)
+    if (!fixed[k]) guard[m.from(HalfedgeId(nodes[k].spokes[0])).idx].sectors_relaxed = 1;
   for (const auto& [h, k] : spoke_node)
-    if (!fixed[k] && f.kind(m.from(HalfedgeId(h))) == VertexKind::Crease)
-      sectors.by_halfedge.push_back({h, current[k]});
+    if (!fixed[k]) sectors.by_halfedge.push_back({h, current[k]});
   std::sort(sectors.by_halfedge.begin(), sectors.by_halfedge.end(),
             [](const auto& x, const auto& y) { return x.first < y.first; });
 }

@@ -120,8 +120,10 @@ TEST(LsfIdeal, RoundedBoxPlateAndTorusNoWorseThanToday) {
 // The plate's 305 mm slivers: one level's points on its long smooth edges, against the truth.
 // Their Hermite midpoints read the end sections' sector normals, whose face sums tilt along
 // the strips by ~1e-4 rad (the sagitta of the arc between a strip's two ends over 305 mm); the
-// chord symmetry along each zipped run of strips (relax_sliver_normals) removes most of that.
-// RMS point error, mean over the seeds: 10.3 um before (9.6, 12.4, 8.9), 6.4 um after.
+// chord symmetry along each zipped run of strips (relax_sliver_normals) removes most of that,
+// and the corners' outline tangents of circles (curve_tangent_towards) the rest of what is
+// measured here. RMS point error, mean over the seeds: 10.3 um before (9.6, 12.4, 8.9), 6.4 um
+// with the first, 5.9 um (6.2, 8.3, 3.2) with both.
 TEST(LsfIdeal, PlateSliverPointsCloseToTheArc) {
   double mean = 0;
   for (const std::uint64_t seed : kSeeds) {
@@ -145,7 +147,7 @@ TEST(LsfIdeal, PlateSliverPointsCloseToTheArc) {
     ASSERT_GT(count, 30) << "seed " << seed;
     mean += std::sqrt(sum / count) / kSeeds.size();
   }
-  EXPECT_LE(mean, 8e-3);  // mm
+  EXPECT_LE(mean, 7e-3);  // mm
 }
 
 }  // namespace
