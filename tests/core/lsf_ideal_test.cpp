@@ -104,12 +104,12 @@ TEST(LsfIdeal, ZippedWallsAndHullsWithinTwiceTheIdealAndAQuarterOfTheInput) {
 }
 
 // Where the target is still missed, today's figures on these seeds (rounded box 6.18x the
-// ideal, 0.42x the input; plate 3.08x, 3.56x before the sliver normals of
-// bench/results-issue17-s6-lsf.md; torus 2.02x, 0.14x) are the bound, so that they cannot get
-// worse unnoticed (the target stays open).
+// ideal, 0.42x the input; plate 3.01x, 0.19x, before the sliver normals and corner tangents of
+// bench/results-issue17-s6-lsf.md 3.56x, 0.23x; torus 2.02x, 0.14x) are the bound, so that
+// they cannot get worse unnoticed (the target stays open).
 TEST(LsfIdeal, RoundedBoxPlateAndTorusNoWorseThanToday) {
   const std::array<std::pair<CadFamily, double>, 3> bounds = {
-      {{CadFamily::RoundedBox, 6.5}, {CadFamily::Plate, 3.3}, {CadFamily::Torus, 2.2}}};
+      {{CadFamily::RoundedBox, 6.5}, {CadFamily::Plate, 3.2}, {CadFamily::Torus, 2.2}}};
   for (const auto& [family, bound] : bounds) {
     const Ratios r = two_level_ratios(family);
     EXPECT_LE(r.to_ideal, bound) << cad_family_name(family);
