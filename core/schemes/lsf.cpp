@@ -193,8 +193,9 @@ void LsfStencil::edge_points(const Level& coarse, std::span<Vec3> out) const {
         guard[i].normal = plane;
     }
   });
-  lsf::relax_normals(m, f, guard, lsf::kRelaxRounds);
-  const lsf::GuardNormals normal_of{m, f, guard.data()};
+  lsf::SectorNormals sectors;
+  lsf::relax_guard_normals(m, f, guard, sectors);
+  const lsf::GuardNormals normal_of{m, f, guard.data(), &sectors};
   // The guard reads, per edge, the corners of its two faces, their four positions and its ends'
   // guard records: a chain of dependent loads at random places, which the edges before it
   // cannot hide. So they are prefetched, a stage of the chain at a time, kPrefetch edges apart

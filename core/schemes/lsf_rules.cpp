@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <unordered_map>
 #include <vector>
 
 #include "core/parallel.h"
@@ -118,17 +119,24 @@ Vec3 across_crease(const Mesh& m, const Features& f, VertexId v, const Vec3& nor
   return dot(n, n) > 0.25 ? normalized(n) : normal;
 }
 
-// The unit tangent at v of the sharp polyline that leaves it towards w: the derivative at v of
-// the quadratic through v, w and the curve vertex beyond w in chord-length parameters (the
-// chord where w ends the curve).
+// The unit tangent at v of the sharp polyline that leaves it towards w: of the circle through
+// v, w and the curve vertex beyond w (the chord where w ends the curve).
 Vec3 curve_tangent_towards(const Mesh& m, const Features& f, VertexId v, VertexId w) {
   const Vec3 p0 = m.position(v), p1 = m.position(w);
   const double s1 = distance(p0, p1);
   const VertexId beyond = f.curve_beyond(w, v);
   if (!beyond.valid() || !(s1 > 0)) return normalized(p1 - p0);
   const Vec3 p2 = m.position(beyond);
-  const double s2 = s1 + distance(p1, p2);
-  return normalized((s2 / (s1 * (s2 - s1))) * (p1 - p0) - (s1 / (s2 * (s2 - s1))) * (p2 - p0));
+  // The tangent at p0 of the circle through p0, p1, p2: exact on arcs and lines, where the
+  // chord-length quadratic at its end leans by ~a sixth of the turn per chord squared (the
+  // plate's outline arcs: 0.5-0.9 deg at its corners, which a 305 mm strip's Hermite midpoint
+  // multiplies by the arc's sagitta).
+  const Vec3 a = p1 - p0, b = p2 - p0, n = cross(a, b);
+  const double n2 = dot(n, n);
+  if (!(n2 > 1e-24 * dot(a, a) * dot(b, b))) return normalized(a);  // (nearly) a line
+  const Vec3 centre = (1.0 / (2.0 * n2)) * cross(dot(a, a) * b - dot(b, b) * a, n);  // from p0
+  const Vec3 t = normalized(cross(n, -1.0 * centre));
+  return dot(t, a) >= 0 ? t : -1.0 * t;
 }
 
 // The sines below which two curves leaving a corner count as one line (their cross product
@@ -432,6 +440,26 @@ bool dominant_plane(const Mesh& m, VertexId v, Vec3& normal) {
   return true;
 }
 
+// Whether the edge of h is a sliver's long edge (kSliverAspect, as guarded_edge_point tells it).
+bool sliver_edge(const Mesh& m, HalfedgeId h) {
+  const HalfedgeId t = m.twin(h);
+  if (!t.valid()) return false;
+  const Vec3 a = m.position(m.from(h)), chord = m.position(m.to(h)) - a;
+  const Vec3 t0 = cross(chord, m.position(m.opposite(h)) - a),
+             t1 = cross(chord, m.position(m.opposite(t)) - a);
+  const double length2 = dot(chord, chord);
+  return length2 * length2 >= (kSliverAspect * kSliverAspect) * std::min(dot(t0, t0), dot(t1, t1));
+}
+
+// Whether the face of h is a sliver: its longest edge at least kSliverAspect times its height
+// across that edge.
+bool sliver_face(const Mesh& m, HalfedgeId h) {
+  const Vec3 a = m.position(m.from(h)), b = m.position(m.to(h)), c = m.position(m.opposite(h));
+  const double longest2 = std::max({dot(b - a, b - a), dot(c - b, c - b), dot(a - c, a - c)});
+  const Vec3 n = cross(b - a, c - a);
+  return longest2 * longest2 >= (kSliverAspect * kSliverAspect) * dot(n, n);
+}
+
 // relax_normals: the damping towards a vertex's own normal of the round before, per unit of
 // ring weight (small: it only keeps an ill-posed ring, spokes along a line, from wandering).
 constexpr double kRelaxDamping = 0.03;
@@ -446,8 +474,15 @@ void relax_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guar
   std::vector<std::uint32_t> relaxed;
   for (std::size_t i = 0; i < nv; ++i) {
     const VertexId v(static_cast<std::uint32_t>(i));
-    if (f.kind(v) == VertexKind::Smooth && guard[i].one_sector &&
-        guard[i].spokes == GuardVertex::kNotEven && m.halfedge(v).valid())
+    if (f.kind(v) != VertexKind::Smooth || !guard[i].one_sector || !m.halfedge(v).valid()) continue;
+    // A fan or zipper of slivers only (a strip's midpoint, a level after the plate's 305 mm
+    // strips) is relaxed too: its face sums lean across the strip by degrees, and its
+    // neighbours across the strip are as sure as it is.
+    bool sliver_ring = (guard[i].spokes & GuardVertex::kUneven) != 0;
+    if (sliver_ring)
+      for_each_outgoing(m, v,
+                        [&](HalfedgeId s) { sliver_ring = sliver_ring && sliver_face(m, s); });
+    if (guard[i].spokes == GuardVertex::kNotEven || sliver_ring)
       relaxed.push_back(static_cast<std::uint32_t>(i));
   }
   std::vector<Vec3> next(relaxed.size());
@@ -492,6 +527,155 @@ void relax_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guar
     });
     for (std::size_t k = 0; k < relaxed.size(); ++k) guard[relaxed[k]].normal = next[k];
   }
+}
+
+// relax_sliver_normals: the sweeps at most, the change of a tilt (rad) below which a sweep
+// ends them, and the fewest crease sectors joined by slivers' long edges whose tilts are kept.
+constexpr std::size_t kSliverRunNodes = 8;
+constexpr int kSliverSweeps = 200;
+constexpr double kSliverConverged = 1e-12;
+
+void relax_sliver_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guard,
+                          SectorNormals& sectors) {
+  // Both half-edges of every smooth sliver edge between two crease vertices (the only ones
+  // that move), found from the crease vertices: a scan of the vertex kinds where there are none.
+  std::vector<std::uint32_t> sliver_spokes;
+  for (std::uint32_t i = 0; i < m.num_vertices(); ++i) {
+    if (f.kind(VertexId(i)) != VertexKind::Crease) continue;
+    for_each_outgoing(m, VertexId(i), [&](HalfedgeId h) {
+      const VertexId w = m.to(h);
+      if (w.idx < i || f.kind(w) != VertexKind::Crease || f.is_sharp(m.edge(h)) ||
+          !sliver_edge(m, h))
+        return;
+      sliver_spokes.push_back(h.idx);
+      sliver_spokes.push_back(m.twin(h).idx);
+    });
+  }
+  if (sliver_spokes.empty()) return;
+  // One node per crease sector with a sliver edge. Every outgoing half-edge of its sector maps
+  // to it (spoke_node), so the node at an edge's far end is found from the spoke's twin.
+  struct Node {
+    Vec3 base, along;                   // the sector normal; the unit direction it may tilt in
+    bool anchor = false;                // a flat sector, or one not all slivers
+    std::vector<std::uint32_t> spokes;  // its sliver spokes
+  };
+  std::vector<Node> nodes;
+  std::unordered_map<std::uint32_t, std::uint32_t> spoke_node;  // half-edge -> node
+  auto node_of = [&](HalfedgeId h) -> std::int64_t {
+    const auto it = spoke_node.find(h.idx);
+    return it != spoke_node.end() ? std::int64_t{it->second} : -1;
+  };
+  for (const std::uint32_t s : sliver_spokes) {
+    const HalfedgeId h(s);
+    const VertexId v = m.from(h);
+    if (const std::int64_t k = node_of(h); k >= 0) {
+      nodes[static_cast<std::size_t>(k)].spokes.push_back(s);
+      continue;
+    }
+    Node node;
+    node.base = sector_normal(m, f, h);
+    if (!(norm(node.base) > 0)) continue;
+    node.spokes.push_back(s);
+    const auto index = static_cast<std::uint32_t>(nodes.size());
+    {  // the sector's spokes, as sector_normal walks it
+      // Only a sector of slivers (a strip's end) moves: a flat sector's normal is its plane's,
+      // exact (a cap fanned into slivers), and a sector with a wider face holds another piece
+      // of surface (a flat face beyond a shallow crease the angle did not mark).
+      const Vec3 p = m.position(v);
+      const Vec3 first = cross(m.position(m.to(h)) - p, m.position(m.opposite(h)) - p);
+      bool flat = true, slivers = true;
+      auto add = [&](HalfedgeId o) {
+        spoke_node.emplace(o.idx, index);
+        flat =
+            flat && coplanar(first, cross(m.position(m.to(o)) - p, m.position(m.opposite(o)) - p));
+        slivers = slivers && sliver_face(m, o);
+      };
+      HalfedgeId o = h;
+      do {
+        add(o);
+        o = ccw_within_patch(m, f, o);
+      } while (o.valid() && o != h);
+      if (!o.valid())
+        for (o = cw_within_patch(m, f, h); o.valid() && o != h; o = cw_within_patch(m, f, o))
+          add(o);
+      node.anchor = flat || !slivers;
+    }
+    nodes.push_back(std::move(node));
+  }
+  // The direction each node tilts in: about the crease curve (so it stays across the curve).
+  std::vector<std::uint8_t> fixed(nodes.size(), 0);
+  for (std::size_t k = 0; k < nodes.size(); ++k) {
+    Node& node = nodes[k];
+    const Vec3 along = cross(crease_tangent(m, f, m.from(HalfedgeId(node.spokes[0]))), node.base);
+    if (node.anchor || !(dot(along, along) > 0.25))
+      fixed[k] = 1;
+    else
+      node.along = normalized(along);
+  }
+  // One equation per sliver edge between two moving sector normals: c_a t_a + c_b t_b = rhs,
+  // from (base_a + t_a along_a) . u + (base_b + t_b along_b) . u = 0 (u the unit chord). An
+  // edge to anything else says nothing (a corner's, a smooth vertex's or a mixed sector's
+  // normal is less sure than the strip's own).
+  struct Equation {
+    std::size_t a = 0, b = 0;
+    double ca = 0, cb = 0, rhs = 0;
+  };
+  std::vector<Equation> equations;
+  for (std::size_t k = 0; k < sliver_spokes.size(); k += 2) {
+    const HalfedgeId h(sliver_spokes[k]), t(sliver_spokes[k + 1]);
+    const std::int64_t a = node_of(h), b = node_of(t);
+    if (a < 0 || b < 0 || fixed[static_cast<std::size_t>(a)] || fixed[static_cast<std::size_t>(b)])
+      continue;
+    const Vec3 u = normalized(m.position(m.to(h)) - m.position(m.from(h)));
+    const Node &na = nodes[static_cast<std::size_t>(a)], &nb = nodes[static_cast<std::size_t>(b)];
+    Equation eq{static_cast<std::size_t>(a), static_cast<std::size_t>(b), dot(na.along, u),
+                dot(nb.along, u), -dot(na.base + nb.base, u)};
+    if (eq.ca * eq.ca + eq.cb * eq.cb > 0) equations.push_back(eq);
+  }
+  // Kaczmarz sweeps from zero tilts: they converge to the least-norm tilts that meet the
+  // equations, so what they leave undetermined (a lone strip's two ends tilting opposite ways)
+  // keeps the face sums' normals. (Gauss-Seidel per node put the whole correction on the
+  // first end it visited: the zipped cylinder's isolated slivers got worse.)
+  std::vector<double> tilt(nodes.size(), 0.0);
+  for (int sweep = 0; sweep < kSliverSweeps && !equations.empty(); ++sweep) {
+    double change = 0;
+    for (const Equation& eq : equations) {
+      const double step =
+          (eq.rhs - eq.ca * tilt[eq.a] - eq.cb * tilt[eq.b]) / (eq.ca * eq.ca + eq.cb * eq.cb);
+      tilt[eq.a] += step * eq.ca;
+      tilt[eq.b] += step * eq.cb;
+      change = std::max(change, std::abs(step));
+    }
+    if (change < kSliverConverged) break;
+  }
+  // The Hermite midpoint of an edge reads the difference of its ends' tilts, and the
+  // equations fix their sums: what they leave, the one free tilt per connected run of strips
+  // (ends tilting alternately), is the mean of its face sums' errors, small only over many
+  // strips (the plate's zipped sides). A short run keeps its face sums (the zipped cylinder's
+  // few isolated slivers got worse).
+  std::vector<std::size_t> parent(nodes.size()), size(nodes.size(), 1);
+  for (std::size_t k = 0; k < nodes.size(); ++k) parent[k] = k;
+  auto root = [&](std::size_t k) {
+    while (parent[k] != k) k = parent[k] = parent[parent[k]];
+    return k;
+  };
+  for (const Equation& eq : equations) {
+    std::size_t ra = root(eq.a), rb = root(eq.b);
+    if (ra == rb) continue;
+    if (size[ra] < size[rb]) std::swap(ra, rb);
+    parent[rb] = ra, size[ra] += size[rb];
+  }
+  std::vector<Vec3> current(nodes.size());
+  for (std::size_t k = 0; k < nodes.size(); ++k) {
+    if (size[root(k)] < kSliverRunNodes) fixed[k] = 1;
+    current[k] = fixed[k] ? nodes[k].base : normalized(nodes[k].base + tilt[k] * nodes[k].along);
+  }
+  for (std::size_t k = 0; k < nodes.size(); ++k)
+    if (!fixed[k]) guard[m.from(HalfedgeId(nodes[k].spokes[0])).idx].sectors_relaxed = 1;
+  for (const auto& [h, k] : spoke_node)
+    if (!fixed[k]) sectors.by_halfedge.push_back({h, current[k]});
+  std::sort(sectors.by_halfedge.begin(), sectors.by_halfedge.end(),
+            [](const auto& x, const auto& y) { return x.first < y.first; });
 }
 
 Vec3 guarded_edge_point(const GuardNormals& normal_of, EdgeId e, const Vec3& lower_estimate,

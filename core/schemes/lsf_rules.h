@@ -13,6 +13,8 @@
 #include <cstdint>
 #include <limits>
 #include <span>
+#include <utility>
+#include <vector>
 
 #include "core/schemes/lsf.h"
 
@@ -98,6 +100,20 @@ struct alignas(32) GuardVertex {
   std::uint8_t flat = 0;
   std::uint8_t batched_smooth = 0;  // the normal came from the batch kernel (no dominant_plane)
   std::uint8_t spokes = 0;          // of a one-sector vertex
+  //! A crease vertex with a sector normal in SectorNormals (relax_sliver_normals).
+  std::uint8_t sectors_relaxed = 0;
+};
+
+//! Crease vertices' sector normals that replace sector_normal (relax_sliver_normals), per
+//! outgoing half-edge of the sector, sorted by half-edge.
+struct SectorNormals {
+  std::vector<std::pair<std::uint32_t, Vec3>> by_halfedge;
+  const Vec3* find(HalfedgeId h) const {
+    const auto it = std::lower_bound(by_halfedge.begin(), by_halfedge.end(), h.idx,
+                                     [](const std::pair<std::uint32_t, Vec3>& entry,
+                                        std::uint32_t i) { return entry.first < i; });
+    return it != by_halfedge.end() && it->first == h.idx ? &it->second : nullptr;
+  }
 };
 inline std::uint8_t NormalSum::spoke_flags() const {
   return (longest >= (kEvenSpokes * kEvenSpokes) * shortest ? GuardVertex::kNotEven : 0) |
@@ -106,16 +122,20 @@ inline std::uint8_t NormalSum::spoke_flags() const {
 //! GuardVertex::spokes of v's ring (a walk).
 std::uint8_t ring_spoke_flags(const Mesh& m, VertexId v);
 
-//! The guard's normal source: `guard`'s record of from(h) when it has one sector, else
-//! sector_normal (walked). Without records (null) always walked.
+//! The guard's normal source: `guard`'s record of from(h) when it has one sector, else the
+//! relaxed sector normal in `sectors`, else sector_normal (walked). Without records (null)
+//! always walked.
 struct GuardNormals {
   const Mesh& mesh;
   const Features& features;
   const GuardVertex* guard = nullptr;
+  const SectorNormals* sectors = nullptr;
   Vec3 operator()(HalfedgeId h) const {
     if (guard != nullptr) {
       const GuardVertex& g = guard[mesh.from(h).idx];
       if (g.one_sector) return g.normal;
+      if (g.sectors_relaxed && sectors != nullptr)
+        if (const Vec3* n = sectors->find(h)) return *n;
     }
     return sector_normal(mesh, features, h);
   }
@@ -137,12 +157,36 @@ struct GuardNormals {
 //! squares of those equations over its ring with its neighbours' normals of the previous round,
 //! damped towards its own; `rounds` Jacobi rounds (deterministic, parallel). Neighbours with
 //! more than one sector give the normal of the sector holding the edge (sector_normal).
-//! Only vertices whose spokes are between kEvenSpokes and kUnevenSpokes apart move.
+//! Only vertices whose spokes are between kEvenSpokes and kUnevenSpokes apart move, and fans
+//! and zippers whose every face is a sliver (the midpoints of the plate's strips after a level:
+//! their face sums lean across the strip by degrees).
 void relax_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guard, int rounds);
 //! The rounds LsfStencil runs: measured on issue 17's families, seeds 6000-6005, L2 RMS / ideal:
 //! sphere and ellipsoid 1.5 -> 1.3, blob 1.7 -> 1.5, torus 2.3 -> 2.1, rounded box 6.5 -> 5.0;
 //! the rest unchanged (20 rounds: the same to 0.1).
 inline constexpr int kRelaxRounds = 10;
+
+//! Corrects the crease vertices' sector normals at the ends of slivers' long edges (an edge
+//! kSliverAspect times longer than the narrower face's height across it: issue 17's plate,
+//! 305 mm strips zipped between two end sections) to the chord symmetry n_v . c + n_w . c = 0
+//! along those edges. The strips' face sums tilt along the strip by the sagitta of a few
+//! millimetres of arc over 305 mm (about 1e-4 rad), which a long edge's Hermite midpoint
+//! multiplies by its length. A sector normal only turns about its crease curve (it stays
+//! across it), and only in a sector of slivers that is not flat; an equation joins two such
+//! sectors; Kaczmarz sweeps give the least tilts that meet them (exact on extrusions of
+//! circles). What the sums leave free, one alternating tilt per connected run, is averaged
+//! out only over many strips: runs of fewer than kSliverRunNodes sectors keep the face sums.
+//! `sectors` receives the moved sector normals (GuardVertex::sectors_relaxed marks their
+//! vertices). Where no crease vertex has a sliver edge, one scan of the vertex kinds.
+void relax_sliver_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guard,
+                          SectorNormals& sectors);
+
+//! The guard normals LsfStencil uses: relax_normals, then relax_sliver_normals.
+inline void relax_guard_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guard,
+                                SectorNormals& sectors) {
+  relax_normals(m, f, guard, kRelaxRounds);
+  relax_sliver_normals(m, f, guard, sectors);
+}
 
 //! lsf_guarded_edge_point (lsf.h) with the normals from `normals` (and, with records, the
 //! flat flags that skip the plane rule's walks).

@@ -542,8 +542,9 @@ void expect_batched_equal_one_vertex(Level level, std::size_t min_vertices, LsfK
       guard[v].normal = lsf::sector_normal(m, level.features, m.halfedge(VertexId(v)));
       guard[v].spokes = lsf::ring_spoke_flags(m, VertexId(v));
     }
-    lsf::relax_normals(m, level.features, guard, lsf::kRelaxRounds);
-    const lsf::GuardNormals normal_of{m, level.features, guard.data()};
+    lsf::SectorNormals sectors;
+    lsf::relax_guard_normals(m, level.features, guard, sectors);
+    const lsf::GuardNormals normal_of{m, level.features, guard.data(), &sectors};
     std::vector<Vec3> expected(m.num_edges());
     for (std::uint32_t e = 0; e < m.num_edges(); ++e) {
       const HalfedgeId h = m.halfedge(EdgeId(e));
