@@ -39,7 +39,16 @@ bool AdaptiveSqrt3::Hierarchy::unflipped(HalfedgeId h, int pass) {
   // one decision, taken from the edge's first half-edge seen, as the whole level's is one.
   // A flip kept by a pass stays kept.
   const HalfedgeId t = twin(h);
-  const bool keep = (pass > 0 && unflipped(h, pass - 1)) || flip_folds(h, pass);
+  bool keep = pass > 0 && unflipped(h, pass - 1);
+  if (!keep && pass > 0) {  // with both face points unpulled, the pass before's decision
+    bool moved = false;
+    for (const VertexId q : {apex(h), apex(t)})
+      moved |=
+          verts_[q].origin == Origin::FacePoint && guard_stage(q, pass - 1, kGuardRounds - 1) > 0;
+    keep = moved && flip_folds(h, pass);
+  } else if (!keep) {
+    keep = flip_folds(h, pass);
+  }
   for (const HalfedgeId g : {h, t})
     bits(Mesh::face(g)) |=
         static_cast<std::uint8_t>((1 << corner_of(g)) | (keep ? 8 << corner_of(g) : 0));
@@ -60,7 +69,10 @@ Vec3 AdaptiveSqrt3::Hierarchy::stencil_face_point(VertexId q) {
 }
 
 Vec3 AdaptiveSqrt3::Hierarchy::guard_view(VertexId v, int l, View view) {
-  if (verts_[v].origin != Origin::FacePoint) return position(v, l);
+  // Only the face points of level l are being decided; a face point of a coarser level is
+  // an old vertex here, at its position (its stencil point had been taken for it, so the
+  // guard judged the faces round a pulled old vertex with a point it was not at).
+  if (verts_[v].origin != Origin::FacePoint || verts_[v].level != l) return position(v, l);
   if (view.pass < 0) return stencil_face_point(v);
   return stage_point(v, guard_stage(v, view.pass, view.round));
 }
@@ -111,9 +123,33 @@ int AdaptiveSqrt3::Hierarchy::guard_stage(VertexId q, int pass, int round) {
     const GuardPoint& g = guard_point_[q];
     if ((g.known[pass] >> round) & 1) return g.stage[pass][round];
   }
+  const FaceId f = verts_[q].tri;
+  auto remember = [&](int stage) {
+    GuardPoint& g = guard_point_[q];
+    g.stage[pass][round] = static_cast<std::uint8_t>(stage);
+    g.known[pass] |= static_cast<std::uint8_t>(1 << round);
+    return stage;
+  };
+  // Where what q sees has not changed since the round (or pass) before, neither has its
+  // stage: most face points are never pulled, and this spares them the later rounds.
+  bool unchanged = true;
+  if (round > 0) {  // q's neighbours across its flips stayed where they were
+    for (std::uint8_t k = 0; k < 3 && unchanged; ++k) {
+      const HalfedgeId h = he(f, k);
+      if (kept(h, pass)) continue;
+      const VertexId n = apex(twin(h));
+      if (verts_[n].origin != Origin::FacePoint) continue;
+      unchanged =
+          guard_stage(n, pass, round - 1) == (round == 1 ? 0 : guard_stage(n, pass, round - 2));
+    }
+    if (unchanged) return remember(guard_stage(q, pass, round - 1));
+  } else if (pass > 0) {  // the same flips as the pass before
+    for (std::uint8_t k = 0; k < 3 && unchanged; ++k)
+      unchanged = kept(he(f, k), pass) == kept(he(f, k), pass - 1);
+    if (unchanged) return remember(guard_stage(q, pass - 1, 0));
+  }
   const int first = round == 0 ? 0 : guard_stage(q, pass, round - 1);
   const View view = round == 0 ? View{} : View{pass, round - 1};
-  const FaceId f = verts_[q].tri;
   const int l = level(f) + 1;
   struct Fine {
     std::array<VertexId, 3> c;
@@ -141,10 +177,7 @@ int AdaptiveSqrt3::Hierarchy::guard_stage(VertexId q, int pass, int round) {
   constexpr int kLastStage = 5;
   int stage = first;
   while (stage < kLastStage && any_folds(stage_point(q, stage))) ++stage;
-  GuardPoint& g = guard_point_[q];
-  g.stage[pass][round] = static_cast<std::uint8_t>(stage);
-  g.known[pass] |= static_cast<std::uint8_t>(1 << round);
-  return stage;
+  return remember(stage);
 }
 
 // sqrt3_host's Sqrt3FoldTest::flip_folds: one of the two flipped children (a, q_g, q_f),

@@ -48,8 +48,9 @@ void expect_closed_manifold(const Mesh& m) {
 TEST(AdaptiveSqrt3Guard, FoldsLessAgainstTheTruthAndStaysWatertight) {
   // Faces more than 90 degrees from the true normal ("folded", issue 17), guarded against
   // unguarded, for the interpolating and the approximating stencil. Measured (tol 2e-3 of
-  // the diagonal, 4 steps): sqrt3-interp 354 against 3,708 folded faces over these 12
-  // meshes, 0 on the sphere and the blob (15-33 unguarded); Kobbelt's sqrt3 4 against 1.
+  // the diagonal, 4 steps): sqrt3-interp 23 against 3,708 folded faces over these 12
+  // meshes (354 before the guard's rounds and passes), 0 on the sphere and the blob (15-33
+  // unguarded); Kobbelt's sqrt3 1 against 1.
   std::size_t folded_guarded = 0, folded_unguarded = 0, kept = 0, pulled = 0;
   for (const CadFamily family : {CadFamily::CappedCylinder, CadFamily::Torus, CadFamily::Sphere,
                                  CadFamily::Blob, CadFamily::RoundedBox, CadFamily::Tube}) {
@@ -126,10 +127,11 @@ TEST(AdaptiveSqrt3Guard, ToleranceTowardsZeroComesNearTheGuardedUniformLevel) {
   // (AdaptiveSqrt3.RefiningEverythingGivesTheUniformLevel). With it, the documented
   // difference (bench/results-issue17-s4-adaptive.md): the uniform host iterates its guard
   // over the whole level, this one decides each edge and face point once
-  // (adaptive_sqrt3_guard.cpp): 2-3 faces folded against the truth where the uniform level
-  // has none; and a few slivers beside kept flips are never refined because the finer
-  // surface lies wholly outside their prism (the criterion measures inside it, and finds 0
-  // there): 1.2 % fewer faces on the torus.
+  // (adaptive_sqrt3_guard.cpp, in a fixed depth of local rounds and passes): 0-1 faces
+  // folded against the truth where the uniform level has none; and a few slivers beside
+  // kept flips are never refined because the finer surface lies wholly outside their prism
+  // (the criterion measures inside it, and finds 0 there): 1.1 % fewer faces on the torus,
+  // the blob's count equal.
   for (const CadFamily family : {CadFamily::Blob, CadFamily::Torus}) {
     const CadShape shape = make_cad_shape(family, {1, 1.5});
     const Level coarse = make_level(to_mesh(shape.soup), 35);
