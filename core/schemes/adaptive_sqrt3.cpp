@@ -339,8 +339,7 @@ void AdaptiveSqrt3::Hierarchy::rollback(const Checkpoint& c) {
   tris_.truncate(c.tris);
   verts_.truncate(c.verts);
   alpha_.truncate(c.verts);
-  stencil_pos_.truncate(c.verts);
-  stencil_known_.truncate(c.verts);
+  guard_point_.truncate(c.verts);
   corner_normal_.truncate(c.tris);
   pool_.truncate(c.slots);
   known_.truncate(c.slots);

@@ -62,8 +62,30 @@ struct Tri {
   std::uint8_t canon = 0;  // bit k: sharp edge k is its edge's canonical half in sqrt3_refine
   std::uint8_t flags = 0;
   //! The fold guard's decision per edge k (sqrt3_host's keep_folding_flips): bit k: decided,
-  //! bit 3 + k: the edge is not flipped although both of its sides are refined.
+  //! bit 3 + k: the edge is not flipped although both of its sides are refined. `keep` is
+  //! the last pass's (the topology), keep_first the first pass's.
   std::uint8_t keep = 0;
+  std::uint8_t keep_first = 0;
+};
+
+//! The fold guard's rounds (adaptive_sqrt3_guard.cpp): round 0 pulls a face point where a
+//! fine face round it folds with its neighbours' stencil points; round r where one folds
+//! with their points of round r - 1, from its own stage of round r - 1 on. The last round's
+//! point (of the last pass) is its position.
+inline constexpr int kGuardRounds = 4;
+
+//! The guard's two passes over the flips: pass 0 keeps the flips that fold with the
+//! stencil's points; pass 1 also those that fold with pass 0's pulled points (the uniform
+//! host's later rounds). The hierarchy's topology is pass 1's.
+inline constexpr int kGuardPasses = 2;
+
+//! A face point's stencil point and its pull stage per pass and round (the point of a
+//! stage is cheap to remake from the stencil point and the face's corners).
+struct GuardPoint {
+  Vec3 stencil{};
+  std::array<std::array<std::uint8_t, kGuardRounds>, kGuardPasses> stage{};
+  bool stencil_known = false;
+  std::array<std::uint8_t, kGuardPasses> known{};  // bit r: stage[pass][r] is known
 };
 
 enum class Origin : std::uint8_t { Input, FacePoint, NearFrom, NearTo };
@@ -195,25 +217,31 @@ class AdaptiveSqrt3::Hierarchy {
   // Without the guard the twins are looked up in the order the hierarchy always did (a
   // trisecting level has no boundary edge that is not sharp), so the output is the same
   // bit for bit, vertex numbering included.
-  bool kept(HalfedgeId h) {
+  bool kept(HalfedgeId h, int pass = adaptive_sqrt3_detail::kGuardPasses - 1) {
     if (sharp(h)) return true;
     if (!guarded_) return !trisects(level(Mesh::face(h))) && !twin(h).valid();
-    return !twin(h).valid() || unflipped(h);
+    return !twin(h).valid() || unflipped(h, pass);
   }
   // Both sides refined: an old edge is flipped, a kept one is not.
   bool makes_flip_child(HalfedgeId h) { return !kept(h); }
   // The fold guard's topological half (adaptive_sqrt3_guard.cpp), decided once per edge.
-  bool unflipped(HalfedgeId h);
-  bool flip_folds(HalfedgeId h);
+  bool unflipped(HalfedgeId h, int pass);
+  // With the face points of the pass before `pass`, the stencil's for pass 0.
+  bool flip_folds(HalfedgeId h, int pass);
   Vec3 sector_normal(HalfedgeId h);
   Vec3 apex_normal(HalfedgeId h);
-  bool folds(const std::array<VertexId, 3>& c, int level, const Vec3& smooth,
+  // Which points a guard decision sees: the face points' of pass `pass`, round `round`
+  // (pass -1: the stencil's, before any pull, as in the uniform host's first round).
+  struct View {
+    int pass = -1, round = 0;
+  };
+  bool folds(const std::array<VertexId, 3>& c, int level, const Vec3& smooth, View view,
              VertexId moved = VertexId(), const Vec3& at = Vec3{});
   // The geometric half, for one face point: where a fine face round it folds, it moves.
-  Vec3 guard_face_point(VertexId q, const Vec3& stencil);
-  // The points the guard's decisions see: a face point's stencil point (before any pull,
-  // as in the uniform host's first round), any other vertex's position.
-  Vec3 guard_view(VertexId v, int level);
+  // The stage it stopped at in round `round` of pass `pass`, and its point there.
+  int guard_stage(VertexId q, int pass, int round);
+  Vec3 stage_point(VertexId q, int stage);
+  Vec3 guard_view(VertexId v, int level, View view);
   Vec3 stencil_face_point(VertexId q);
   // sqrt3_host's Sqrt3Layout::to_apex and set_to_apex_side: the fine half-edge to(x) ->
   // apex(x), and the one across it inside face(x).
@@ -251,8 +279,7 @@ class AdaptiveSqrt3::Hierarchy {
     // more, and a partly used block per queue.
     const std::uint64_t queues = 5 * std::uint64_t(tris_.capacity()) + queue_.size() * 2048;
     return tris_.bytes() + verts_.bytes() + pool_.bytes() + known_.bytes() + alpha_.bytes() +
-           stencil_pos_.bytes() + stencil_known_.bytes() + corner_normal_.bytes() + queues +
-           patch_bytes_ + transient_bytes_;
+           guard_point_.bytes() + corner_normal_.bytes() + queues + patch_bytes_ + transient_bytes_;
   }
   void need(std::uint64_t bytes) const {
     if (reserve_) reserve_(bytes);
@@ -340,11 +367,10 @@ class AdaptiveSqrt3::Hierarchy {
   Chunked<Vec3> pool_;
   Chunked<std::uint8_t> known_;
   Chunked<double> alpha_;
-  Chunked<Vec3> stencil_pos_;  // guarded: per vertex, a face point's stencil point
+  Chunked<adaptive_sqrt3_detail::GuardPoint> guard_point_;  // guarded: per vertex
   // Guarded: per triangle, the sector normals at its corners (floats: the guard compares
   // them with a 30 degree limit), each computed once; the guard asks for each many times.
   Chunked<std::array<float, 9>> corner_normal_;
-  Chunked<std::uint8_t> stencil_known_;
 
   std::array<std::deque<FaceId>, 9> queue_;
   std::size_t refined_count_ = 0;

@@ -77,17 +77,14 @@ VertexId AdaptiveSqrt3::Hierarchy::new_vertex(Origin origin, FaceId tri, int lev
                                known_.growth_bytes(known_.size() + slots) +
                                verts_.growth_bytes(verts_.size() + 1) +
                                (has_alpha_ ? alpha_.growth_bytes(alpha_.size() + 1) : 0) +
-                               (guarded_ ? stencil_pos_.growth_bytes(verts_.size() + 1) +
-                                               stencil_known_.growth_bytes(verts_.size() + 1)
-                                         : 0);
+                               (guarded_ ? guard_point_.growth_bytes(verts_.size() + 1) : 0);
   if (growth) need(held_bytes() + growth);
   pool_.grow(pool_.size() + slots);
   known_.grow(known_.size() + slots, 0);
   verts_.push_back(v);
   if (has_alpha_) alpha_.push_back(1.0);
   if (guarded_) {
-    stencil_pos_.push_back(Vec3{});
-    stencil_known_.push_back(0);
+    guard_point_.push_back({});
   }
   return id;
 }
@@ -319,7 +316,11 @@ Vec3 AdaptiveSqrt3::Hierarchy::creation_position(VertexId v) {
   const FaceId t = verts_[v].tri;
   const int l = level(t);
   if (verts_[v].origin == Origin::FacePoint) {
-    if (guarded_) return guard_face_point(v, stencil_face_point(v));
+    if (guarded_) {
+      const int stage = guard_stage(v, kGuardPasses - 1, kGuardRounds - 1);
+      verts_[v].pulled = stage > 0;
+      return stage_point(v, stage);
+    }
     std::vector<FaceId> tris{t};
     for (std::uint8_t k = 0; k < 3; ++k) gather_fan(he(t, k), tris);
     const Patch patch = build_patch(std::move(tris), l);
