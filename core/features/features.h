@@ -114,7 +114,7 @@ class Features {
 //! ends, bending at least kAutoCreaseGapRatio times as much as they do and kAutoCreaseRatio
 //! times its faces' bend, is sharp too. Last, an edge found by a rule other than the steep
 //! ones that meets no other sharp or boundary edge at either end is dropped (a crease runs
-//! until it meets another feature); so is an edge found by its steep dihedral alone that
+//! until it meets another feature); so is one found by the first two (steep) rules that
 //! meets none and bends less than kAutoCreaseRatio times its faces' bend (a sliver's fold
 //! on a coarse zipped torus).
 Features detect_features(const Mesh& mesh, const FeatureParams& params);
