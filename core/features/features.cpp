@@ -5,6 +5,9 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <optional>
+#include <span>
+#include <vector>
 
 #include "core/error.h"
 #include "core/parallel.h"
@@ -93,6 +96,37 @@ VertexId Features::curve_beyond(VertexId x, VertexId other) const {
 
 std::size_t Features::count(VertexKind k) const {
   return static_cast<std::size_t>(std::count(kind_.begin(), kind_.end(), k));
+}
+
+std::optional<SectionTangent> section_tangent(std::span<const SectionPoint> points) {
+  if (points.empty()) return std::nullopt;
+  // The circle through the origin with centre c: d^2 + h^2 = 2 (c_d d + c_h h), each
+  // equation divided by d^2 + h^2 so near and far points count alike.
+  double m00 = 0, m01 = 0, m11 = 0, r0 = 0, r1 = 0;
+  double lo = std::numbers::pi, hi = -std::numbers::pi, sum = 0, near = HUGE_VAL, far = 0;
+  for (const SectionPoint& p : points) {
+    const double rr = p.d * p.d + p.h * p.h;
+    const double x = 2 * p.d / rr, y = 2 * p.h / rr;
+    m00 += x * x;
+    m01 += x * y;
+    m11 += y * y;
+    r0 += x;
+    r1 += y;
+    const double dir = std::atan2(p.h, p.d);
+    lo = std::min(lo, dir);
+    hi = std::max(hi, dir);
+    sum += dir;
+    near = std::min(near, std::sqrt(rr));
+    far = std::max(far, std::sqrt(rr));
+  }
+  const double det = m00 * m11 - m01 * m01;
+  if (hi - lo < kSectionSpreadDeg * std::numbers::pi / 180.0 ||
+      far - near < kSectionDistanceSpread * far || !(det > 1e-12 * m00 * m11))
+    return SectionTangent{sum / static_cast<double>(points.size()), HUGE_VAL, false};
+  const double cd = (m11 * r0 - m01 * r1) / det, ch = (m00 * r1 - m01 * r0) / det;
+  // The tangent is perpendicular to the centre, pointing to the points' side (d > 0).
+  return SectionTangent{ch >= 0 ? std::atan2(-cd, ch) : std::atan2(cd, -ch), std::hypot(cd, ch),
+                        true};
 }
 
 double dihedral_angle_deg(const Mesh& mesh, EdgeId e) {
@@ -223,9 +257,86 @@ Features detect_auto(const Mesh& mesh) {
     const double height = norm(mesh.face_normal(Mesh::face(other))) / len;
     const double size = kAutoCreasePlaneSize * height;
     // Both its area and its width across the edge (area over the edge's length: a strip of
-    // a zipped cylinder side, long along the edge, is a chord too) count.
+    // a zipped cylinder side, long along the edge, and one facet of an arc are chords too;
+    // they are 2-4.5 times the next facet's height) count.
     const double area = region_area[region[Mesh::face(planar).idx]];
-    return area >= size * size && area >= size * len;
+    return area >= size * size && area >= kAutoCreasePlaneWidth * height * len;
+  };
+  // Smoothness across an edge (the planar-side rules' last test). The vertices beside edge
+  // (a, b) on one side: those of the faces within `rings` steps of face `start`, not
+  // crossing the edge, an always-sharp edge or into region `blocked`, in the section across
+  // the edge: d along `out`, h along `down`. Left out: d <= 0 or > `reach`,
+  // and vertices beyond the edge's ends by more than kBeyond d (a fanned corner's centre
+  // is not on the fillet's section).
+  constexpr double kBeyond = 0.1;
+  auto beside = [&](HalfedgeId edge, std::uint32_t start, std::uint32_t blocked, int rings,
+                    const Vec3& down, const Vec3& out, double reach) {
+    const VertexId va = mesh.from(edge), vb = mesh.to(edge);
+    const Vec3 pa = mesh.position(va);
+    const double len = norm(mesh.position(vb) - pa);
+    const Vec3 along = (1.0 / len) * (mesh.position(vb) - pa);
+    std::vector<std::uint32_t> faces{start};
+    for (std::size_t begin = 0; rings-- > 0;) {
+      const std::size_t end = faces.size();
+      for (std::size_t i = begin; i < end; ++i)
+        for (int k = 0; k < 3; ++k) {
+          const HalfedgeId g = Mesh::halfedge(FaceId(faces[i]), k);
+          const HalfedgeId across = mesh.twin(g);
+          if (!across.valid() || mesh.edge(g) == mesh.edge(edge) ||
+              angle[mesh.edge(g).idx] >= always)
+            continue;
+          const std::uint32_t f = Mesh::face(across).idx;
+          if (region[f] != blocked && std::find(faces.begin(), faces.end(), f) == faces.end())
+            faces.push_back(f);
+        }
+      begin = end;
+    }
+    std::vector<VertexId> seen;
+    std::vector<SectionPoint> points;
+    for (const std::uint32_t f : faces)
+      for (int k = 0; k < 3; ++k) {
+        const VertexId v = mesh.from(Mesh::halfedge(FaceId(f), k));
+        if (v == va || v == vb || std::find(seen.begin(), seen.end(), v) != seen.end()) continue;
+        seen.push_back(v);
+        const Vec3 q = mesh.position(v) - pa;
+        const double d = dot(q, out), s = dot(q, along);
+        if (d > 0 && d <= reach && std::max({0.0, -s, s - len}) <= kBeyond * d)
+          points.push_back({d, dot(q, down)});
+      }
+    return points;
+  };
+  // planar's face and other's meet at the edge; true when the surface is smooth across it.
+  // The other side's points from its face and the faces next to it (one more ring when they
+  // do not fix a circle: two points on a coarse fillet's section at one distance); the
+  // planar side's from three rings of faces (through a one-facet "plane" to the surface
+  // beyond it), but no farther than the other side's radius and kReach times its farthest
+  // point: the far side of a real plane does not belong to this section.
+  constexpr double kReach = 8.0;
+  const double excess = kAutoCreaseExcessDeg * kDeg;
+  auto smooth_across = [&](HalfedgeId planar, HalfedgeId other) {
+    const Vec3& n = normal[Mesh::face(planar).idx];
+    const Vec3 edge_dir = mesh.position(mesh.to(other)) - mesh.position(mesh.from(other));
+    Vec3 out = normalized(cross(n, edge_dir));
+    const Vec3 apex = mesh.position(mesh.to(Mesh::next(other))) - mesh.position(mesh.from(other));
+    if (dot(apex, out) < 0) out = -1.0 * out;
+    // Heights are taken from the plane towards the side the other face bends to.
+    const Vec3 down = dot(apex, n) > 0 ? n : -1.0 * n;
+    const std::uint32_t other_face = Mesh::face(other).idx, planar_face = Mesh::face(planar).idx;
+    std::vector<SectionPoint> curved;
+    std::optional<SectionTangent> t_other;
+    for (int rings = 1; rings <= 2 && !(t_other && t_other->fitted); ++rings) {
+      curved = beside(other, other_face, region[planar_face], rings, down, out, HUGE_VAL);
+      t_other = section_tangent(curved);
+    }
+    if (!t_other) return false;  // nothing to compare: the dihedral rules decide
+    double reach = 0;
+    for (const SectionPoint& p : curved) reach = std::max(reach, kReach * p.d);
+    reach = std::min(reach, t_other->radius);
+    const std::vector<SectionPoint> flat_side =
+        beside(other, planar_face, region[other_face], 3, down, -1.0 * out, reach);
+    const double t_planar = section_tangent(flat_side).value_or(SectionTangent{}).elevation;
+    // Straight across when the two tangents are opposite: elevations that cancel.
+    return std::abs(t_other->elevation + t_planar) < excess;
   };
   parallel_for_each_index(ne, [&](std::size_t e) {
     const HalfedgeId h = mesh.halfedge(EdgeId(static_cast<std::uint32_t>(e)));
@@ -233,7 +344,6 @@ Features detect_auto(const Mesh& mesh) {
     if (!t.valid()) return;
     const double a = angle[e];
     const Side s1 = side(h), s2 = side(t);
-    const double excess = kAutoCreaseExcessDeg * kDeg;
     if (a >= always) {
       sharp[e] = kAlways;
     } else if (s1.planar && s2.planar && a >= planes) {
@@ -243,14 +353,21 @@ Features detect_auto(const Mesh& mesh) {
     } else if (s1.planar && s2.planar && is_plane(h, t) != is_plane(t, h)) {
       // A plane meeting a planar strip (a fillet's chord between two rulings sampled
       // alike): the strip bends at its far (parallel) edge; as below against that.
-      const Side& strip = is_plane(h, t) ? s2 : s1;
-      sharp[e] = a >= 0.5 * strip.bend + excess ? kPlanarSide : 0;
+      const bool h_plane = is_plane(h, t);
+      const Side& strip = h_plane ? s2 : s1;
+      sharp[e] =
+          a >= 0.5 * strip.bend + excess && !(h_plane ? smooth_across(h, t) : smooth_across(t, h))
+              ? kPlanarSide
+              : 0;
     } else if (s1.planar != s2.planar &&
                (a >= planes || (s1.planar ? is_plane(h, t) : is_plane(t, h)))) {
       // A plane meeting a curved region: tangent-continuous, the dihedral is about half the
       // curved side's own bend (its face's other edges: the chords of a fillet); more than
       // that by `excess` is a crease.
-      sharp[e] = a >= 0.5 * std::max(s1.own, s2.own) + excess ? kPlanarSide : 0;
+      sharp[e] = a >= 0.5 * std::max(s1.own, s2.own) + excess &&
+                         (a >= planes || !(s1.planar ? smooth_across(h, t) : smooth_across(t, h)))
+                     ? kPlanarSide
+                     : 0;
     } else {
       const double around = std::max(s1.bend, s2.bend);
       sharp[e] = a >= around + kAutoCreaseStandOutDeg * kDeg && a >= kAutoCreaseRatio * around
@@ -331,7 +448,8 @@ Features detect_auto(const Mesh& mesh) {
   // A crease runs until it meets another feature: an edge found by any rule but its steep
   // dihedral that meets no other sharp (or boundary) edge at either end is dropped (on a
   // rounded box's zipped fillets a lone edge of a twisted strip can pass the planar-side
-  // rule).
+  // rule), and so is a steep one that does not stand out either (a fold of two slivers on
+  // a coarse zipped torus, 65 degrees among 20-38 degree bends).
   auto lone_end = [&](VertexId v, EdgeId self) {
     bool other = false;
     HalfedgeId last;
@@ -349,8 +467,13 @@ Features detect_auto(const Mesh& mesh) {
   {
     std::vector<std::uint32_t> lone;
     for (std::uint32_t e = 0; e < ne; ++e) {
-      if (!keep[e] || sharp[e] == kAlways) continue;
+      if (!keep[e]) continue;
       const HalfedgeId h = mesh.halfedge(EdgeId(e));
+      // A steep edge stays unless it also bends no more than its faces do around it.
+      if (sharp[e] == kAlways &&
+          (!mesh.twin(h).valid() ||
+           angle[e] >= kAutoCreaseRatio * std::max(side(h).bend, side(mesh.twin(h)).bend)))
+        continue;
       if (lone_end(mesh.from(h), EdgeId(e)) && lone_end(mesh.to(h), EdgeId(e))) lone.push_back(e);
     }
     for (const std::uint32_t e : lone) keep[e] = 0;

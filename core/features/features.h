@@ -3,8 +3,11 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
+#include <span>
 #include <vector>
 
 #include "core/mesh/mesh.h"
@@ -89,14 +92,21 @@ class Features {
 //! - exactly one of its two faces is planar (across one of its other edges a neighbour
 //!   within kAutoCreaseFlatDeg, and no other bend there below kAutoCreasePlanesDeg), that
 //!   face's planar region is a plane (below kAutoCreasePlanesDeg: its area at least the
-//!   square of, and its width across the edge (area / edge length) at least,
-//!   kAutoCreasePlaneSize times the other face's height over the edge; the flat polygon
-//!   capping a coarse sphere and a strip of a zipped cylinder side are chords, not planes)
-//!   and the dihedral exceeds half the largest dihedral of the curved face's other two
-//!   edges (a tangent-continuous plane meets chords of a fillet at half their angle) by
-//!   kAutoCreaseExcessDeg: a plane meeting a curved region at a shallow angle; or
+//!   square of kAutoCreasePlaneSize, and its width across the edge (area / edge length) at
+//!   least kAutoCreasePlaneWidth, times the other face's height over the edge; the flat
+//!   polygon capping a coarse sphere, a strip of a zipped cylinder side and one facet of a
+//!   tessellated arc are chords, not planes) and the dihedral exceeds half the largest
+//!   dihedral of the curved face's other two edges (a tangent-continuous plane meets chords
+//!   of a fillet at half their angle) by kAutoCreaseExcessDeg: a plane meeting a curved
+//!   region at a shallow angle; or
 //! - both faces are planar, only one of them a plane, and the dihedral exceeds half the
-//!   other's bend by kAutoCreaseExcessDeg (a plane meeting a planar strip of a fillet); or
+//!   other's bend by kAutoCreaseExcessDeg (a plane meeting a planar strip of a fillet);
+//!   where these two planar-side rules (below kAutoCreasePlanesDeg) hold, the surface must
+//!   also not be smooth across the edge: in the section across it, the tangents of its two
+//!   sides at the edge (section_tangent of the vertices beside the edge on each side)
+//!   differ by at least kAutoCreaseExcessDeg. A plane meeting a zipped fillet tangentially,
+//!   whose twisted zipper triangles bend anyhow, and a row of a uniformly faceted surface,
+//!   whose "plane" is one facet, are smooth; a plane meeting a fillet at a crease is not; or
 //! - it stands out: at least kAutoCreaseRatio times and kAutoCreaseStandOutDeg above the
 //!   bend of both faces, and at both of its ends a sharp edge continues it turning by less
 //!   than kAutoCreaseTurnDeg (a crease is a chain).
@@ -104,7 +114,9 @@ class Features {
 //! ends, bending at least kAutoCreaseGapRatio times as much as they do and kAutoCreaseRatio
 //! times its faces' bend, is sharp too. Last, an edge found by a rule other than the steep
 //! ones that meets no other sharp or boundary edge at either end is dropped (a crease runs
-//! until it meets another feature).
+//! until it meets another feature); so is one found by the first two (steep) rules that
+//! meets none and bends less than kAutoCreaseRatio times its faces' bend (a sliver's fold
+//! on a coarse zipped torus).
 Features detect_features(const Mesh& mesh, const FeatureParams& params);
 
 //! Auto mode's thresholds (degrees, and a ratio), see detect_features.
@@ -117,6 +129,33 @@ inline constexpr double kAutoCreaseFlatDeg = 0.1;
 inline constexpr double kAutoCreasePlanesDeg = 35.0;
 inline constexpr double kAutoCreaseGapRatio = 0.5;
 inline constexpr double kAutoCreasePlaneSize = 2.0;
+inline constexpr double kAutoCreasePlaneWidth = 5.0;
+
+//! A vertex beside an edge in the section across it: d > 0 its distance from the edge's
+//! line across it, h its height below a reference plane through the edge.
+struct SectionPoint {
+  double d = 0;
+  double h = 0;
+};
+
+//! The tangent of a surface at an edge, in the section across it, from vertices on one side
+//! (auto mode's smoothness test): its elevation atan(h / d) in radians, of the
+//! least-squares circle through the edge and the points (exact on a cylinder or a fillet
+//! parallel to the edge: 0 where it is tangent to the reference plane, however its chords
+//! are triangulated), and that circle's radius. When the points do not fix a circle (they
+//! lie in directions within kSectionSpreadDeg of each other, or at distances within
+//! kSectionDistanceSpread of the farthest's), the mean of their directions (the chord) and
+//! no radius (HUGE_VAL), with `fitted` false.
+struct SectionTangent {
+  double elevation = 0;
+  double radius = HUGE_VAL;
+  bool fitted = false;
+};
+//! nullopt when there is no point.
+std::optional<SectionTangent> section_tangent(std::span<const SectionPoint> points);
+
+inline constexpr double kSectionSpreadDeg = 1.0;
+inline constexpr double kSectionDistanceSpread = 0.2;
 
 //! Angle in degrees between the normals of the two faces at a manifold edge (0 for a
 //! flat edge, boundary edges, and edges next to a zero-area face).

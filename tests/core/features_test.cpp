@@ -5,10 +5,12 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <initializer_list>
 #include <limits>
 #include <numbers>
 #include <set>
 #include <string>
+#include <vector>
 
 #include "core/error.h"
 #include "tests/core/test_util.h"
@@ -204,6 +206,63 @@ TEST(Features, KindNamesAreDistinct) {
     names.insert(to_string(k));
   }
   EXPECT_EQ(names.size(), 4u);
+}
+
+// The section fit behind auto mode's smoothness test (issue 17 item 5): a fillet's section
+// is a circle through the edge; its tangent there tells a tangent-continuous fillet (0) from
+// one meeting the plane at a crease, however coarse the points.
+std::vector<SectionPoint> on_circle(double radius, double crease_deg,
+                                    std::initializer_list<double> arc_deg) {
+  // The circle leaves the origin at elevation `crease` (tangent (cos c, sin c)) and bends
+  // towards +h (its normal (-sin c, cos c)); a point t degrees along it is at
+  // R sin(t) tangent + R (1 - cos(t)) normal.
+  const double c = crease_deg * std::numbers::pi / 180.0;
+  std::vector<SectionPoint> pts;
+  for (const double t : arc_deg) {
+    const double a = t * std::numbers::pi / 180.0;
+    const double s = radius * std::sin(a), k = radius * (1 - std::cos(a));
+    pts.push_back({s * std::cos(c) - k * std::sin(c), s * std::sin(c) + k * std::cos(c)});
+  }
+  return pts;
+}
+
+TEST(SectionTangent, TangentFilletIsSmoothAtAnyCoarseness) {
+  for (const auto& arcs :
+       {std::initializer_list<double>{20, 45}, std::initializer_list<double>{35, 38, 80},
+        std::initializer_list<double>{5, 9, 14}}) {
+    const std::vector<SectionPoint> pts = on_circle(4.0, 0.0, arcs);
+    const auto t = section_tangent(pts);
+    ASSERT_TRUE(t.has_value());
+    EXPECT_TRUE(t->fitted);
+    EXPECT_NEAR(t->elevation, 0.0, 1e-9);
+    EXPECT_NEAR(t->radius, 4.0, 1e-9);
+  }
+}
+
+TEST(SectionTangent, FilletMeetingThePlaneAtACreaseGivesItsAngle) {
+  for (const double crease : {6.0, 12.0, -8.0}) {
+    const auto t = section_tangent(on_circle(10.0, crease, {15, 40}));
+    ASSERT_TRUE(t.has_value());
+    EXPECT_NEAR(t->elevation * 180.0 / std::numbers::pi, crease, 1e-9);
+  }
+}
+
+TEST(SectionTangent, PointsThatFixNoCircleGiveTheirChord) {
+  EXPECT_FALSE(section_tangent({}).has_value());
+  // One point, or points in one direction (a planar facet): the chord, no radius.
+  const std::vector<SectionPoint> line{{1.0, 0.2}, {2.0, 0.4}, {3.0, 0.6}};
+  const auto t = section_tangent(line);
+  ASSERT_TRUE(t.has_value());
+  EXPECT_FALSE(t->fitted);
+  EXPECT_NEAR(t->elevation, std::atan(0.2), 1e-12);
+  EXPECT_EQ(t->radius, HUGE_VAL);
+  // Two points at nearly one distance from the edge: no circle either (a coarse fillet's
+  // two ends sampled alike), their mean direction.
+  const std::vector<SectionPoint> alike{{1.0, 0.10}, {1.0, 0.14}};
+  const auto u = section_tangent(alike);
+  ASSERT_TRUE(u.has_value());
+  EXPECT_FALSE(u->fitted);
+  EXPECT_NEAR(u->elevation, 0.5 * (std::atan(0.10) + std::atan(0.14)), 1e-12);
 }
 
 }  // namespace
