@@ -188,7 +188,10 @@ TEST(Adaptive, SaysWhereTheSchemesOwnLevelsDoNotConverge) {
   // than the input at L2-L3, bench/results-issue17-creases.md). Refining more cannot reach
   // the tolerance there, and the report says so. (lsf on a coarse zipped cylinder was the
   // example until lsf's edge points were fixed for such meshes.)
-  for (const std::uint64_t seed : {1, 2, 3}) {
+  // Seed 3 was in this list until round 6: its 2 false creases (core/features) were part of
+  // why it did not converge; with them gone its 7 edges over tolerance still converge (the
+  // report says 0 not converging), so seed 4 (10 of 16 not converging) replaces it.
+  for (const std::uint64_t seed : {1, 2, 4}) {
     SCOPED_TRACE(seed);
     const CadShape shape = make_cad_shape(CadFamily::RoundedBox, {seed, 1.0});
     const Mesh mesh = to_mesh(shape.soup);
