@@ -17,6 +17,7 @@
 #include <fstream>
 #include <iterator>
 #include <map>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -36,6 +37,7 @@
 #include "tests/primitives/heap_meter.h"
 #include "tests/support/cad_like.h"
 #include "tests/support/mesh_queries.h"
+#include "tests/support/true_surface.h"
 
 namespace stlrefine::primitives {
 namespace {
@@ -738,6 +740,43 @@ TEST(PrimitivesMemory, RunRefineAsksBeforeTheSurface) {
     EXPECT_EQ(e.field(), "primitives");
     EXPECT_EQ(e.level(), 2);
   }
+}
+
+// Issue 17: the default pipeline (primitives=off, max_deviation=auto) keeps every vertex
+// within its bound and should turn no face more than 60 degrees from the true normal. The
+// bound's pull-back moved single vertices towards their closest input point, which dented
+// the surface and turned the thin faces there (sqrt3-interp 6 steps: 85-100 faces on the
+// hull families over seeds 6000-6005, where refine() alone leaves none); smooth_pull moves
+// the vertices around a pulled one with it. Returns the faces > 60 degrees.
+std::size_t default_pipeline_turned(CadFamily family, std::uint64_t seed, const char* scheme,
+                                    int levels) {
+  const test::CadShape shape = test::make_cad_shape(family, {seed, 1.0});
+  const std::string stl = stl_of(build_mesh(shape.soup).mesh);
+  const api::RefineRequest request =
+      api::parse_refine_params({{"scheme", scheme}, {"levels", std::to_string(levels)}}, {});
+  const auto* data = reinterpret_cast<const std::uint8_t*>(stl.data());
+  const api::RefinedMesh out =
+      api::run_refine_to_mesh(std::span<const std::uint8_t>(data, stl.size()), request);
+  SCOPED_TRACE(shape.name + " seed " + std::to_string(seed) + " " + scheme + " levels " +
+               std::to_string(levels));
+  EXPECT_TRUE(out.stream());
+  const auto& dev = out.outcome.report.at("deviation");
+  EXPECT_EQ(dev.at("bound"), "auto");
+  EXPECT_LE(dev.at("max_distance_from_input").get<double>(), dev.at("max_bound").get<double>());
+  EXPECT_GT(dev.at("pulled_back").get<std::size_t>(), 0u);  // the bound did act
+  return test::faces_off_truth(out.mesh, *shape.surface, 60);
+}
+
+// Not yet 0 (the slivers of sqrt3's hulls, 1e-5 mm high, turn for any move that is not a
+// translation: bench/results-issue17-s6-pull.md): the single-vertex pull-back turned 104
+// faces here (main ad8fa63), the sheet 66.
+TEST(PrimitivesDeviation, DefaultPipelineTurnsFewHullFaces) {
+  std::size_t turned = 0;
+  for (std::uint64_t seed : {1, 2, 3})
+    for (CadFamily family : {CadFamily::Sphere, CadFamily::Ellipsoid, CadFamily::Blob})
+      turned += default_pipeline_turned(family, seed, "sqrt3-interp", 6);
+  std::printf("faces > 60 degrees: %zu\n", turned);
+  EXPECT_LE(turned, 80u);
 }
 
 }  // namespace
