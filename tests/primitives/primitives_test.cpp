@@ -523,12 +523,27 @@ TEST(PrimitivesFolds, NormalAtIsTheSurfacesNormal) {
 // snap: RMS 0.49x the input at 6 steps on seeds 6000-6005, against 0.01x at 4).
 TEST(PrimitivesFolds, SnapsTurningAFaceFromItsPrimitiveAreTakenBack) {
   const std::string stl = stl_of(cad_mesh(CadFamily::CappedCylinder, 6002));
+  // The snapping pass itself (apply, as the pipeline reads the STL): curve snaps kept, the
+  // turning ones taken back.
+  const Mesh input =
+      api::ingest_stl(std::span<const std::uint8_t>(
+                          reinterpret_cast<const std::uint8_t*>(stl.data()), stl.size()),
+                      0)
+          .result.mesh;
+  const Refined r = refine_with(input, "sqrt3-interp", 6);
+  EXPECT_GT(r.post.snapped_to_curve, 0u);
+  EXPECT_GT(r.post.snaps_reverted, 0u);
+  // The pipeline keeps the snaps unless the bound alone turns fewer faces. (Until the bound
+  // pulled vertices as a sheet, it turned more here and the snaps were always kept; now it
+  // turns 6, the snaps 71, and they are withdrawn: smooth_pull, issue 17.)
   const api::RefineOutcome out =
       run(stl, {{"scheme", "sqrt3-interp"}, {"levels", "6"}, {"primitives", "auto"}});
   const auto& prim = out.report.at("primitives");
-  EXPECT_FALSE(prim.contains("withdrawn")) << prim.dump();
-  EXPECT_GT(prim.at("snapped_to_curve").get<std::size_t>(), 0u);
-  EXPECT_GT(prim.at("snaps_reverted").get<std::size_t>(), 0u) << prim.dump();
+  const auto turned = out.report.at("deviation").at("faces_turned_over_60_deg").get<std::size_t>();
+  if (prim.contains("withdrawn"))
+    EXPECT_LT(turned, r.post.faces_turned_over_60_deg) << prim.dump();
+  else
+    EXPECT_GT(prim.at("snaps_reverted").get<std::size_t>(), 0u) << prim.dump();
 }
 
 TEST(PrimitivesApi, OffIsTheOldOutput) {
