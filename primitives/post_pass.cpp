@@ -19,6 +19,7 @@
 #include "core/geometry/point_triangle.h"
 #include "core/parallel.h"
 #include "primitives/chordal.h"
+#include "primitives/smooth_pull.h"
 
 namespace stlrefine::primitives {
 
@@ -271,14 +272,6 @@ InputSurface::Impl::Turn InputSurface::Impl::measure_turn(const Mesh& refined,
 
 namespace {
 
-// Where a vertex is pulled back to: just inside its bound (by 1e-14 of the diagonal, far above
-// the coordinates' rounding). At the bound itself, the distance measured again came out up to
-// 1e-4 of it over (xyz cube, a bound of 1e-12 of the diagonal on its exact planes: 3.4652e-11
-// for 3.4649e-11), and the report said the bound did not hold.
-double just_inside(double bound, double diagonal) {
-  return std::max(0.5 * bound, bound - 1e-14 * diagonal);
-}
-
 // Adds the counts and keeps the largest figures of `part` (a chunk's, or one vertex's).
 void add_figures(PostPassReport& total, const PostPassReport& part) {
   total.vertices_checked += part.vertices_checked;
@@ -287,6 +280,7 @@ void add_figures(PostPassReport& total, const PostPassReport& part) {
   total.snap_refused += part.snap_refused;
   total.snaps_reverted += part.snaps_reverted;
   total.pulled_back += part.pulled_back;
+  total.past_bound += part.past_bound;
   total.max_snap_move = std::max(total.max_snap_move, part.max_snap_move);
   total.max_pull_back = std::max(total.max_pull_back, part.max_pull_back);
   total.max_distance_before = std::max(total.max_distance_before, part.max_distance_before);
@@ -315,41 +309,47 @@ PostPassReport InputSurface::Impl::apply_bound(Mesh& refined, const PostPassPara
   const std::size_t nv = refined.num_vertices();
   const bool user_bound = params.max_deviation && *params.max_deviation > 0;
   const bool bound_on = !params.max_deviation || *params.max_deviation > 0;
-  BigVector<Vec3>& out_positions = refined.mutable_positions();
-  std::vector<std::uint32_t> closest_face(nv);
-  std::mutex report_mutex;
+  const auto out_positions = refined.positions();
+  std::vector<Nearest> nearest(nv);
+  std::vector<std::uint8_t> is_new(nv, 0);
+  auto locate = [&](const Vec3& p, std::uint32_t hint) {
+    std::size_t face = 0;
+    const Vec3 q = closest(p, face, hint);
+    return Nearest{q, static_cast<std::uint32_t>(face), distance(p, q)};
+  };
   parallel_for_each_range(nv, [&](std::size_t begin, std::size_t end) {
-    PostPassReport acc;
     // Vertices near in index are near in space (a level's new vertices follow its edges).
-    std::size_t face = SIZE_MAX;
+    std::uint32_t hint = UINT32_MAX;
     for (std::size_t i = begin; i != end; ++i) {
-      Vec3 p = out_positions[i];  // only this vertex is read: moving it in place is safe
-      const Vec3 q = closest(p, face, face);
-      closest_face[i] = static_cast<std::uint32_t>(face);
-      const auto& t = faces[face];
-      if (p == positions[t[0]] || p == positions[t[1]] || p == positions[t[2]])
-        continue;  // an input vertex
-      ++acc.vertices_checked;
-      double d = distance(p, q);
-      acc.max_distance_before = std::max(acc.max_distance_before, d);
-      if (bound_on) {
-        const double bound = user_bound ? *params.max_deviation : this->bound[face];
-        acc.max_bound = std::max(acc.max_bound, bound);
-        if (d > bound) {
-          const Vec3 back = q + (p - q) * (just_inside(bound, diagonal) / d);
-          ++acc.pulled_back;
-          acc.max_pull_back = std::max(acc.max_pull_back, distance(back, p));
-          p = out_positions[i] = back;
-          d = distance(p, closest(p, face, face));
-          closest_face[i] = static_cast<std::uint32_t>(face);
-        }
-      }
-      acc.max_distance = std::max(acc.max_distance, d);
+      const Vec3& p = out_positions[i];
+      nearest[i] = locate(p, hint);
+      hint = nearest[i].face;
+      const auto& t = faces[hint];
+      is_new[i] = !(p == positions[t[0]] || p == positions[t[1]] || p == positions[t[2]]);
     }
-    const std::lock_guard lock(report_mutex);
-    add_figures(report, acc);
   });
-  const Turn turn = measure_turn(refined, [&](VertexId v) { return closest_face[v.idx]; });
+  for (std::size_t i = 0; i < nv; ++i) {
+    if (!is_new[i]) continue;
+    ++report.vertices_checked;
+    report.max_distance_before = std::max(report.max_distance_before, nearest[i].distance);
+  }
+  auto bound_of = [&](const Nearest& n) {
+    return user_bound ? *params.max_deviation : bound[n.face];
+  };
+  if (bound_on) {
+    const SmoothPullReport pull =
+        smooth_pull(refined, is_new, nearest, bound_of, locate, diagonal, params.pull);
+    report.pulled_back = pull.moved;
+    report.max_pull_back = pull.max_move;
+    report.past_bound = pull.violators;
+    report.pulled_alone = pull.pulled_alone;
+  }
+  for (std::size_t i = 0; i < nv; ++i) {
+    if (!is_new[i]) continue;
+    report.max_distance = std::max(report.max_distance, nearest[i].distance);
+    if (bound_on) report.max_bound = std::max(report.max_bound, bound_of(nearest[i]));
+  }
+  const Turn turn = measure_turn(refined, [&](VertexId v) { return nearest[v.idx].face; });
   return finish_report(report, turn.worst, turn.over, params, start);
 }
 
@@ -445,9 +445,11 @@ std::uint64_t InputSurface::predict_bytes(std::uint64_t input_vertices, std::uin
 
 std::uint64_t InputSurface::predict_apply_bytes(std::uint64_t output_vertices) {
   // One outcome per vertex; the list of snaps to take back (at most three corners of every
-  // face, about two faces per vertex, in a vector that may double).
-  return (sizeof(Outcome) + 2 * 3 * 2 * sizeof(std::uint32_t)) * output_vertices +
-         (std::uint64_t{1} << 20);
+  // face, about two faces per vertex, in a vector that may double); where each vertex is and
+  // whether smooth_pull may move it, and smooth_pull's own.
+  return (sizeof(Outcome) + 2 * 3 * 2 * sizeof(std::uint32_t) + sizeof(Nearest) + 1) *
+             output_vertices +
+         smooth_pull_bytes(output_vertices) + (std::uint64_t{1} << 20);
 }
 
 double InputSurface::default_bound(std::size_t face) const {

@@ -11,6 +11,7 @@
 #include "core/features/features.h"
 #include "core/mesh/mesh.h"
 #include "primitives/regions.h"
+#include "primitives/smooth_pull.h"
 
 namespace stlrefine::primitives {
 
@@ -38,6 +39,8 @@ struct PostPassParams {
   //! them any vertex near an input crease may (fan slivers of a cap along its rim then put
   //! cap vertices on the rim and turn faces over).
   const Features* refined_features = nullptr;
+  //! How vertices past the bound are pulled back: as a sheet (smooth_pull).
+  SmoothPullParams pull;
 };
 
 //! What the post-pass did, for the report.
@@ -50,9 +53,13 @@ struct PostPassReport {
   //! collapsed it (two corners at one point: it has no normal, and worst_normal_change_deg
   //! and faces_turned_over_60_deg skip it).
   std::size_t snaps_reverted = 0;
-  double max_snap_move = 0;        //!< mm
-  std::size_t pulled_back = 0;     //!< moved back within the deviation bound
+  double max_snap_move = 0;  //!< mm
+  //! Moved by the deviation bound: the vertices past it and the sheet around them
+  //! (smooth_pull).
+  std::size_t pulled_back = 0;
   double max_pull_back = 0;        //!< mm
+  std::size_t past_bound = 0;      //!< new vertices past their bound before the pull
+  std::size_t pulled_alone = 0;    //!< of them, pulled alone after smooth_pull's rounds
   double max_distance_before = 0;  //!< from the input surface, before this pass (mm)
   double max_distance = 0;         //!< from the input surface, after it (mm)
   double max_bound = 0;        //!< the largest deviation bound applied to a vertex (mm); 0 = off

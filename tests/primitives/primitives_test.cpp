@@ -17,6 +17,7 @@
 #include <fstream>
 #include <iterator>
 #include <map>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -36,6 +37,7 @@
 #include "tests/primitives/heap_meter.h"
 #include "tests/support/cad_like.h"
 #include "tests/support/mesh_queries.h"
+#include "tests/support/true_surface.h"
 
 namespace stlrefine::primitives {
 namespace {
@@ -521,12 +523,27 @@ TEST(PrimitivesFolds, NormalAtIsTheSurfacesNormal) {
 // snap: RMS 0.49x the input at 6 steps on seeds 6000-6005, against 0.01x at 4).
 TEST(PrimitivesFolds, SnapsTurningAFaceFromItsPrimitiveAreTakenBack) {
   const std::string stl = stl_of(cad_mesh(CadFamily::CappedCylinder, 6002));
+  // The snapping pass itself (apply, as the pipeline reads the STL): curve snaps kept, the
+  // turning ones taken back.
+  const Mesh input =
+      api::ingest_stl(std::span<const std::uint8_t>(
+                          reinterpret_cast<const std::uint8_t*>(stl.data()), stl.size()),
+                      0)
+          .result.mesh;
+  const Refined r = refine_with(input, "sqrt3-interp", 6);
+  EXPECT_GT(r.post.snapped_to_curve, 0u);
+  EXPECT_GT(r.post.snaps_reverted, 0u);
+  // The pipeline keeps the snaps unless the bound alone turns fewer faces. (Until the bound
+  // pulled vertices as a sheet, it turned more here and the snaps were always kept; now it
+  // turns 6, the snaps 71, and they are withdrawn: smooth_pull, issue 17.)
   const api::RefineOutcome out =
       run(stl, {{"scheme", "sqrt3-interp"}, {"levels", "6"}, {"primitives", "auto"}});
   const auto& prim = out.report.at("primitives");
-  EXPECT_FALSE(prim.contains("withdrawn")) << prim.dump();
-  EXPECT_GT(prim.at("snapped_to_curve").get<std::size_t>(), 0u);
-  EXPECT_GT(prim.at("snaps_reverted").get<std::size_t>(), 0u) << prim.dump();
+  const auto turned = out.report.at("deviation").at("faces_turned_over_60_deg").get<std::size_t>();
+  if (prim.contains("withdrawn"))
+    EXPECT_LT(turned, r.post.faces_turned_over_60_deg) << prim.dump();
+  else
+    EXPECT_GT(prim.at("snaps_reverted").get<std::size_t>(), 0u) << prim.dump();
 }
 
 TEST(PrimitivesApi, OffIsTheOldOutput) {
@@ -738,6 +755,43 @@ TEST(PrimitivesMemory, RunRefineAsksBeforeTheSurface) {
     EXPECT_EQ(e.field(), "primitives");
     EXPECT_EQ(e.level(), 2);
   }
+}
+
+// Issue 17: the default pipeline (primitives=off, max_deviation=auto) keeps every vertex
+// within its bound and should turn no face more than 60 degrees from the true normal. The
+// bound's pull-back moved single vertices towards their closest input point, which dented
+// the surface and turned the thin faces there (sqrt3-interp 6 steps: 85-100 faces on the
+// hull families over seeds 6000-6005, where refine() alone leaves none); smooth_pull moves
+// the vertices around a pulled one with it. Returns the faces > 60 degrees.
+std::size_t default_pipeline_turned(CadFamily family, std::uint64_t seed, const char* scheme,
+                                    int levels) {
+  const test::CadShape shape = test::make_cad_shape(family, {seed, 1.0});
+  const std::string stl = stl_of(build_mesh(shape.soup).mesh);
+  const api::RefineRequest request =
+      api::parse_refine_params({{"scheme", scheme}, {"levels", std::to_string(levels)}}, {});
+  const auto* data = reinterpret_cast<const std::uint8_t*>(stl.data());
+  const api::RefinedMesh out =
+      api::run_refine_to_mesh(std::span<const std::uint8_t>(data, stl.size()), request);
+  SCOPED_TRACE(shape.name + " seed " + std::to_string(seed) + " " + scheme + " levels " +
+               std::to_string(levels));
+  EXPECT_TRUE(out.stream());
+  const auto& dev = out.outcome.report.at("deviation");
+  EXPECT_EQ(dev.at("bound"), "auto");
+  EXPECT_LE(dev.at("max_distance_from_input").get<double>(), dev.at("max_bound").get<double>());
+  EXPECT_GT(dev.at("pulled_back").get<std::size_t>(), 0u);  // the bound did act
+  return test::faces_off_truth(out.mesh, *shape.surface, 60);
+}
+
+// Not yet 0 (the slivers of sqrt3's hulls, 1e-5 mm high, turn for any move that is not a
+// translation: bench/results-issue17-s6-pull.md): the single-vertex pull-back turned 104
+// faces here (main ad8fa63), the sheet 66.
+TEST(PrimitivesDeviation, DefaultPipelineTurnsFewHullFaces) {
+  std::size_t turned = 0;
+  for (std::uint64_t seed : {1, 2, 3})
+    for (CadFamily family : {CadFamily::Sphere, CadFamily::Ellipsoid, CadFamily::Blob})
+      turned += default_pipeline_turned(family, seed, "sqrt3-interp", 6);
+  std::printf("faces > 60 degrees: %zu\n", turned);
+  EXPECT_LE(turned, 80u);
 }
 
 }  // namespace
