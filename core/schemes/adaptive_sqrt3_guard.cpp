@@ -22,6 +22,7 @@
 #include <cmath>
 
 #include "core/schemes/adaptive_sqrt3_hierarchy.h"
+#include "core/schemes/sqrt3_guard_stage.h"
 
 namespace stlrefine {
 
@@ -86,27 +87,15 @@ bool AdaptiveSqrt3::Hierarchy::folds(const std::array<VertexId, 3>& c, int l, co
   return len > 0 && dot(n, smooth) < cos_fold_ * len;
 }
 
-// sqrt3_host's stages for the face point q of face f: the stencil's point (0), 1/2 and 1/4
-// of the way from f's centroid, the centroid (3: the linear split), then 1/3 and 2/3 of the
-// way towards f's largest-angle corner (4, 5).
+// sqrt3_host's stages (sqrt3_guard_stage_point) for the face point q of face f.
 Vec3 AdaptiveSqrt3::Hierarchy::stage_point(VertexId q, int stage) {
   const Vec3 stencil = stencil_face_point(q);
   if (stage == 0) return stencil;
   const FaceId f = verts_[q].tri;
   const int l = level(f) + 1;
-  const std::array<Vec3, 3> p = {position(tris_[f].v[0], l), position(tris_[f].v[1], l),
-                                 position(tris_[f].v[2], l)};
-  const Vec3 centroid = (p[0] + p[1] + p[2]) * (1.0 / 3.0);
-  constexpr std::array<double, 4> kScale = {1.0, 0.5, 0.25, 0.0};
-  if (stage < 4) return centroid + kScale[stage] * (stencil - centroid);
-  int obtuse = 0;
-  double best = -2;
-  for (int k = 0; k < 3; ++k) {
-    const Vec3 u = normalized(p[(k + 1) % 3] - p[k]), v = normalized(p[(k + 2) % 3] - p[k]);
-    const double cosine = -dot(u, v);  // larger for a larger angle
-    if (cosine > best) best = cosine, obtuse = k;
-  }
-  return centroid + (stage == 4 ? 1.0 / 3.0 : 2.0 / 3.0) * (p[obtuse] - centroid);
+  return sqrt3_guard_stage_point(
+      {position(tris_[f].v[0], l), position(tris_[f].v[1], l), position(tris_[f].v[2], l)}, stencil,
+      stage);
 }
 
 // sqrt3_host's guard_sqrt3_folds for the one face point q of face f, with the flips of pass

@@ -15,6 +15,7 @@
 #include "core/schemes/crease_rules.h"
 #include "core/schemes/dominant_planes.h"
 #include "core/schemes/split4_host.h"
+#include "core/schemes/sqrt3_guard_stage.h"
 
 namespace stlrefine {
 
@@ -315,7 +316,7 @@ std::size_t guard_sqrt3_folds(const Mesh& m, const Sqrt3Layout& layout, const Sq
   // Face point stages: the stencil's point, 1/2 and 1/4 of the way from the centroid, the
   // centroid, then towards the face's largest-angle corner. Trisection pair stages: the
   // stencil's points, 1/2 and 1/4 of the way from the chord's thirds, the thirds.
-  constexpr std::array<double, 6> kScale = {1.0, 0.5, 0.25, 0.0, 0.0, 0.0};
+  constexpr std::size_t kFaceStages = 6;  // sqrt3_guard_stage_point's stages 0-5
   constexpr std::array<double, 4> kCreaseScale = {1.0, 0.5, 0.25, 0.0};
   auto folds = [&](std::uint32_t h) { return test.folds(HalfedgeId(h)); };
   std::vector<std::uint8_t> folding(nh, 0);
@@ -340,7 +341,7 @@ std::size_t guard_sqrt3_folds(const Mesh& m, const Sqrt3Layout& layout, const Sq
     if (folding[h]) todo.push_back(h);
   std::fill(folding.begin(), folding.end(), 0);  // from now on: "in touched"
   auto last_stage = [&](std::uint32_t item) {
-    return item < nf ? kScale.size() - 1 : kCreaseScale.size() - 1;
+    return item < nf ? kFaceStages - 1 : kCreaseScale.size() - 1;
   };
   // The items of fine face h that can still move: its face points, or when none can, the
   // trisection pairs of its trisection points.
@@ -416,23 +417,8 @@ std::size_t guard_sqrt3_folds(const Mesh& m, const Sqrt3Layout& layout, const Sq
         }
         ++stage[f];
         const auto [a, b, c] = m.face_vertices(FaceId(f));
-        const Vec3 centroid = (pos[a.idx] + pos[b.idx] + pos[c.idx]) * (1.0 / 3.0);
-        pos[q.idx] = centroid + kScale[stage[f]] * (original[f][0] - centroid);
-        if (stage[f] >= 4) {
-          // Even the linear split folds where the flipped edge's quad (a, q_g, b, q_f) is not
-          // convex: beside an obtuse face the centroids' segment misses the edge. Points
-          // nearer the obtuse corner keep their projections inside the face's edges.
-          const std::array<Vec3, 3> p = {pos[a.idx], pos[b.idx], pos[c.idx]};
-          int obtuse = 0;
-          double best = -2;
-          for (int k = 0; k < 3; ++k) {
-            const Vec3 u = normalized(p[(k + 1) % 3] - p[k]), v = normalized(p[(k + 2) % 3] - p[k]);
-            const double cosine = -dot(u, v);  // larger for a larger angle
-            if (cosine > best) best = cosine, obtuse = k;
-          }
-          const double t = stage[f] == 4 ? 1.0 / 3.0 : 2.0 / 3.0;
-          pos[q.idx] = centroid + t * (p[obtuse] - centroid);
-        }
+        pos[q.idx] =
+            sqrt3_guard_stage_point({pos[a.idx], pos[b.idx], pos[c.idx]}, original[f][0], stage[f]);
         touch_around(f);
       }
     }
