@@ -6,6 +6,7 @@
 #include <cmath>
 #include <queue>
 #include <string>
+#include <unordered_map>
 #include <utility>
 
 #include "core/error.h"
@@ -20,10 +21,34 @@ void SmoothPullParams::validate() const {
     throw Error(ErrorCode::InvalidParameter, "pull_rounds", "pull rounds must be in [1, 16]");
 }
 
+namespace {
+
+// One vertex the pull has reached: where it started (for the report), and this round's pull.
+struct Reached {
+  Vec3 start;
+  Vec3 pull;
+  double reach = 0;  // this round's pull length (0: not reached this round)
+};
+
+// Heap entries allowed per reachable vertex (Dijkstra with lazy deletion pushes a vertex
+// again each time a larger pull reaches it; past the allowance the sheet stops spreading).
+constexpr std::size_t kPushesPerVertex = 4;
+// Bytes per reachable vertex: its Reached, its index entry (a hash node and its bucket, with
+// the allocator's overhead), the heap entries (in a vector that may double), the lists of
+// reached and seed vertices (likewise).
+constexpr std::uint64_t kBytesPerReachable =
+    sizeof(Reached) + 48 + 2 * kPushesPerVertex * sizeof(std::pair<double, std::uint32_t>) +
+    2 * 2 * sizeof(std::uint32_t);
+
+}  // namespace
+
+std::size_t smooth_pull_reach_cap(std::uint64_t vertices) {
+  return static_cast<std::size_t>(
+      std::min<std::uint64_t>(vertices, std::max<std::uint64_t>(4096, vertices / 16)));
+}
+
 std::uint64_t smooth_pull_bytes(std::uint64_t vertices) {
-  return (2 * sizeof(Vec3) + sizeof(double) + 2 * 2 * sizeof(std::uint32_t) +
-          2 * 2 * sizeof(std::pair<double, std::uint32_t>)) *
-         vertices;
+  return kBytesPerReachable * smooth_pull_reach_cap(vertices);
 }
 
 namespace {
@@ -51,48 +76,76 @@ SmoothPullReport smooth_pull(
   report.violators = seeds.size();
   if (seeds.empty()) return report;
 
-  // Each vertex's total move, for the report.
-  std::vector<Vec3> start(positions.begin(), positions.end());
-  // Per vertex, this round: how far it is pulled (0: not reached) and by what.
-  std::vector<double> reach(nv, 0.0);
-  std::vector<Vec3> pull(nv);
+  // The vertices reached, sparse: a bound deviates in a few places (645 of the bunny's
+  // 280k output vertices at 2 levels), and the state stays within smooth_pull_bytes: at most
+  // `cap` vertices are reached; past that, or when the violators alone are more, the rest
+  // are pulled alone below.
+  const std::size_t cap = smooth_pull_reach_cap(nv);
+  std::unordered_map<std::uint32_t, std::uint32_t> index;
+  std::vector<Reached> reached;
+  if (seeds.size() <= cap) {
+    index.reserve(cap);
+    reached.reserve(cap);
+  }
+  auto slot = [&](std::uint32_t v) -> Reached* {
+    if (const auto it = index.find(v); it != index.end()) return &reached[it->second];
+    if (reached.size() >= cap) return nullptr;
+    index.emplace(v, static_cast<std::uint32_t>(reached.size()));
+    reached.push_back({positions[v], Vec3{}, 0.0});
+    return &reached.back();
+  };
   std::vector<std::uint32_t> touched;
-  while (!seeds.empty() && report.rounds < params.rounds) {
+  // Violators the cap left out of a round: pulled alone at the end.
+  std::vector<std::uint32_t> stranded;
+  while (!seeds.empty() && seeds.size() <= cap && report.rounds < params.rounds) {
     ++report.rounds;
     // The largest cone a - slope * s over the pulled vertices, s along the edges (Dijkstra
     // from the largest pulls down): every edge changes its pull by at most slope times its
     // length, so the surface moves as a sheet, not as spikes.
     std::priority_queue<std::pair<double, std::uint32_t>> heap;
+    std::size_t pushes = 0;
     for (std::uint32_t i : seeds) {
-      pull[i] = pulled_back(positions[i], nearest[i], bound(nearest[i]), diagonal) - positions[i];
-      reach[i] = norm(pull[i]);
-      if (!(reach[i] > 0)) continue;
+      Reached* r = slot(i);
+      if (!r) {
+        stranded.push_back(i);
+        continue;
+      }
+      r->pull = pulled_back(positions[i], nearest[i], bound(nearest[i]), diagonal) - positions[i];
+      r->reach = norm(r->pull);
+      if (!(r->reach > 0)) continue;
       touched.push_back(i);
-      heap.emplace(reach[i], i);
+      heap.emplace(r->reach, i);
+      ++pushes;
     }
     while (!heap.empty()) {
       const auto [r, j] = heap.top();
       heap.pop();
-      if (r < reach[j]) continue;  // reached farther by another pulled vertex since
-      const Vec3 direction = pull[j] * (1.0 / r);
+      const Reached& from = reached[index.at(j)];
+      if (r < from.reach) continue;  // reached farther by another pulled vertex since
+      const Vec3 direction = from.pull * (1.0 / r);
+      const Vec3 at = positions[j];
       for_each_outgoing(mesh, VertexId(j), [&](HalfedgeId h) {
         const std::uint32_t k = mesh.to(h).idx;
-        if (!movable[k]) return;
-        const double next = r - params.slope * distance(positions[j], positions[k]);
-        if (next <= reach[k]) return;
-        if (reach[k] == 0) touched.push_back(k);
-        reach[k] = next;
-        pull[k] = direction * next;
+        if (!movable[k] || pushes >= kPushesPerVertex * cap) return;
+        const double next = r - params.slope * distance(at, positions[k]);
+        if (next <= 0) return;
+        Reached* to = slot(k);
+        if (!to || next <= to->reach) return;
+        if (to->reach == 0) touched.push_back(k);
+        to->reach = next;
+        to->pull = direction * next;
         heap.emplace(next, k);
+        ++pushes;
       });
     }
     parallel_for_each_range(touched.size(), [&](std::size_t begin, std::size_t end) {
       for (std::size_t t = begin; t != end; ++t) {
         const std::uint32_t k = touched[t];
-        positions[k] = positions[k] + pull[k];
+        Reached& r = reached[index.find(k)->second];
+        positions[k] = positions[k] + r.pull;
         nearest[k] = locate(positions[k], nearest[k].face);
-        reach[k] = 0;
-        pull[k] = Vec3{};
+        r.reach = 0;
+        r.pull = Vec3{};
       }
     });
     seeds.clear();
@@ -100,16 +153,21 @@ SmoothPullReport smooth_pull(
       if (past(k)) seeds.push_back(k);
     touched.clear();
   }
-  // Past the rounds: pulled alone, so that the bound holds.
+  // Past the rounds (or the cap): pulled alone, so that the bound holds.
+  seeds.insert(seeds.end(), stranded.begin(), stranded.end());
   report.pulled_alone = seeds.size();
   for (std::uint32_t i : seeds) {
+    const Vec3 before = positions[i];
     positions[i] = pulled_back(positions[i], nearest[i], bound(nearest[i]), diagonal);
     nearest[i] = locate(positions[i], nearest[i].face);
-  }
-  for (std::size_t i = 0; i < nv; ++i) {
-    if (positions[i] == start[i]) continue;
+    if (index.count(i)) continue;  // counted below, from its start
     ++report.moved;
-    report.max_move = std::max(report.max_move, distance(positions[i], start[i]));
+    report.max_move = std::max(report.max_move, distance(positions[i], before));
+  }
+  for (const auto& [v, at] : index) {
+    if (positions[v] == reached[at].start) continue;
+    ++report.moved;
+    report.max_move = std::max(report.max_move, distance(positions[v], reached[at].start));
   }
   return report;
 }

@@ -55,9 +55,13 @@ struct SmoothPullReport {
   int rounds = 0;                //!< rounds run
 };
 
-//! Bytes smooth_pull allocates for a mesh of `vertices` at most: each vertex's start, pull and
-//! reach, the lists of pulled vertices and the heap (about two entries per vertex reached), in
-//! vectors that may double.
+//! How many vertices smooth_pull reaches at most in a mesh of `vertices`: 1/16 of them, at
+//! least 4096. A bound deviates in a few places; where more are past it the rest are pulled
+//! alone (the bound holds either way).
+std::size_t smooth_pull_reach_cap(std::uint64_t vertices);
+
+//! Bytes smooth_pull allocates for a mesh of `vertices` at most: the state of each vertex it
+//! may reach (smooth_pull_reach_cap), its index entry, the heap and the vertex lists.
 std::uint64_t smooth_pull_bytes(std::uint64_t vertices);
 
 //! Pulls every movable vertex (movable[v]; input vertices and snapped ones are not) past its
