@@ -118,7 +118,9 @@ SmoothPullReport smooth_pull(
       ++pushes;
     }
     while (!heap.empty()) {
-      const auto [r, j] = heap.top();
+      // Not a structured binding: clang 14 (the asan preset) cannot capture one.
+      const double r = heap.top().first;
+      const std::uint32_t j = heap.top().second;
       heap.pop();
       const Reached& from = reached[index.at(j)];
       if (r < from.reach) continue;  // reached farther by another pulled vertex since
