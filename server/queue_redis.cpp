@@ -323,7 +323,17 @@ void RedisQueue::forget(RedisConnection& c, const std::string& owner,
 
 RedisQueue::Stats RedisQueue::stats(RedisConnection& c) const {
   // Entries are deleted once finished: the stream holds the waiting and the taken ones.
-  const std::vector<RedisReply> r = c.pipeline({{"XLEN", kStream}, {"XPENDING", kStream, kGroup}});
+  auto read = [&] { return c.pipeline({{"XLEN", kStream}, {"XPENDING", kStream, kGroup}}); };
+  std::vector<RedisReply> r;
+  try {
+    r = read();
+  } catch (const RedisError& e) {
+    // No group yet (a Redis restarted without its data, or one that was full when this
+    // replica started): make it, which a full Redis refuses with OOM (a 503, not a 500).
+    if (std::string(e.what()).find("NOGROUP") == std::string::npos) throw;
+    ensure_group(c);
+    r = read();
+  }
   Stats s;
   s.pending = r[1].at(0).integer();
   s.depth = std::max(0LL, r[0].integer() - s.pending);

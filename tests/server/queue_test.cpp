@@ -301,9 +301,11 @@ std::string long_mesh(int splits = 1) {
 }
 
 TEST_F(QueueMode, ThirtyJobsThroughOneReplicaAllFinishOnSeveralReplicas) {
-  const Replica& api = start_replica("api", {"--role", "api"});
-  start_replica("w1");
-  start_replica("w2");
+  // Thirty submissions in a burst: under ASan the two workers drain slower than the burst
+  // arrives, so the shared queue gets room for all of them (its 16 default is another test's).
+  const Replica& api = start_replica("api", {"--role", "api", "--job-queue", "64"});
+  start_replica("w1", {"--job-queue", "64"});
+  start_replica("w2", {"--job-queue", "64"});
   const std::string mesh = binary_stl(octahedron_triangles());
   std::vector<std::string> ids;
   for (int i = 0; i < 30; ++i) ids.push_back(submit(api, "levels=5&scheme=loop", mesh));
@@ -634,16 +636,38 @@ TEST_F(QueueMode, RedisStoppedRefusesSubmissionsButNotSynchronousRoutes) {
 
 // A full Redis (maxmemory reached, noeviction) refuses the submission's write with OOM: the
 // client is told to retry later (503 + Retry-After, a problem), not a server error.
-TEST_F(QueueMode, RedisOutOfMemoryRefusesSubmissionsWith503) {
-  redis_->kill();
-  redis_->start({"--maxmemory", "1mb"});  // below what an empty Redis uses
-  const Replica& r = start_replica("r");
-  auto res = r.client()->Post("/v1/jobs?levels=1", binary_stl(octahedron_triangles()), "model/stl");
+// A Redis at its maxmemory (noeviction) refuses writes: a submission gets 503 with the
+// reason, whether the Redis filled up while the replica ran (the job's write refused) or was
+// full already when the replica started (its consumer group could not be made).
+void expect_out_of_memory_503(const httplib::Result& res) {
   ASSERT_TRUE(res);
   EXPECT_EQ(res->status, 503) << res->body;
   EXPECT_TRUE(res->has_header("Retry-After"));
   EXPECT_EQ(res->get_header_value("Content-Type"), "application/problem+json");
   EXPECT_EQ(Json::parse(res->body).value("reason", ""), "queue_out_of_memory") << res->body;
+}
+
+TEST_F(QueueMode, RedisOutOfMemoryRefusesSubmissionsWith503) {
+  const Replica& r = start_replica("r");
+  const std::string mesh = binary_stl(octahedron_triangles());
+  ASSERT_FALSE(submit(r, "levels=1", mesh).empty());
+  // 1 byte: surely below what any Redis uses, so every write is refused from now on.
+  Child cli(
+      {"/usr/bin/redis-cli", "-s", redis_->socket().string(), "CONFIG", "SET", "maxmemory", "1"});
+  ASSERT_EQ(cli.wait(10s), 0) << cli.stderr_text();
+  expect_out_of_memory_503(r.client()->Post("/v1/jobs?levels=1", mesh, "model/stl"));
+  // And the replica goes on answering what needs no write.
+  auto health = r.client()->Get("/healthz");
+  ASSERT_TRUE(health);
+  EXPECT_EQ(health->status, 200);
+}
+
+TEST_F(QueueMode, RedisFullAtTheReplicasStartRefusesSubmissionsWith503) {
+  redis_->kill();
+  redis_->start({"--maxmemory", "1"});  // the consumer group cannot even be made
+  const Replica& r = start_replica("r");
+  expect_out_of_memory_503(
+      r.client()->Post("/v1/jobs?levels=1", binary_stl(octahedron_triangles()), "model/stl"));
 }
 
 // A job list filtered by state finds a job behind more than one page (2000) of newer jobs
