@@ -4,9 +4,12 @@
 Run from anywhere: python3 fuzz/make_seeds.py. Standard library only; the output is
 deterministic, so re-running it changes nothing.
 """
+import io
 import math
 import os
 import struct
+import warnings
+import zipfile
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 SHARED = os.path.join(HERE, "..", "..", "shared", "meshes")
@@ -64,7 +67,44 @@ def write(sub, name, data):
         f.write(data)
 
 
+def zipped(entries, deflate=True):
+    """A zip of (name, bytes) entries, dated 1980 so the output is deterministic; a name may
+    repeat (the archive reader must refuse it)."""
+    out = io.BytesIO()
+    with warnings.catch_warnings(), zipfile.ZipFile(out, "w") as z:
+        warnings.simplefilter("ignore")  # the duplicate name is the point of that seed
+        for name, data in entries:
+            info = zipfile.ZipInfo(name, date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type = zipfile.ZIP_DEFLATED if deflate else zipfile.ZIP_STORED
+            z.writestr(info, data)
+    return out.getvalue()
+
+
+def archive_seeds():
+    """Zips of parts as a bureau uploads them (one job, one result per part), and the ones
+    the archive reader refuses by name."""
+    tetra, cube_stl = binary(TETRA), binary(cube())
+    obj = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+    seeds = {
+        "two_parts.zip": [("a.stl", tetra), ("parts/b.STL", cube_stl)],
+        "stored.zip": [("tetra.stl", tetra)],
+        "mixed_formats.zip": [("t.stl", ascii_stl(TETRA)), ("t.obj", obj), ("dir/", b"")],
+        "macos.zip": [("t.stl", tetra), ("__MACOSX/._t.stl", b"\0\5\26\7")],
+        "duplicate.zip": [("t.stl", tetra), ("t.stl", tetra)],
+        "dotdot.zip": [("../t.stl", tetra)],
+        "backslash.zip": [("a\\t.stl", tetra)],
+        "not_a_mesh.zip": [("t.stl", tetra), ("readme.txt", b"hello")],
+        "nested.zip": [("inner.stl", zipped([("t.stl", tetra)]))],
+        "empty_dir_only.zip": [("dir/", b"")],
+        "ratio.zip": [("zeros.stl", bytes(65536))],
+        "looks_3mf.zip": [("[Content_Types].xml", b"<Types/>"), ("3D/3dmodel.model", b"<model/>")],
+    }
+    for name, entries in seeds.items():
+        write("archive", name, zipped(entries, deflate=name != "stored.zip"))
+
+
 def main():
+    archive_seeds()
     # Binary: the smallest parts, the edge cases of the size rule and the header.
     write("stl_binary", "tetra.stl", binary(TETRA))
     write("stl_binary", "one_facet.stl", binary(TETRA[:1]))

@@ -4,7 +4,8 @@
 #
 #   fuzz/run.sh [--build-dir DIR] [--seconds N] [--work DIR] [NAME...] [-- libFuzzer flags]
 #
-# NAME: fuzz_stl_binary fuzz_stl_ascii fuzz_query fuzz_pipeline fuzz_mesh_formats (default: all).
+# NAME: fuzz_stl_binary fuzz_stl_ascii fuzz_query fuzz_pipeline fuzz_mesh_formats fuzz_archive
+# (default: all).
 # New inputs go to WORK/corpus/NAME (default WORK: BUILD_DIR/fuzz-work), crashes, leaks and
 # timeouts to WORK/artifacts/NAME/; the seeds in the repository are only read. A harness
 # that finds something stops there and names the input that reproduces it; the others still
@@ -24,12 +25,12 @@ while [ $# -gt 0 ]; do
     --seconds) seconds=$2; shift 2 ;;
     --work) work=$2; shift 2 ;;
     --) shift; extra=("$@"); break ;;
-    -h | --help) sed -n '2,11p' "$0"; exit 0 ;;
+    -h | --help) sed -n '2,12p' "$0"; exit 0 ;;
     *) names+=("$1"); shift ;;
   esac
 done
 [ -n "$work" ] || work=$build_dir/fuzz-work
-[ ${#names[@]} -gt 0 ] || names=(fuzz_stl_binary fuzz_stl_ascii fuzz_query fuzz_pipeline fuzz_mesh_formats)
+[ ${#names[@]} -gt 0 ] || names=(fuzz_stl_binary fuzz_stl_ascii fuzz_query fuzz_pipeline fuzz_mesh_formats fuzz_archive)
 
 # Per harness: libFuzzer options, then the seed directories (read only). Parsers: inputs
 # up to 16 KiB (binary: 326 facets; ASCII: ~60 facets), a 10 s timeout where one input
@@ -43,6 +44,7 @@ options() {
     fuzz_query) echo "-max_len=2048 -timeout=10 -use_value_profile=1 -dict=$here/dict/query.dict" ;;
     fuzz_pipeline) echo "-max_len=16384 -timeout=60 -rss_limit_mb=3072" ;;
     fuzz_mesh_formats) echo "-max_len=16384 -timeout=10 -use_value_profile=1 -dict=$here/dict/mesh_formats.dict" ;;
+    fuzz_archive) echo "-max_len=16384 -timeout=10 -use_value_profile=1 -dict=$here/dict/archive.dict" ;;
     *) echo "unknown harness $1" >&2; return 1 ;;
   esac
 }
@@ -52,6 +54,7 @@ seeds() {
     fuzz_stl_ascii) echo "$here/corpus/stl_ascii" ;;
     fuzz_query) echo "$here/corpus/query" ;;
     fuzz_mesh_formats) echo "$here/corpus/mesh_formats $here/corpus/stl_ascii" ;;
+    fuzz_archive) echo "$here/corpus/archive" ;;
     fuzz_pipeline) echo "$here/corpus/stl_binary $here/corpus/stl_ascii $here/corpus/shared_meshes $here/corpus/regressions $root/tests/data/core $root/tests/data/malformed" ;;
   esac
 }
