@@ -217,7 +217,8 @@ int main(int argc, char** argv) {
   std::string queue, role = "all", instance;
   int lease_seconds = 30, max_attempts = 3;
   app.add_option("--queue", queue,
-                 "Queue mode: redis://HOST[:PORT][/DB] or unix:///PATH[?db=N]; jobs of every "
+                 "Queue mode: redis://[[USER]:PASSWORD@]HOST[:PORT][/DB] or unix:///PATH[?db=N]; "
+                 "jobs of every "
                  "replica in one Redis, files in the shared --data-dir (also STLREFINE_QUEUE)");
   app.add_option("--role", role,
                  "Queue mode: api (queues and answers, runs no jobs), worker or all (run them)")

@@ -810,6 +810,11 @@ TEST(QueueModeFlags, ABadQueueAddressStopsTheDaemonWithThePreciseError) {
       {STLREFINED, "--port", "0", "--data-dir", "/tmp/unused-queue", "--role", "api"}, 20s);
   EXPECT_EQ(api.exit_code, 1);
   EXPECT_NE(api.err.find("--role api needs --queue"), std::string::npos) << api.err;
+  // --help shows the address with its credentials, as the man page and the errors do.
+  const ProcessResult help = run_process({STLREFINED, "--help"}, 20s);
+  EXPECT_EQ(help.exit_code, 0);
+  EXPECT_NE(help.out.find("redis://[[USER]:PASSWORD@]HOST[:PORT][/DB]"), std::string::npos)
+      << help.out;
 }
 
 }  // namespace
