@@ -271,6 +271,10 @@ void AdaptiveSplit4::build_level() {
 
 namespace {
 
+// The most a green half may turn from its leaf. A half of a well-shaped leaf turns by about
+// the split point's height over the leaf's height; past this it is a sliver bent over.
+constexpr double kGreenTurnDeg = 60;
+
 Error face_budget_error(const char* bound, std::uint64_t faces, std::uint64_t max_faces) {
   return Error(ErrorCode::BudgetExceeded, "face_budget",
                std::string("the next adaptive level would make ") + bound + std::to_string(faces) +
@@ -284,6 +288,19 @@ void free_array(T& array) {
 }
 
 }  // namespace
+
+bool AdaptiveSplit4::green_turns(std::uint32_t leaf, std::uint32_t k, const Vec3& p) const {
+  const Leaf& l = leaves_[leaf];
+  const Vec3 &a = positions_[l.v[k]], &b = positions_[l.v[(k + 1) % 3]],
+             &c = positions_[l.v[(k + 2) % 3]];
+  const Vec3 n = cross(b - a, c - a);
+  const double cos_limit = std::cos(kGreenTurnDeg * std::numbers::pi / 180.0);
+  for (const Vec3 half : {cross(p - a, c - a), cross(b - p, c - p)}) {
+    const double scale = std::sqrt(dot(n, n) * dot(half, half));
+    if (scale > 0 && dot(n, half) < cos_limit * scale) return true;
+  }
+  return false;
+}
 
 bool AdaptiveSplit4::step(const Split4Stencil& stencil, double tolerance, std::uint64_t max_faces,
                           StepStats& stats, AdaptiveStepStats& step, double angle_deg) {
@@ -347,10 +364,11 @@ bool AdaptiveSplit4::step(const Split4Stencil& stencil, double tolerance, std::u
        num_edges * (1 + sizeof(std::array<std::uint32_t, 2>)));
 
   // Closure: every edge of a red leaf gets a midpoint; a leaf that would then carry two
-  // hanging midpoints, or one on a half of its already split edge (a level jump of two),
-  // turns red as well. A worklist holds the leaves next to edges that just got marked:
-  // those on the edge, and those on the edge it is a half of. The rule only ever adds red
-  // leaves, so the order does not change the result, and a leaf is queued once at a time.
+  // hanging midpoints, or one on a half of its already split edge (a level jump of two), or
+  // one whose green halves would turn over (green_turns), turns red as well. A worklist holds the
+  // leaves next to edges that just got marked: those on the edge, and those on the edge it is a
+  // half of. The rule only ever adds red leaves, so the order does not change the result, and a
+  // leaf is queued once at a time.
   std::vector<std::array<std::uint32_t, 2>> leaves_of(num_edges, {kNone, kNone});
   for (std::uint32_t f = 0; f < num_leaves; ++f)
     for (const std::uint32_t e : leaves_[f].e) leaves_of[e][leaves_of[e][0] == kNone ? 0 : 1] = f;
@@ -372,6 +390,12 @@ bool AdaptiveSplit4::step(const Split4Stencil& stencil, double tolerance, std::u
     }
   };
   auto split_after = [&](std::uint32_t e) { return edges_[e].mid != kNone || will_split[e]; };
+  // The point a split of leaf side k puts (or put) there.
+  auto split_point = [&](std::uint32_t f, std::uint32_t k) {
+    const std::uint32_t e = leaves_[f].e[k];
+    if (edges_[e].mid != kNone) return positions_[edges_[e].mid];
+    return uniform_points_ ? uniform_point(f, k) : pos[nv + m.edge(leaf_halfedge_[f][k]).idx];
+  };
   for (std::uint32_t f = 0; f < num_leaves; ++f)
     if (red[f]) mark_edges(f);
   while (!todo.empty()) {
@@ -380,13 +404,16 @@ bool AdaptiveSplit4::step(const Split4Stencil& stencil, double tolerance, std::u
     queued[f] = 0;
     if (red[f]) continue;
     int hanging = 0;
+    std::uint32_t split_side = 0;
     bool level_jump = false;
-    for (const std::uint32_t e : leaves_[f].e) {
-      hanging += split_after(e);
+    for (std::uint32_t k = 0; k < 3; ++k) {
+      const std::uint32_t e = leaves_[f].e[k];
+      if (split_after(e)) ++hanging, split_side = k;
       if (edges_[e].mid != kNone)
         level_jump = level_jump || will_split[edges_[e].half[0]] || will_split[edges_[e].half[1]];
     }
-    if (hanging >= 2 || level_jump) {
+    if (hanging >= 2 || level_jump ||
+        (hanging == 1 && green_turns(f, split_side, split_point(f, split_side)))) {
       red[f] = 1;
       ++step.red_by_closure;
       mark_edges(f);

@@ -150,6 +150,10 @@ class AdaptiveSplit4 {
   bool uniform_over(std::uint32_t leaf, std::uint32_t k, double tolerance, double cos_limit,
                     bool angle_on, double& dist) const;
   std::uint64_t uniform_bytes() const;
+  //! Whether bisecting `leaf` at point p of its side k (the green closure) turns a half
+  //! more than kGreenTurnDeg from the leaf: a sliver whose split side bulges towards its
+  //! opposite corner would fold, so the closure splits it red instead.
+  bool green_turns(std::uint32_t leaf, std::uint32_t k, const Vec3& p) const;
   static std::uint64_t pair_key(std::uint32_t a, std::uint32_t b) {
     return a < b ? (std::uint64_t(a) << 32 | b) : (std::uint64_t(b) << 32 | a);
   }

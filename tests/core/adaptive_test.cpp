@@ -340,6 +340,26 @@ double min_angle_deg(const Mesh& m) {
   return smallest;
 }
 
+TEST(Adaptive, GreenClosureNeverBendsASliverOver) {
+  // A sliver leaf beside a red one, whose split side's butterfly point bulges past its
+  // opposite corner (a rim chord next to a cap sliver, a zipped strip), was bisected green
+  // and its half turned over: 1-3 faces folded against the truth on these runs (180 deg on
+  // the cylinder's caps). Such a leaf is split red now, as uniform refinement splits it.
+  struct Run {
+    CadFamily family;
+    std::uint64_t seed;
+  };
+  for (const Run run : {Run{CadFamily::CappedCylinder, 9000}, Run{CadFamily::CappedCylinder, 9001},
+                        Run{CadFamily::Cone, 9005}, Run{CadFamily::Plate, 9002}}) {
+    const CadShape shape = make_cad_shape(run.family, {run.seed, 1.0});
+    SCOPED_TRACE(shape.name + " " + std::to_string(run.seed));
+    const Mesh mesh = to_mesh(shape.soup);
+    const RefineResult r = refine(mesh, adaptive("butterfly", 1e-3 * bbox_diagonal(mesh), 4));
+    expect_watertight_manifold(r.mesh);
+    EXPECT_EQ(faces_off_truth(r.mesh, *shape.surface, 90), 0u);
+  }
+}
+
 TEST(Adaptive, RepeatedStepsNeverBisectAGreenAgain) {
   // Greens are replaced by their red parent before they are refined, so triangle shape stays
   // close to the uniform refinement's however many steps run (bisecting greens again would
