@@ -48,8 +48,14 @@ std::optional<QueueEntry> first_entry(const RedisReply& entries, bool reclaimed)
 }
 
 // Lua: the job's hash and its indexes change in one step, whatever other replicas do.
+// The tenant's index also drops its oldest ids whose hash Redis has expired (a finished
+// job's TTL, job_key's names): a few per submission, so it holds about the jobs the tenant
+// still has instead of every job it ever sent (a listing drops the ones it meets too).
 constexpr const char* kEnqueue = R"(
 redis.call('HSET', KEYS[1], unpack(ARGV, 3))
+for _, old in ipairs(redis.call('ZRANGE', KEYS[2], 0, 7)) do
+  if redis.call('EXISTS', 'stlrefine:job:' .. old) == 0 then redis.call('ZREM', KEYS[2], old) end
+end
 redis.call('ZADD', KEYS[2], ARGV[2], ARGV[1])
 redis.call('XADD', KEYS[3], '*', 'id', ARGV[1])
 return 1)";

@@ -670,6 +670,38 @@ TEST_F(QueueMode, RedisFullAtTheReplicasStartRefusesSubmissionsWith503) {
       r.client()->Post("/v1/jobs?levels=1", binary_stl(octahedron_triangles()), "model/stl"));
 }
 
+// A tenant's index (a sorted set of job ids) loses the ids whose hash Redis expired: each
+// submission drops up to 8 of the oldest, so a tenant that sends jobs for months does not
+// grow it for ever (before: only a listing that met them dropped them).
+TEST_F(QueueMode, SubmissionsTrimTheTenantsIndexOfExpiredJobs) {
+  const Replica& r = start_replica("r", {"--role", "api"});
+  const std::string mesh = binary_stl(octahedron_triangles());
+  const std::string first = submit(r, "levels=1", mesh);
+  ASSERT_FALSE(first.empty());
+  auto redis_cli = [&](std::vector<std::string> args) {
+    args.insert(args.begin(), {"/usr/bin/redis-cli", "-s", redis_->socket().string()});
+    const ProcessResult p = run_process(args, 10s);
+    EXPECT_EQ(p.exit_code, 0) << p.err;
+    return p.out;
+  };
+  const std::string index = "stlrefine:tenant:-";  // no API keys: the anonymous tenant
+  // Twenty ids of jobs whose hashes have expired, older than any job of the tenant.
+  for (int i = 0; i < 20; ++i)
+    redis_cli({"ZADD", index, std::to_string(i + 1), "expired" + std::to_string(i)});
+  ASSERT_EQ(std::stoi(redis_cli({"ZCARD", index})), 21);
+  std::vector<std::string> ids{first};
+  for (int i = 0; i < 3; ++i) ids.push_back(submit(r, "levels=1", mesh));
+  EXPECT_EQ(std::stoi(redis_cli({"ZCARD", index})), 4);
+  // The tenant's own jobs are all still listed.
+  auto res = r.client()->Get("/v1/jobs?limit=100");
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 200) << res->body;
+  std::set<std::string> listed;
+  const Json page = Json::parse(res->body);
+  for (const Json& j : page["jobs"]) listed.insert(j.value("id", ""));
+  EXPECT_EQ(listed, std::set<std::string>(ids.begin(), ids.end())) << res->body;
+}
+
 // A job list filtered by state finds a job behind more than one page (2000) of newer jobs
 // in another state: the tenant's index is read page after page.
 TEST_F(QueueMode, ListByStateFindsAJobBehindThousandsOfNewerOnes) {
