@@ -21,6 +21,7 @@
 
 #include "core/features/features.h"
 #include "core/schemes/lsf.h"
+#include "core/schemes/lsf_rules.h"
 #include "tests/core/test_util.h"
 #include "tests/support/cad_like.h"
 #include "tests/support/shapes.h"
@@ -91,25 +92,29 @@ Ratios two_level_ratios(CadFamily family) {
 }
 
 // The families issue 17's target is met on: the zipped walls (crease sector normals held
-// across the rim, Hermite midpoints at crease ends, rims continued through false corners) and
-// the hulls (relaxed guard normals). Before this round the cylinder was 2.9-3.8x the ideal,
-// the cone 3.6-4.0x, the tube 2.7-4.5x; here now 1.71, 1.69, 1.63 (hulls 1.25-1.40).
-TEST(LsfIdeal, ZippedWallsAndHullsWithinTwiceTheIdealAndAQuarterOfTheInput) {
-  for (const CadFamily family : {CadFamily::CappedCylinder, CadFamily::Cone, CadFamily::Tube,
-                                 CadFamily::Sphere, CadFamily::Ellipsoid, CadFamily::Blob}) {
+// across the rim, Hermite midpoints at crease ends, rims continued through false corners),
+// the hulls (relaxed guard normals) and the rounded box (guard normals relaxed to convergence
+// over its fillets and corners, circle-exact Hermite midpoints between them: 6.18x the ideal
+// and 0.42x the input before, 1.57x and 0.11x here). Before round 5 the cylinder was 2.9-3.8x
+// the ideal, the cone 3.6-4.0x, the tube 2.7-4.5x; after it 1.71, 1.69, 1.63 (hulls 1.25-1.40).
+TEST(LsfIdeal, ZippedWallsHullsAndRoundedBoxWithinTwiceTheIdealAndAQuarterOfTheInput) {
+  for (const CadFamily family :
+       {CadFamily::CappedCylinder, CadFamily::Cone, CadFamily::Tube, CadFamily::Sphere,
+        CadFamily::Ellipsoid, CadFamily::Blob, CadFamily::RoundedBox}) {
     const Ratios r = two_level_ratios(family);
     EXPECT_LE(r.to_ideal, 2.0) << cad_family_name(family);
     EXPECT_LE(r.to_input, 0.25) << cad_family_name(family);
   }
 }
 
-// Where the target is still missed, today's figures on these seeds (rounded box 6.18x the
-// ideal, 0.42x the input; plate 3.01x, 0.19x, before the sliver normals and corner tangents of
-// bench/results-issue17-s6-lsf.md 3.56x, 0.23x; torus 2.02x, 0.14x) are the bound, so that
-// they cannot get worse unnoticed (the target stays open).
-TEST(LsfIdeal, RoundedBoxPlateAndTorusNoWorseThanToday) {
-  const std::array<std::pair<CadFamily, double>, 3> bounds = {
-      {{CadFamily::RoundedBox, 6.5}, {CadFamily::Plate, 3.2}, {CadFamily::Torus, 2.2}}};
+// Where the target is still missed, today's figures on these seeds are the bound, so that
+// they cannot get worse unnoticed (the target stays open): plate 3.14x the ideal, 0.20x the
+// input (3.01x, 0.19x before the relaxed normals of bench/results-issue17-s7-lsf.md; 3.56x,
+// 0.23x before round 6's sliver normals and corner tangents); torus 1.78x, 0.12x (2.02x,
+// 0.14x before; within 2x on these seeds, not on every bench seed).
+TEST(LsfIdeal, PlateAndTorusNoWorseThanToday) {
+  const std::array<std::pair<CadFamily, double>, 2> bounds = {
+      {{CadFamily::Plate, 3.2}, {CadFamily::Torus, 1.95}}};
   for (const auto& [family, bound] : bounds) {
     const Ratios r = two_level_ratios(family);
     EXPECT_LE(r.to_ideal, bound) << cad_family_name(family);
@@ -148,6 +153,66 @@ TEST(LsfIdeal, PlateSliverPointsCloseToTheArc) {
     mean += std::sqrt(sum / count) / kSeeds.size();
   }
   EXPECT_LE(mean, 7e-3);  // mm
+}
+
+// The rounded box (issue 17): planes, quarter-cylinder fillets zipped between differently
+// sampled end arcs, sphere-octant corners fanned from an inner point; every vertex smooth.
+// The guard normals, relaxed to the chord symmetry n_v . c + n_w . c = 0 along every edge
+// (relax_guard_normals, as the stencil runs it), against the true normals at the input
+// vertices: the face sums of the fillets' 30 mm strips and the corners' fans were 5.6 and 4.2
+// deg RMS off, and 10 rounds of the even-to-uneven rings only left the fans and zippers
+// there (RMS over seeds 1-3: 5.0 deg before, 0.016 deg here).
+TEST(LsfIdeal, RoundedBoxGuardNormalsRelaxedToTheTruth) {
+  double sum = 0;
+  int count = 0;
+  for (const std::uint64_t seed : kSeeds) {
+    const CadShape shape = make_cad_shape(CadFamily::RoundedBox, {seed, 1.0});
+    const Mesh m = to_mesh(shape.soup);
+    const Features f = detect_features(m, FeatureParams{});
+    std::vector<lsf::GuardVertex> guard(m.num_vertices());
+    for (std::uint32_t v = 0; v < m.num_vertices(); ++v) {
+      if (f.kind(VertexId(v)) > VertexKind::Dart) continue;
+      guard[v].one_sector = 1;
+      guard[v].normal = lsf::sector_normal(m, f, m.halfedge(VertexId(v)));
+      guard[v].spokes = lsf::ring_spoke_flags(m, VertexId(v));
+    }
+    lsf::SectorNormals sectors;
+    lsf::relax_guard_normals(m, f, guard, sectors);
+    for (std::uint32_t v = 0; v < m.num_vertices(); ++v) {
+      if (!guard[v].one_sector) continue;
+      const double deg =
+          normal_angle_deg(shape.surface->closest_point(m.position(VertexId(v))), guard[v].normal);
+      sum += deg * deg;
+      ++count;
+    }
+  }
+  EXPECT_LE(std::sqrt(sum / count), 0.1);
+}
+
+// One level's points on the rounded box against the truth (RMS over every smooth edge's point,
+// mean over the seeds). With the relaxed normals the Hermite midpoint, exact on circular arcs
+// (the sphere corners' and the fillets' sections), is taken between relaxed ends, and the
+// edge-local fold pull no longer puts the corners' points towards their chords: 59.9 um
+// before (43.4, 58.8, 77.6), here 5.8 um (6.5, 4.8, 6.2).
+TEST(LsfIdeal, RoundedBoxOneLevelPointsOnTheTruth) {
+  double mean = 0;
+  for (const std::uint64_t seed : kSeeds) {
+    const CadShape shape = make_cad_shape(CadFamily::RoundedBox, {seed, 1.0});
+    const Mesh input = to_mesh(shape.soup);
+    const Level coarse{Mesh(input), detect_features(input, FeatureParams{})};
+    const Level fine = refine_level("lsf", coarse);
+    double sum = 0;
+    int count = 0;
+    for (std::uint32_t e = 0; e < input.num_edges(); ++e) {
+      if (coarse.features.is_sharp(EdgeId(e))) continue;
+      const Vec3 p = fine.mesh.position(VertexId(input.num_vertices() + e));
+      const double d = distance(p, shape.surface->closest_point(p).point);
+      sum += d * d;
+      ++count;
+    }
+    mean += std::sqrt(sum / count) / kSeeds.size();
+  }
+  EXPECT_LE(mean, 10e-3);  // mm
 }
 
 }  // namespace
