@@ -38,11 +38,10 @@ struct Reached {
 // Heap entries allowed per reachable vertex (Dijkstra with lazy deletion pushes a vertex
 // again each time a larger pull reaches it; past the allowance the sheet stops spreading).
 constexpr std::size_t kPushesPerVertex = 4;
-// Bytes per reachable vertex: its Reached, its index entry (a hash node and its bucket, with
-// the allocator's overhead), the heap entries (in a vector that may double), the lists of
-// reached and seed vertices (likewise).
-// Faces per reachable vertex the unturn phase checks at most (six around a vertex on average).
-constexpr std::size_t kFacesPerVertex = 8;
+// Faces per reachable vertex the unturn phase checks at most (six around each moved vertex,
+// and the pull moves a third of the vertices it may reach at most: 5,700 of a 13,500 cap on
+// a hull refined 6 steps; past this the faces are not checked).
+constexpr std::size_t kFacesPerVertex = 3;
 // A face the unturn phase checks: its normal before the pull, and whether it is queued.
 struct Checked {
   Vec3 before;
@@ -52,14 +51,20 @@ struct Checked {
 // Times one face is set right at most: two faces that share a corner and want it in two
 // places would set each other right and turn each other again for ever.
 constexpr std::uint8_t kFixesPerFace = 32;
-// Bytes per reachable vertex: its Reached, its index entry (a hash node and its bucket, with
-// the allocator's overhead), the heap entries (in a vector that may double), the lists of
-// reached and seed vertices (likewise); for the unturn phase, its start (a hash node) and
-// its faces' entries (a hash node and a queue slot each).
-constexpr std::uint64_t kBytesPerReachable =
+// Bytes per reachable vertex, the larger of the two phases. The pull: its Reached, its index
+// entry (a hash node and its bucket, with the allocator's overhead), the heap entries (in a
+// vector that may double), the lists of reached and seed vertices (likewise). The unturn
+// phase (the pull's state freed): its start (a hash node) and its faces' entries (a hash
+// node and a queue slot, in a vector that may double, each); its start is made while the
+// pull's Reached and index are still held.
+constexpr std::uint64_t kPullBytes =
     sizeof(Reached) + 48 + 2 * kPushesPerVertex * sizeof(std::pair<double, std::uint32_t>) +
-    2 * 2 * sizeof(std::uint32_t) + sizeof(Vec3) + 48 +
-    kFacesPerVertex * (sizeof(Checked) + 48 + 2 * sizeof(std::uint32_t));
+    2 * 2 * sizeof(std::uint32_t);
+constexpr std::uint64_t kUnturnBytes =
+    std::max<std::uint64_t>(sizeof(Reached) + 48,
+                            kFacesPerVertex*(sizeof(Checked) + 48 + 2 * sizeof(std::uint32_t))) +
+    sizeof(Vec3) + 48;
+constexpr std::uint64_t kBytesPerReachable = std::max(kPullBytes, kUnturnBytes);
 
 }  // namespace
 
@@ -353,6 +358,9 @@ SmoothPullReport smooth_pull(
     ++report.moved;
     report.max_move = std::max(report.max_move, distance(positions[i], was));
   }
+  // The pull's state is done with.
+  std::unordered_map<std::uint32_t, std::uint32_t>().swap(index);
+  std::vector<Reached>().swap(reached);
   if (seeds.size() <= cap) {
     const auto [fixed, left] =
         unturn(mesh, movable, nearest, start, bound, locate, cap, params.unturn_degrees);
