@@ -13,6 +13,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <set>
 #include <string>
@@ -122,6 +123,32 @@ TEST(LsfIdeal, PlateAndTorusNoWorseThanToday) {
   }
 }
 
+// One lsf level on a CAD-like shape: the RMS distance (mm) from the truth of the points of
+// the smooth input edges `measured` picks (edge e's point is vertex V + e of the level).
+struct EdgePointError {
+  double rms = 0;
+  int count = 0;
+};
+EdgePointError one_level_edge_point_error(
+    CadFamily family, std::uint64_t seed,
+    const std::function<bool(const Mesh&, EdgeId)>& measured) {
+  const CadShape shape = make_cad_shape(family, {seed, 1.0});
+  const Mesh input = to_mesh(shape.soup);
+  const Level coarse{Mesh(input), detect_features(input, FeatureParams{})};
+  const Level fine = refine_level("lsf", coarse);
+  double sum = 0;
+  EdgePointError out;
+  for (std::uint32_t e = 0; e < input.num_edges(); ++e) {
+    if (coarse.features.is_sharp(EdgeId(e)) || !measured(input, EdgeId(e))) continue;
+    const Vec3 p = fine.mesh.position(VertexId(input.num_vertices() + e));
+    const double d = distance(p, shape.surface->closest_point(p).point);
+    sum += d * d;
+    ++out.count;
+  }
+  out.rms = out.count > 0 ? std::sqrt(sum / out.count) : 0;
+  return out;
+}
+
 // The plate's 305 mm slivers: one level's points on its long smooth edges, against the truth.
 // Their Hermite midpoints read the end sections' sector normals, whose face sums tilt along
 // the strips by ~1e-4 rad (the sagitta of the arc between a strip's two ends over 305 mm); the
@@ -132,25 +159,13 @@ TEST(LsfIdeal, PlateAndTorusNoWorseThanToday) {
 TEST(LsfIdeal, PlateSliverPointsCloseToTheArc) {
   double mean = 0;
   for (const std::uint64_t seed : kSeeds) {
-    const CadShape shape = make_cad_shape(CadFamily::Plate, {seed, 1.0});
-    const Mesh input = to_mesh(shape.soup);
-    const Level coarse{Mesh(input), detect_features(input, FeatureParams{})};
-    const Level fine = refine_level("lsf", coarse);
-    double sum = 0;
-    int count = 0;
-    for (std::uint32_t e = 0; e < input.num_edges(); ++e) {
-      const HalfedgeId h = input.halfedge(EdgeId(e));
-      if (coarse.features.is_sharp(EdgeId(e)) ||
-          distance(input.position(input.from(h)), input.position(input.to(h))) < 100.0)
-        continue;
-      // Edge e's point is vertex V + e of the 1-to-4 level.
-      const Vec3 p = fine.mesh.position(VertexId(input.num_vertices() + e));
-      const double d = distance(p, shape.surface->closest_point(p).point);
-      sum += d * d;
-      ++count;
-    }
-    ASSERT_GT(count, 30) << "seed " << seed;
-    mean += std::sqrt(sum / count) / kSeeds.size();
+    const auto long_edge = [](const Mesh& m, EdgeId e) {
+      const HalfedgeId h = m.halfedge(e);
+      return distance(m.position(m.from(h)), m.position(m.to(h))) >= 100.0;
+    };
+    const EdgePointError err = one_level_edge_point_error(CadFamily::Plate, seed, long_edge);
+    ASSERT_GT(err.count, 30) << "seed " << seed;
+    mean += err.rms / kSeeds.size();
   }
   EXPECT_LE(mean, 7e-3);  // mm
 }
@@ -197,20 +212,8 @@ TEST(LsfIdeal, RoundedBoxGuardNormalsRelaxedToTheTruth) {
 TEST(LsfIdeal, RoundedBoxOneLevelPointsOnTheTruth) {
   double mean = 0;
   for (const std::uint64_t seed : kSeeds) {
-    const CadShape shape = make_cad_shape(CadFamily::RoundedBox, {seed, 1.0});
-    const Mesh input = to_mesh(shape.soup);
-    const Level coarse{Mesh(input), detect_features(input, FeatureParams{})};
-    const Level fine = refine_level("lsf", coarse);
-    double sum = 0;
-    int count = 0;
-    for (std::uint32_t e = 0; e < input.num_edges(); ++e) {
-      if (coarse.features.is_sharp(EdgeId(e))) continue;
-      const Vec3 p = fine.mesh.position(VertexId(input.num_vertices() + e));
-      const double d = distance(p, shape.surface->closest_point(p).point);
-      sum += d * d;
-      ++count;
-    }
-    mean += std::sqrt(sum / count) / kSeeds.size();
+    const auto any_edge = [](const Mesh&, EdgeId) { return true; };
+    mean += one_level_edge_point_error(CadFamily::RoundedBox, seed, any_edge).rms / kSeeds.size();
   }
   EXPECT_LE(mean, 10e-3);  // mm
 }
