@@ -48,6 +48,15 @@ void check_refusal(const api::ArchiveError& e) {
   fuzz::check(e.field() == "file", "an archive refusal that does not name the field file");
 }
 
+std::string lowercase(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+bool ends_with(const std::string& s, std::string_view end) {
+  return s.size() > end.size() && s.compare(s.size() - end.size(), end.size(), end) == 0;
+}
+
 // The promises of unsafe_name and mesh_extension, written independently of them.
 void check_name(const std::string& name) {
   fuzz::check(!name.empty() && name.front() != '/', "an empty or absolute part name");
@@ -59,12 +68,8 @@ void check_name(const std::string& name) {
   fuzz::check(name != ".." && name.rfind("../", 0) != 0 && name.find("/../") == std::string::npos &&
                   !(name.size() >= 3 && name.compare(name.size() - 3, 3, "/..") == 0),
               "a part name with a .. component");
-  std::string lower = name;
-  for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  const auto ends = [&](std::string_view ext) {
-    return lower.size() > ext.size() &&
-           lower.compare(lower.size() - ext.size(), ext.size(), ext) == 0;
-  };
+  const std::string lower = lowercase(name);
+  const auto ends = [&](std::string_view ext) { return ends_with(lower, ext); };
   fuzz::check(ends(".stl") || ends(".obj") || ends(".ply") || ends(".3mf"),
               "a part that is not a mesh file by its extension");
 }
@@ -92,9 +97,7 @@ void read_with(std::span<const std::uint8_t> bytes, api::ArchiveLimits limits,
       fuzz::check(names.insert(p.name).second, "a part name twice");
       total += p.bytes.size();
       const bool zip = p.bytes.size() >= 4 && p.bytes.compare(0, 4, "PK\3\4") == 0;
-      std::string lower = p.name;
-      for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-      fuzz::check(!zip || lower.compare(lower.size() - 4, 4, ".3mf") == 0,
+      fuzz::check(!zip || ends_with(lowercase(p.name), ".3mf"),
                   "a zip inside the zip was accepted as a part");
     }
     fuzz::check(total <= limits.max_total_bytes, "parts past max_total_bytes");

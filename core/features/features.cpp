@@ -161,8 +161,7 @@ Features detect_by_angle(const Mesh& mesh, const FeatureParams& params) {
     if (!t.valid() || disabled) return;
     const Vec3& n1 = normal[Mesh::face(h).idx];
     const Vec3& n2 = normal[Mesh::face(t).idx];
-    const double scale = std::sqrt(dot(n1, n1) * dot(n2, n2));
-    sharp[e] = scale > 0 && dot(n1, n2) < cos_limit * scale;
+    sharp[e] = turned_past(n1, n2, cos_limit);
   });
   return Features(mesh, std::move(sharp));
 }

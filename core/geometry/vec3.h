@@ -56,6 +56,12 @@ inline Vec3 normalized(const Vec3& a) {
   const double n = norm(a);
   return n > 0 ? a * (1.0 / n) : Vec3{};
 }
+//! Whether directions a and b (any lengths) are more than acos(cos_limit) apart; false when
+//! either has no direction. Compares without square roots of each or a division.
+inline bool turned_past(const Vec3& a, const Vec3& b, double cos_limit) {
+  const double scale = std::sqrt(dot(a, a) * dot(b, b));
+  return scale > 0 && dot(a, b) < cos_limit * scale;
+}
 //! Twice the area vector of triangle (a, b, c): its direction is the face normal.
 inline Vec3 triangle_normal(const Vec3& a, const Vec3& b, const Vec3& c) {
   return cross(b - a, c - a);

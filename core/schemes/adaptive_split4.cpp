@@ -63,8 +63,7 @@ std::vector<std::uint8_t> over_tolerance(const Level& level, const BigVector<Vec
     const HalfedgeId t = m.twin(h);
     if (!over && angle_deg > 0 && t.valid() && !level.features.is_sharp(EdgeId(e))) {
       const Vec3 n1 = m.face_normal(Mesh::face(h)), n2 = m.face_normal(Mesh::face(t));
-      const double scale = std::sqrt(dot(n1, n1) * dot(n2, n2));
-      over = scale > 0 && dot(n1, n2) < cos_limit * scale;
+      over = turned_past(n1, n2, cos_limit);
     }
     marked[e] = over;
   });
@@ -293,13 +292,10 @@ bool AdaptiveSplit4::green_turns(std::uint32_t leaf, std::uint32_t k, const Vec3
   const Leaf& l = leaves_[leaf];
   const Vec3 &a = positions_[l.v[k]], &b = positions_[l.v[(k + 1) % 3]],
              &c = positions_[l.v[(k + 2) % 3]];
-  const Vec3 n = cross(b - a, c - a);
+  const Vec3 n = triangle_normal(a, b, c);
   const double cos_limit = std::cos(kGreenTurnDeg * std::numbers::pi / 180.0);
-  for (const Vec3 half : {cross(p - a, c - a), cross(b - p, c - p)}) {
-    const double scale = std::sqrt(dot(n, n) * dot(half, half));
-    if (scale > 0 && dot(n, half) < cos_limit * scale) return true;
-  }
-  return false;
+  return turned_past(n, triangle_normal(a, p, c), cos_limit) ||
+         turned_past(n, triangle_normal(p, b, c), cos_limit);
 }
 
 bool AdaptiveSplit4::step(const Split4Stencil& stencil, double tolerance, std::uint64_t max_faces,

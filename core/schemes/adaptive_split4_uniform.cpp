@@ -288,8 +288,7 @@ bool AdaptiveSplit4::uniform_over(std::uint32_t leaf, std::uint32_t k, double to
   const HalfedgeId t = m.twin(h);
   if (!t.valid()) return false;
   const Vec3 n1 = m.face_normal(Mesh::face(h)), n2 = m.face_normal(Mesh::face(t));
-  const double scale = std::sqrt(dot(n1, n1) * dot(n2, n2));
-  return scale > 0 && dot(n1, n2) < cos_limit * scale;
+  return turned_past(n1, n2, cos_limit);
 }
 
 EdgesOverTolerance AdaptiveSplit4::remaining(const Split4Stencil& stencil, double tolerance,

@@ -37,8 +37,7 @@ bool AdaptiveSqrt3::Hierarchy::wants_refinement(FaceId t) {
       if (!tw.valid()) continue;
       const std::array<VertexId, 3> w = tris_[Mesh::face(tw)].v;
       const Vec3 m = triangle_normal(position(w[0], l), position(w[1], l), position(w[2], l));
-      const double scale = std::sqrt(dot(n, n) * dot(m, m));
-      if (scale > 0 && dot(n, m) < cos_limit * scale) return true;
+      if (turned_past(n, m, cos_limit)) return true;
     }
   }
   return criteria_.tol > 0 && deviation(t, criteria_.tol / kTail) > criteria_.tol / kTail;
