@@ -143,9 +143,28 @@ end
 redis.call('HSET', KEYS[1], 'expired', '1')
 return 'finished')";
 
+// A consumer is deleted only with nothing pending, checked in the same step: DELCONSUMER
+// drops a consumer's pending entries, which then no replica could ever reclaim. A live
+// replica's next XREADGROUP makes its consumer again, so deleting an idle one is harmless.
+constexpr const char* kPruneConsumers = R"(
+local removed = 0
+for _, c in ipairs(redis.call('XINFO', 'CONSUMERS', KEYS[1], ARGV[1])) do
+  local f = {}
+  for i = 1, #c, 2 do f[c[i]] = c[i + 1] end
+  if f['pending'] == 0 and f['idle'] >= tonumber(ARGV[2]) and f['name'] ~= ARGV[3] then
+    redis.call('XGROUP', 'DELCONSUMER', KEYS[1], ARGV[1], f['name'])
+    removed = removed + 1
+  end
+end
+return removed)";
+
 constexpr const char* kMarkExpired = R"(
 if redis.call('EXISTS', KEYS[1]) == 1 then redis.call('HSET', KEYS[1], 'expired', '1') end
 return 1)";
+
+bool no_group(const RedisError& e) {
+  return std::string(e.what()).find("NOGROUP") != std::string::npos;
+}
 
 }  // namespace
 
@@ -199,7 +218,7 @@ std::optional<QueueEntry> RedisQueue::next(RedisConnection& c,
                   block);
   } catch (const RedisError& e) {
     // The group went away (a Redis restarted without its data): make it again.
-    if (std::string(e.what()).find("NOGROUP") == std::string::npos) throw;
+    if (!no_group(e)) throw;
     ensure_group(c);
     return std::nullopt;
   }
@@ -336,7 +355,7 @@ RedisQueue::Stats RedisQueue::stats(RedisConnection& c) const {
   } catch (const RedisError& e) {
     // No group yet (a Redis restarted without its data, or one that was full when this
     // replica started): make it, which a full Redis refuses with OOM (a 503, not a 500).
-    if (std::string(e.what()).find("NOGROUP") == std::string::npos) throw;
+    if (!no_group(e)) throw;
     ensure_group(c);
     r = read();
   }
@@ -357,6 +376,18 @@ std::vector<std::string> RedisQueue::due(RedisConnection& c, std::int64_t before
 
 void RedisQueue::expired(RedisConnection& c, const std::string& id) const {
   c.command({"ZREM", kFinished, id});
+}
+
+long long RedisQueue::prune_consumers(RedisConnection& c, std::chrono::milliseconds idle) const {
+  try {
+    return c
+        .command({"EVAL", kPruneConsumers, "1", kStream, kGroup, std::to_string(idle.count()),
+                  consumer_})
+        .integer();
+  } catch (const RedisError& e) {
+    if (!no_group(e)) throw;
+    return 0;  // no group yet: no consumer either
+  }
 }
 
 }  // namespace stlrefine::server

@@ -120,6 +120,9 @@ class RedisQueue {
   std::vector<std::string> due(RedisConnection& c, std::int64_t before_ms, std::size_t count) const;
   //! Takes `id` off the expiry index.
   void expired(RedisConnection& c, const std::string& id) const;
+  //! Deletes the group's consumers (other than this one) idle for `idle` with nothing
+  //! pending: those of replicas that stopped or restarted under a new name. Returns how many.
+  long long prune_consumers(RedisConnection& c, std::chrono::milliseconds idle) const;
 
  private:
   std::string consumer_;

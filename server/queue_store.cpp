@@ -654,6 +654,10 @@ void JobStore::expire_queued() {
     redis_->mark_expired(*c, id);
     redis_->expired(*c, id);
   }
+  // Every replica that ever ran leaves a consumer in the group (its name is unique per
+  // start). A live one reads every kBlock and any with a running job has it pending, so
+  // one idle for ten leases with nothing pending has stopped.
+  redis_->prune_consumers(*c, 10 * config_.lease);
 }
 
 }  // namespace stlrefine::server

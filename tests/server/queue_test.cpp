@@ -17,6 +17,7 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <csignal>
 #include <deque>
@@ -216,10 +217,10 @@ class QueueMode : public ::testing::Test {
                                   name,
                                   "--compute-slots",
                                   "1",
-                                  "--lease-seconds",
-                                  "2",
                                   "--shutdown-grace",
                                   grace};
+    if (std::find(extra.begin(), extra.end(), "--lease-seconds") == extra.end())
+      argv.insert(argv.end(), {"--lease-seconds", "2"});
     argv.insert(argv.end(), extra.begin(), extra.end());
     Replica r;
     r.name = name;
@@ -700,6 +701,41 @@ TEST_F(QueueMode, SubmissionsTrimTheTenantsIndexOfExpiredJobs) {
   const Json page = Json::parse(res->body);
   for (const Json& j : page["jobs"]) listed.insert(j.value("id", ""));
   EXPECT_EQ(listed, std::set<std::string>(ids.begin(), ids.end())) << res->body;
+}
+
+// Every replica start leaves a consumer in the group under a new name. The janitor deletes
+// consumers idle for ten leases with nothing pending, and keeps one that still has an entry
+// pending (deleting it would drop the entry, which then nobody could reclaim).
+TEST_F(QueueMode, JanitorDeletesIdleConsumersButNotOnesWithPendingEntries) {
+  // An api replica runs no jobs (it reclaims nothing); a 1 s lease makes "idle" 10 s, and a
+  // 3.6 s retention wakes its janitor every second.
+  start_replica("api", {"--role", "api", "--lease-seconds", "1", "--job-retention-hours", "0.001"});
+  auto redis_cli = [&](std::vector<std::string> args) {
+    args.insert(args.begin(), {"/usr/bin/redis-cli", "-s", redis_->socket().string()});
+    const ProcessResult p = run_process(args, 10s);
+    EXPECT_EQ(p.exit_code, 0) << p.err;
+    return p.out;
+  };
+  const std::string stream = "stlrefine:jobs", group = "runners";
+  redis_cli({"XGROUP", "CREATE", stream, group, "0", "MKSTREAM"});  // BUSYGROUP if made: fine
+  redis_cli({"XGROUP", "CREATECONSUMER", stream, group, "stopped-replica"});
+  redis_cli({"XADD", stream, "*", "id", "a-job-of-a-stalled-replica"});
+  redis_cli(
+      {"XREADGROUP", "GROUP", group, "stalled-replica", "COUNT", "1", "STREAMS", stream, ">"});
+  const auto made = Clock::now();
+  auto consumers = [&] { return redis_cli({"XINFO", "CONSUMERS", stream, group}); };
+  std::this_thread::sleep_for(5s);  // half the idle time: both still there
+  EXPECT_NE(consumers().find("stopped-replica"), std::string::npos);
+  std::string listed;
+  while (Clock::now() < made + 40s) {
+    listed = consumers();
+    if (listed.find("stopped-replica") == std::string::npos) break;
+    std::this_thread::sleep_for(250ms);
+  }
+  EXPECT_EQ(listed.find("stopped-replica"), std::string::npos) << listed;
+  EXPECT_GE(Clock::now() - made, 9s);
+  EXPECT_NE(listed.find("stalled-replica"), std::string::npos) << listed;
+  EXPECT_EQ(std::stoi(redis_cli({"XLEN", stream})), 1);  // its entry is still there
 }
 
 // A job list filtered by state finds a job behind more than one page (2000) of newer jobs
