@@ -136,11 +136,38 @@ RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRe
     refine_grow = [&](std::uint64_t refining) {
       return grow(bytes.size() + surface_bytes + refining);
     };
+  // With recognised primitives, each level's new vertices go onto them before the next
+  // level is made from it (snapping the last level only, its points are made from points
+  // off the surfaces: the snaps then scatter neighbours of a sliver apart and turn it). The
+  // deviation bound is applied once, after the last level, as without primitives.
+  // Snaps that turn a face more than 60 degrees are taken back as a whole, and the levels
+  // after are left alone (as the last level's post-pass does, apply_guarded).
+  BetweenLevelsFn between_levels;
+  bool snap_levels = surface && regions && !regions->regions.empty() && scheme.interpolating() &&
+                     !request.refine.adaptive();
+  if (snap_levels)
+    between_levels = [&](Mesh& level_mesh, const Features& level_features, int level) {
+      if (!snap_levels) return;
+      const std::uint64_t need =
+          bytes.size() + surface_bytes + mesh_bytes(level_mesh) +
+          3 * sizeof(Vec3) * std::uint64_t{level_mesh.num_vertices()} +
+          primitives::InputSurface::predict_apply_bytes(level_mesh.num_vertices());
+      if (grow && !grow(need)) throw MemoryBudgetError("primitives", level, need);
+      primitives::PostPassParams pp;
+      pp.refined_features = &level_features;
+      pp.max_deviation = 0;  // snaps only
+      pp.snap_inside_regions_only = true;
+      BigVector<Vec3> made = level_mesh.mutable_positions();
+      if (surface->apply(level_mesh, pp).faces_turned_over_60_deg > 0) {
+        level_mesh.mutable_positions() = std::move(made);
+        snap_levels = false;
+      }
+    };
   // The input mesh is not needed afterwards (the report only uses counters): move it in.
   RefineResult refined = [&] {
     try {
       return refine(std::move(in.result.mesh), scheme, request.refine, progress, cancel,
-                    refine_grow, std::move(features));
+                    refine_grow, std::move(features), between_levels);
     } catch (const MemoryBudgetError& e) {
       throw MemoryBudgetError(e.field(), e.level(),
                               bytes.size() + surface_bytes + e.needed_bytes());

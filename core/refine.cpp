@@ -222,7 +222,8 @@ std::uint64_t input_bytes(const Mesh& m) {
 
 RefineResult run_levels(Mesh mesh, const RefineParams& params, const Scheme& scheme,
                         const ProgressFn& progress, const std::atomic<bool>* cancel,
-                        const MemoryGrowFn& grow, std::optional<Features> detected) {
+                        const MemoryGrowFn& grow, std::optional<Features> detected,
+                        const BetweenLevelsFn& between_levels) {
   const CancelScope cancel_scope(cancel);  // parallel loops of this request stop early
   const auto start = std::chrono::steady_clock::now();
   RefineResult result;
@@ -335,6 +336,10 @@ RefineResult run_levels(Mesh mesh, const RefineParams& params, const Scheme& sch
     }
     level = scheme.refine_once(level, stats);
     done += level.mesh.num_faces();
+    if (between_levels && i < uniform_levels) {
+      throw_if_cancelled(cancel);
+      between_levels(level.mesh, level.features, i);
+    }
   }
   throw_if_cancelled(cancel);
 
@@ -358,15 +363,18 @@ RefineResult run_levels(Mesh mesh, const RefineParams& params, const Scheme& sch
 
 RefineResult refine(Mesh mesh, const Scheme& scheme, const RefineParams& params,
                     const ProgressFn& progress, const std::atomic<bool>* cancel,
-                    const MemoryGrowFn& grow, std::optional<Features> features) {
+                    const MemoryGrowFn& grow, std::optional<Features> features,
+                    const BetweenLevelsFn& between_levels) {
   params.validate(scheme);
   check_face_budget(mesh.num_faces(), scheme, params);
   if (params.threads == 0)
-    return run_levels(std::move(mesh), params, scheme, progress, cancel, grow, std::move(features));
+    return run_levels(std::move(mesh), params, scheme, progress, cancel, grow, std::move(features),
+                      between_levels);
   // A dedicated arena caps this request's threads without touching the global pool.
   tbb::task_arena arena(params.threads);
   return arena.execute([&] {
-    return run_levels(std::move(mesh), params, scheme, progress, cancel, grow, std::move(features));
+    return run_levels(std::move(mesh), params, scheme, progress, cancel, grow, std::move(features),
+                      between_levels);
   });
 }
 

@@ -174,18 +174,27 @@ std::uint64_t predict_faces(std::uint64_t faces, const Scheme& scheme, const Ref
 //! \throw Error(NotTriangleMesh, "adaptive_non_simple") naming the vertices or faces.
 void require_simple_mesh(const Mesh& mesh);
 
+//! Called in the uniform mode after each level but the last (`level` = 1 after the first),
+//! before the next level is made from it: may move the level's vertices (the request
+//! pipeline puts new vertices of recognised primitives onto them, so the next level's
+//! stencils work on the true surface). The level's carried state (smooth normals, sqrt3
+//! parity, alpha) stays as the scheme made it. Runs inside refine's thread arena.
+using BetweenLevelsFn = std::function<void(Mesh& mesh, const Features& features, int level)>;
+
 //! Applies `scheme` (made from params: make_scheme(params)) params.levels times. Checks the
 //! parameters' ranges for `scheme` (RefineParams::validate(const Scheme&), nothing is made)
 //! and the face budget before any work, the cancel flag between levels, and asks `grow`
 //! (when set) before the memory it holds grows (see MemoryGrowFn). Takes the mesh by value:
 //! move it in to save a copy. `features`: detect_features(mesh, params.features) when the
-//! caller has it already (it is detected here otherwise).
+//! caller has it already (it is detected here otherwise). `between_levels`: see
+//! BetweenLevelsFn.
 //! \throw Error(InvalidParameter | BudgetExceeded | Cancelled); MemoryBudgetError when grow
 //! said no; Error(NotTriangleMesh) in the adaptive mode of a sqrt3 scheme on a mesh that is
 //! not simple (see require_simple_mesh).
 RefineResult refine(Mesh mesh, const Scheme& scheme, const RefineParams& params,
                     const ProgressFn& progress = {}, const std::atomic<bool>* cancel = nullptr,
-                    const MemoryGrowFn& grow = {}, std::optional<Features> features = {});
+                    const MemoryGrowFn& grow = {}, std::optional<Features> features = {},
+                    const BetweenLevelsFn& between_levels = {});
 //! refine with the scheme params name: make_scheme(params), then the above.
 RefineResult refine(Mesh mesh, const RefineParams& params, const ProgressFn& progress = {},
                     const std::atomic<bool>* cancel = nullptr, const MemoryGrowFn& grow = {});

@@ -534,6 +534,9 @@ PostPassReport InputSurface::apply(Mesh& refined, const PostPassParams& params) 
         ++kinds;
       }
     });
+    if (params.snap_inside_regions_only)
+      for (int i = 0; i < kinds; ++i)
+        if (region[std::size_t(i)] < 0) return std::nullopt;
     // Recognised regions among the votes, most votes first.
     std::vector<std::pair<int, std::int32_t>> found;
     for (int i = 0; i < kinds; ++i)

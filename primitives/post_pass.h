@@ -39,6 +39,10 @@ struct PostPassParams {
   //! them any vertex near an input crease may (fan slivers of a cap along its rim then put
   //! cap vertices on the rim and turn faces over).
   const Features* refined_features = nullptr;
+  //! Snap only vertices whose faces all voted for recognised regions: one beside a face
+  //! of no region (a plane's vertex next to a fillet no primitive fits) stays where the
+  //! scheme put it. For the snaps between levels, which the next level builds on.
+  bool snap_inside_regions_only = false;
   //! How vertices past the bound are pulled back: as a sheet (smooth_pull).
   SmoothPullParams pull;
 };

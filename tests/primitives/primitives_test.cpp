@@ -708,7 +708,8 @@ TEST(PrimitivesMemory, RunRefineAsksBeforeTheSurface) {
   const std::string stl = write_stl(mesh, StlFormat::Binary);
   const auto* data = reinterpret_cast<const std::uint8_t*>(stl.data());
   const std::span<const std::uint8_t> body(data, stl.size());
-  api::RawParams raw{{"scheme", "butterfly"}, {"levels", "2"}, {"primitives", "auto"}};
+  // One level: no snaps between levels (their figure is checked at the end).
+  api::RawParams raw{{"scheme", "butterfly"}, {"levels", "1"}, {"primitives", "auto"}};
   const api::RefineRequest request = api::parse_refine_params(raw, {});
   const std::uint64_t surface =
       InputSurface::predict_bytes(mesh.num_vertices(), mesh.num_faces(), true);
@@ -756,8 +757,29 @@ TEST(PrimitivesMemory, RunRefineAsksBeforeTheSurface) {
     ADD_FAILURE() << "not refused";
   } catch (const MemoryBudgetError& e) {
     EXPECT_EQ(e.field(), "primitives");
-    EXPECT_EQ(e.level(), 2);
+    EXPECT_EQ(e.level(), 1);
   }
+  // Two levels: the snaps between them ask once more, refused as `primitives` at level 1.
+  raw = {{"scheme", "butterfly"}, {"levels", "2"}, {"primitives", "auto"}};
+  const api::RefineRequest two = api::parse_refine_params(raw, {});
+  std::vector<std::uint64_t> two_levels;
+  api::run_refine(body, two, {}, nullptr, [&](std::uint64_t b) {
+    two_levels.push_back(b);
+    return true;
+  });
+  std::size_t between = 0;
+  for (std::size_t k = 1; k < two_levels.size(); ++k) {
+    call = 0;
+    try {
+      api::run_refine(body, two, {}, nullptr, [&](std::uint64_t) { return call++ != k; });
+    } catch (const MemoryBudgetError& e) {
+      if (e.field() == "primitives" && e.level() == 1) {
+        ++between;
+        EXPECT_GE(e.needed_bytes(), stl.size() + surface);
+      }
+    }
+  }
+  EXPECT_EQ(between, 1u);
 }
 
 // Issue 17: the default pipeline (primitives=off, max_deviation=auto) keeps every vertex
