@@ -665,7 +665,8 @@ void relax_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guar
   // exactly). Even rings away from those (a scan's) keep their normals bit for bit: on a scan
   // almost no vertex is listed.
   auto movable = [&](VertexId v) {
-    return f.kind(v) == VertexKind::Smooth && guard[v.idx].one_sector && m.halfedge(v).valid();
+    return f.kind(v) == VertexKind::Smooth && guard[v.idx].one_sector && m.halfedge(v).valid() &&
+           !guard[v.idx].two_curves;
   };
   std::vector<std::uint8_t> marked(nv, 0);
   for (std::uint32_t i = 0; i < nv; ++i) {
@@ -849,6 +850,62 @@ void relax_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guar
     g.relaxed = dot(next[k], next[k]) > 0;
     if (!g.relaxed) g.normal = initial[k];
   }
+}
+
+// The unit tangent at p of the circle through a, p and b (of their line when straight).
+Vec3 middle_tangent(const Vec3& a, const Vec3& p, const Vec3& b) {
+  const Vec3 u = a - p, w = b - p;
+  return normalized(dot(u, u) * w - dot(w, w) * u);
+}
+
+bool two_curve_normal(const Mesh& m, VertexId v, const Vec3& face_sum, Vec3& normal) {
+  const Vec3 p = m.position(v);
+  constexpr int kMaxSpokes = 64;
+  std::array<Vec3, kMaxSpokes> spoke;
+  int n = 0;
+  bool too_many = false;
+  for_each_outgoing(m, v, [&](HalfedgeId h) {
+    n < kMaxSpokes ? void(spoke[n++] = m.position(m.to(h)) - p) : void(too_many = true);
+  });
+  if (too_many || n < 4) return false;
+  // The longest spoke, and the longest nearly opposite it (within 20 degrees).
+  int l0 = 0;
+  for (int i = 1; i < n; ++i)
+    if (dot(spoke[i], spoke[i]) > dot(spoke[l0], spoke[l0])) l0 = i;
+  int l1 = -1;
+  for (int i = 0; i < n; ++i)
+    if (i != l0 && dot(spoke[i], spoke[l0]) < -0.94 * norm(spoke[i]) * norm(spoke[l0]) &&
+        (l1 < 0 || dot(spoke[i], spoke[i]) > dot(spoke[l1], spoke[l1])))
+      l1 = i;
+  if (l1 < 0) return false;
+  const double short2 = std::min(dot(spoke[l0], spoke[l0]), dot(spoke[l1], spoke[l1])) /
+                        (kTwoCurvesRatio * kTwoCurvesRatio);
+  const Vec3 along = middle_tangent(spoke[l0] + p, p, spoke[l1] + p);
+  // On each side of the long spokes, the short spoke most across them.
+  const Vec3 side = cross(face_sum, along);
+  int w0 = -1, w1 = -1;
+  double best0 = 2, best1 = 2;
+  for (int i = 0; i < n; ++i) {
+    if (i == l0 || i == l1 || dot(spoke[i], spoke[i]) > short2) continue;
+    const double c = std::abs(dot(spoke[i], along)) / norm(spoke[i]);
+    if (dot(spoke[i], side) > 0 ? c < best0 : c < best1)
+      (dot(spoke[i], side) > 0 ? (best0 = c, w0 = i) : (best1 = c, w1 = i));
+  }
+  if (w0 < 0 || w1 < 0) return false;
+  normal = normalized(cross(along, middle_tangent(spoke[w0] + p, p, spoke[w1] + p)));
+  if (dot(normal, face_sum) < 0) normal = -normal;
+  return dot(normal, face_sum) >= kRuledTurnCosine;
+}
+
+void two_curve_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guard) {
+  parallel_for_each_index(m.num_vertices(), [&](std::size_t i) {
+    GuardVertex& g = guard[i];
+    const VertexId v(static_cast<std::uint32_t>(i));
+    Vec3 n;
+    if (g.one_sector && (g.spokes & GuardVertex::kUneven) && f.kind(v) == VertexKind::Smooth &&
+        two_curve_normal(m, v, g.normal, n))
+      g.normal = n, g.two_curves = 1, g.relaxed = 1;
+  });
 }
 
 // relax_sliver_normals: the sweeps at most, the change of a tilt (rad) below which a sweep

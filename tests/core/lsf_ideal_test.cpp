@@ -296,5 +296,38 @@ TEST(LsfIdeal, ZippedConeAndCylinderRefineBeyondTheSecondLevel) {
   }
 }
 
+// The plate's strip midpoints after a level (smooth vertices between two 152 mm halves and
+// short spokes across the strip): their normal across the two curves through them
+// (two_curve_normal: the strip's straight line and the arc across it) instead of face sums
+// and relaxed normals ~2 deg off. The second level's points on the short edges between two
+// such midpoints, against the truth, RMS, mean over seeds 1-3: 20 um before, 0.8 um here.
+TEST(LsfIdeal, PlateStripMidpointsSecondLevelPointsOnTheArc) {
+  double mean = 0;
+  for (const std::uint64_t seed : kSeeds) {
+    const CadShape shape = make_cad_shape(CadFamily::Plate, {seed, 1.0});
+    const Mesh input = to_mesh(shape.soup);
+    const Level coarse =
+        refine_level("lsf", Level{Mesh(input), detect_features(input, FeatureParams{})});
+    const Level fine = refine_level("lsf", coarse);
+    const Mesh& m = coarse.mesh;
+    double sum = 0;
+    int count = 0;
+    for (std::uint32_t e = 0; e < m.num_edges(); ++e) {
+      const HalfedgeId h = m.halfedge(EdgeId(e));
+      if (coarse.features.kind(m.from(h)) != VertexKind::Smooth ||
+          coarse.features.kind(m.to(h)) != VertexKind::Smooth ||
+          distance(m.position(m.from(h)), m.position(m.to(h))) > 50.0)
+        continue;
+      const Vec3 p = fine.mesh.position(VertexId(m.num_vertices() + e));
+      const double d = distance(p, shape.surface->closest_point(p).point);
+      sum += d * d;
+      ++count;
+    }
+    ASSERT_GT(count, 20) << "seed " << seed;
+    mean += std::sqrt(sum / count) / kSeeds.size();
+  }
+  EXPECT_LE(mean, 4e-3);  // mm
+}
+
 }  // namespace
 }  // namespace stlrefine
