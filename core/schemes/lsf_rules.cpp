@@ -156,6 +156,178 @@ Vec3 between_curves(const Mesh& m, const Features& f, VertexId v, VertexId w0, V
   return dot(n, normal) >= 0 ? n : -n;
 }
 
+// How far (cosine: 10 degrees) a strip's ruled normal (ruled_strip_normal) may turn from the
+// face sums before they are kept: a wall that is not ruled between its two curves.
+constexpr double kRuledTurnCosine = 0.984807753012208;
+// The longest sector ruled_strip_normal reads (faces).
+constexpr int kRuledMaxFaces = 64;
+// How far a ruled midpoint may lie from the Hermite midpoint, as a fraction of its offset.
+constexpr double kRuledSlack = 0.5;
+// How far a foot may lie from the other end's curve circle (ruled_midpoint), per unit of
+// their distance.
+constexpr double kRuledCircleTol = 1e-2;
+
+// The point of the polyline `chain` (curve vertices, in order) where (p - a) . t changes sign,
+// on the circle through the chord's ends and a neighbour (exact on arcs and lines); false when
+// it never does.
+bool foot_on_curve(const Mesh& m, std::span<const VertexId> chain, const Vec3& a, const Vec3& t,
+                   Vec3& foot) {
+  for (std::size_t i = 0; i + 1 < chain.size(); ++i) {
+    const Vec3 p0 = m.position(chain[i]), p1 = m.position(chain[i + 1]);
+    const double g0 = dot(p0 - a, t), g1 = dot(p1 - a, t);
+    if ((g0 > 0) == (g1 > 0) || g0 == g1) continue;
+    const Vec3 q = p0 + (g0 / (g0 - g1)) * (p1 - p0);
+    if (chain.size() < 3) return foot = q, true;
+    const Vec3 p2 = m.position(i > 0 ? chain[i - 1] : chain[i + 2]);
+    // The circle through p0, p1, p2 (centre relative to p0), as curve_tangent_towards.
+    const Vec3 u = p1 - p0, w = p2 - p0, n = cross(u, w);
+    const double n2 = dot(n, n);
+    if (!(n2 > 1e-24 * dot(u, u) * dot(w, w))) return foot = q, true;  // a line
+    const Vec3 centre = p0 + (1.0 / (2.0 * n2)) * cross(dot(u, u) * w - dot(w, w) * u, n);
+    foot = centre + distance(p0, centre) * normalized(q - centre);
+    return true;
+  }
+  return false;
+}
+
+// Whether the crease vertex v = from(first)'s sector (its extreme spokes `first` and `last`, as
+// sector_normal walks it) is a strip zipped between v's crease curve and another: every face's
+// far edge on the other curve, the first and last faces reaching it from v's own curve
+// neighbours by smooth edges (a zipped cylinder, cone or tube wall, an annulus, the plate's
+// long strips). Then sets `foot`, the point of the far curve straight across from v
+// (perpendicular to v's crease tangent, set in `tangent`), and returns true.
+bool ruled_foot(const Mesh& m, const Features& f, HalfedgeId first, HalfedgeId last, Vec3& foot,
+                Vec3& tangent) {
+  const VertexId v = m.from(first);
+  std::array<VertexId, kRuledMaxFaces + 2> chain;
+  std::size_t n = 1;  // chain[0]: a curve vertex before the far run, when there is one
+  for (HalfedgeId s = first;; s = ccw_within_patch(m, f, s)) {
+    if (!s.valid() || n == kRuledMaxFaces) return false;
+    const bool end = s == first || s == last;
+    if (f.is_sharp(m.edge(Mesh::next(s))) == end) return false;
+    if (s != first) chain[n++] = m.to(s);
+    if (s == last) break;
+  }
+  if (n < 2) return false;
+  for (std::size_t i = 1; i < n; ++i)
+    if (f.kind(chain[i]) < VertexKind::Crease) return false;
+  // One more curve vertex at each end (their neighbours along the far curve).
+  VertexId before, after;
+  if (n >= 3) {
+    before = f.curve_beyond(chain[1], chain[2]);
+    after = f.curve_beyond(chain[n - 1], chain[n - 2]);
+  } else if (f.kind(chain[1]) == VertexKind::Crease) {
+    before = f.curve_neighbours(chain[1])[0];
+    after = f.curve_neighbours(chain[1])[1];
+  }
+  std::size_t begin = 1;
+  if (before.valid()) chain[0] = before, begin = 0;
+  if (after.valid()) chain[n++] = after;
+  tangent = crease_tangent(m, f, v);
+  return dot(tangent, tangent) > 0 &&
+         foot_on_curve(m, std::span(chain).subspan(begin, n - begin), m.position(v), tangent, foot);
+}
+
+// The point at fraction w of the angle from p to q along the circle through p, q and `third`
+// (along the chord when they are nearly on a line).
+Vec3 arc_point(const Vec3& p, const Vec3& q, const Vec3& third, double w) {
+  const Vec3 u = q - p, x = third - p, n = cross(u, x);
+  const double n2 = dot(n, n);
+  if (!(n2 > 1e-24 * dot(u, u) * dot(x, x))) return p + w * u;
+  const Vec3 centre = p + (1.0 / (2.0 * n2)) * cross(dot(u, u) * x - dot(x, x) * u, n);
+  const Vec3 r0 = p - centre, r1 = q - centre;
+  const double angle = std::atan2(norm(cross(r0, r1)), dot(r0, r1));
+  if (!(std::sin(angle) > 1e-9)) return p + w * u;
+  return centre +
+         (1.0 / std::sin(angle)) * (std::sin((1.0 - w) * angle) * r0 + std::sin(w * angle) * r1);
+}
+
+// The distance of q from the circle through p0, p1 and p2 (from their line when they are nearly
+// on one).
+double circle_distance(const Vec3& p0, const Vec3& p1, const Vec3& p2, const Vec3& q) {
+  const Vec3 u = p1 - p0, x = p2 - p0, n = cross(u, x);
+  const double n2 = dot(n, n);
+  if (!(n2 > 1e-24 * dot(u, u) * dot(x, x))) {
+    const Vec3 d = normalized(x), r = q - p0;
+    return norm(r - dot(r, d) * d);
+  }
+  const Vec3 centre = p0 + (1.0 / (2.0 * n2)) * cross(dot(u, u) * x - dot(x, x) * u, n);
+  const Vec3 r = q - centre, axis = (1.0 / std::sqrt(n2)) * n;
+  const double off_plane = dot(r, axis);
+  const Vec3 in_plane = r - off_plane * axis;
+  return std::hypot(off_plane, norm(in_plane) - distance(p0, centre));
+}
+
+// The extreme spokes of the crease-bounded sector of from(h) that holds h.
+void sector_ends(const Mesh& m, const Features& f, HalfedgeId h, HalfedgeId& first,
+                 HalfedgeId& last) {
+  first = last = h;
+  for (HalfedgeId s = cw_within_patch(m, f, h); s.valid() && s != h; s = cw_within_patch(m, f, s))
+    first = s;
+  for (HalfedgeId s = ccw_within_patch(m, f, h); s.valid() && s != h; s = ccw_within_patch(m, f, s))
+    last = s;
+}
+
+// The point of smooth edge a -> b (ha) between two crease vertices whose sectors at the edge are
+// ruled strips (ruled_foot) between their two curves: the middle of the ruling halfway between
+// the edge's ends, from the arcs of each curve between its end of the edge and the other end's
+// foot. Exact on the walls of revolved and extruded profiles (a cone's: the Hermite midpoint of
+// its true normals is 3e-3 mm RMS off on issue 17's zipped cone, round 8). False when either
+// sector is not a strip.
+bool ruled_midpoint(const Mesh& m, const Features& f, HalfedgeId ha, Vec3& point) {
+  const VertexId va = m.from(ha), vb = m.to(ha);
+  if (f.kind(va) != VertexKind::Crease || f.kind(vb) != VertexKind::Crease) return false;
+  HalfedgeId first, last;
+  Vec3 foot_a, foot_b, t;
+  sector_ends(m, f, ha, first, last);
+  if (!ruled_foot(m, f, first, last, foot_a, t)) return false;
+  sector_ends(m, f, m.twin(ha), first, last);
+  if (!ruled_foot(m, f, first, last, foot_b, t)) return false;
+  // The third point of each curve's circle: the end's curve neighbour farther from the foot.
+  // Each foot must lie on the circle (or line) through the other end and its curve
+  // neighbours, which then gives the arc between them: a foot on another piece of the curve
+  // (the plate's outline, arc and flat meeting at an unmarked crease) makes no ruled midpoint.
+  auto third = [&](VertexId v, const Vec3& foot, Vec3& point) {
+    const auto& nb = f.curve_neighbours(v);
+    const Vec3 p = m.position(v), p0 = m.position(nb[0]), p1 = m.position(nb[1]);
+    point = dot(p0 - foot, p0 - foot) >= dot(p1 - foot, p1 - foot) ? p0 : p1;
+    return circle_distance(p0, p, p1, foot) <= kRuledCircleTol * distance(p, foot);
+  };
+  Vec3 third_a, third_b;
+  if (!third(va, foot_b, third_a) || !third(vb, foot_a, third_b)) return false;
+  // The ruling through the chord's midpoint: at fraction w of the way from a to b across the
+  // rulings (from the chords of the two arcs), at v along it.
+  const Vec3 a = m.position(va), b = m.position(vb), mid = 0.5 * (a + b);
+  const Vec3 across = (foot_b - a) + (b - foot_a);
+  const double across2 = dot(across, across);
+  if (!(across2 > 0)) return false;
+  const double w = std::clamp(dot(b - foot_a, across) / across2, 0.0, 1.0);
+  const Vec3 near = arc_point(a, foot_b, third_a, w);
+  const Vec3 far = arc_point(foot_a, b, third_b, w);
+  const Vec3 ruling = far - near;
+  const double ruling2 = dot(ruling, ruling);
+  if (!(ruling2 > 0)) return false;
+  point = near + std::clamp(dot(mid - near, ruling) / ruling2, 0.0, 1.0) * ruling;
+  return true;
+}
+
+// The normal of a ruled strip (ruled_foot) at v = from(first): its surface is taken as ruled
+// across the strip, so the normal is across both the crease tangent and the direction to the
+// foot. Exact on the walls of revolved and extruded profiles, where the face sums tilt across
+// the curve by the chords' sagittas over the strip's width (issue 17, round 8: 0.17-0.2 deg RMS
+// on the zipped cylinder and cone, which the long edges' Hermite midpoints multiply by their
+// length, and which chord-symmetry relaxation cannot see: a tilt of opposite signs at the two
+// curves meets it too). `fallback` (the face sums held across the curve) when the sector is not
+// such a strip or the ruled normal turns more than kRuledTurnCosine from it.
+Vec3 ruled_strip_normal(const Mesh& m, const Features& f, HalfedgeId first, HalfedgeId last,
+                        const Vec3& fallback) {
+  Vec3 foot, t;
+  if (!ruled_foot(m, f, first, last, foot, t)) return fallback;
+  Vec3 normal = normalized(cross(t, foot - m.position(m.from(first))));
+  if (dot(normal, fallback) < 0) normal = -normal;
+  return dot(normal, fallback) >= kRuledTurnCosine ? normal : fallback;
+}
+
 // The normal of from(h)'s faces within the crease-bounded sector that holds half-edge h: on
 // even rings weighted by the faces' angles at the vertex, on fans and zippers by their areas.
 // Unit, or zero when the sector has no direction.
@@ -198,7 +370,8 @@ Vec3 sector_normal(const Mesh& m, const Features& f, HalfedgeId h) {
   if (f.kind(m.from(h)) <= VertexKind::Dart && !(sum.flat && dot(sum.first, sum.first) > 0) &&
       (sum.spoke_flags() & GuardVertex::kNotEven) && dominant_plane(m, m.from(h), plane))
     return plane;
-  if (f.kind(m.from(h)) == VertexKind::Crease) return across_crease(m, f, m.from(h), sum.normal());
+  if (f.kind(m.from(h)) == VertexKind::Crease)
+    return ruled_strip_normal(m, f, first, last, across_crease(m, f, m.from(h), sum.normal()));
   if (f.kind(m.from(h)) == VertexKind::Corner && !s.valid())
     return between_curves(m, f, m.from(h), m.to(first), m.from(Mesh::prev(last)), sum.normal());
   return sum.normal();
@@ -492,7 +665,8 @@ void relax_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guar
   // exactly). Even rings away from those (a scan's) keep their normals bit for bit: on a scan
   // almost no vertex is listed.
   auto movable = [&](VertexId v) {
-    return f.kind(v) == VertexKind::Smooth && guard[v.idx].one_sector && m.halfedge(v).valid();
+    return f.kind(v) == VertexKind::Smooth && guard[v.idx].one_sector && m.halfedge(v).valid() &&
+           !guard[v.idx].two_curves;
   };
   std::vector<std::uint8_t> marked(nv, 0);
   for (std::uint32_t i = 0; i < nv; ++i) {
@@ -676,6 +850,62 @@ void relax_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guar
     g.relaxed = dot(next[k], next[k]) > 0;
     if (!g.relaxed) g.normal = initial[k];
   }
+}
+
+// The unit tangent at p of the circle through a, p and b (of their line when straight).
+Vec3 middle_tangent(const Vec3& a, const Vec3& p, const Vec3& b) {
+  const Vec3 u = a - p, w = b - p;
+  return normalized(dot(u, u) * w - dot(w, w) * u);
+}
+
+bool two_curve_normal(const Mesh& m, VertexId v, const Vec3& face_sum, Vec3& normal) {
+  const Vec3 p = m.position(v);
+  constexpr int kMaxSpokes = 64;
+  std::array<Vec3, kMaxSpokes> spoke;
+  int n = 0;
+  bool too_many = false;
+  for_each_outgoing(m, v, [&](HalfedgeId h) {
+    n < kMaxSpokes ? void(spoke[n++] = m.position(m.to(h)) - p) : void(too_many = true);
+  });
+  if (too_many || n < 4) return false;
+  // The longest spoke, and the longest nearly opposite it (within 20 degrees).
+  int l0 = 0;
+  for (int i = 1; i < n; ++i)
+    if (dot(spoke[i], spoke[i]) > dot(spoke[l0], spoke[l0])) l0 = i;
+  int l1 = -1;
+  for (int i = 0; i < n; ++i)
+    if (i != l0 && dot(spoke[i], spoke[l0]) < -0.94 * norm(spoke[i]) * norm(spoke[l0]) &&
+        (l1 < 0 || dot(spoke[i], spoke[i]) > dot(spoke[l1], spoke[l1])))
+      l1 = i;
+  if (l1 < 0) return false;
+  const double short2 = std::min(dot(spoke[l0], spoke[l0]), dot(spoke[l1], spoke[l1])) /
+                        (kTwoCurvesRatio * kTwoCurvesRatio);
+  const Vec3 along = middle_tangent(spoke[l0] + p, p, spoke[l1] + p);
+  // On each side of the long spokes, the short spoke most across them.
+  const Vec3 side = cross(face_sum, along);
+  int w0 = -1, w1 = -1;
+  double best0 = 2, best1 = 2;
+  for (int i = 0; i < n; ++i) {
+    if (i == l0 || i == l1 || dot(spoke[i], spoke[i]) > short2) continue;
+    const double c = std::abs(dot(spoke[i], along)) / norm(spoke[i]);
+    if (dot(spoke[i], side) > 0 ? c < best0 : c < best1)
+      (dot(spoke[i], side) > 0 ? (best0 = c, w0 = i) : (best1 = c, w1 = i));
+  }
+  if (w0 < 0 || w1 < 0) return false;
+  normal = normalized(cross(along, middle_tangent(spoke[w0] + p, p, spoke[w1] + p)));
+  if (dot(normal, face_sum) < 0) normal = -normal;
+  return dot(normal, face_sum) >= kRuledTurnCosine;
+}
+
+void two_curve_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guard) {
+  parallel_for_each_index(m.num_vertices(), [&](std::size_t i) {
+    GuardVertex& g = guard[i];
+    const VertexId v(static_cast<std::uint32_t>(i));
+    Vec3 n;
+    if (g.one_sector && (g.spokes & GuardVertex::kUneven) && f.kind(v) == VertexKind::Smooth &&
+        two_curve_normal(m, v, g.normal, n))
+      g.normal = n, g.two_curves = 1, g.relaxed = 1;
+  });
 }
 
 // relax_sliver_normals: the sweeps at most, the change of a tilt (rad) below which a sweep
@@ -866,16 +1096,22 @@ Vec3 guarded_edge_point(const GuardNormals& normal_of, EdgeId e, const Vec3& low
     return planar_end(m, f, ha, t, bends) && planar_end(m, f, hb, t, bends) && bends;
   };
   constexpr double kRatio2 = kPatchWidthRatio * kPatchWidthRatio;
+  const Vec3 na = normal_of(ha), nb = normal_of(hb);
+  const double length2 = dot(chord, chord);
+  const double length = std::sqrt(length2);
+  const Vec3 hermite = hermite_offset(chord, length, na, nb);
+  // A ruled strip's edge between its two curves: the ruled midpoint, unless it strays from the
+  // Hermite midpoint by more than kRuledSlack of its offset (then not a ruled wall).
+  if (Vec3 ruled; ruled_midpoint(m, f, ha, ruled)) {
+    const Vec3 off = ruled - mid - hermite;
+    if (dot(off, off) <= kRuledSlack * kRuledSlack * dot(hermite, hermite)) return ruled;
+  }
   // coplanar() first: no root, and false for almost every edge of a curved surface.
   if (((coplanar(t0, t1) && in_plane(t0, b, a, c1)) ||
        (w0 >= kRatio2 * w1 && in_planar_patch(m, ha, t0))) &&
       on_plane(t0))
     return mid;
   if (w1 >= kRatio2 * w0 && in_planar_patch(m, hb, t1) && on_plane(t1)) return mid;
-  const Vec3 na = normal_of(ha), nb = normal_of(hb);
-  const double length2 = dot(chord, chord);
-  const double length = std::sqrt(length2);
-  const Vec3 hermite = hermite_offset(chord, length, na, nb);
   const Vec3 da = lower_estimate - mid - hermite, db = upper_estimate - mid - hermite;
   const double hermite_length = norm(hermite);
   // The allowance besides the Hermite offset: 1e-3 of the chord, or of the narrower face's

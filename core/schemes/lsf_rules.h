@@ -105,6 +105,8 @@ struct alignas(32) GuardVertex {
   //! Its normal was relaxed by relax_normals (then the edge guard takes the Hermite midpoint
   //! between two such vertices).
   std::uint8_t relaxed = 0;
+  //! Its normal is the two-curve normal (two_curve_normal): relax_normals leaves it.
+  std::uint8_t two_curves = 0;
 };
 
 //! Crease vertices' sector normals that replace sector_normal (relax_sliver_normals), per
@@ -188,9 +190,25 @@ inline constexpr int kRelaxRounds = 100;
 void relax_sliver_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guard,
                           SectorNormals& sectors);
 
-//! The guard normals LsfStencil uses: relax_normals, then relax_sliver_normals.
+//! At a smooth vertex v whose ring is a sliver's midpoint (two long spokes, nearly opposite,
+//! kTwoCurvesRatio times longer than every other): the normal across the tangents at v of the
+//! circle through the long spokes' ends and of the circle through the two short neighbours
+//! most across them, one on each side (issue 17, round 8: the plate's strip midpoints after a
+//! level, whose face sums and relaxed normals were ~2 deg off). Both curves lie on the surface,
+//! so its normal is across both: exact on extrusions of circles. Writes `normal` (unit, on
+//! the side of `face_sum`) and returns true, unless the ring is not such a midpoint or the
+//! normal turns more than 10 degrees from face_sum.
+bool two_curve_normal(const Mesh& m, VertexId v, const Vec3& face_sum, Vec3& normal);
+inline constexpr double kTwoCurvesRatio = 4.0;
+
+//! Sets every smooth one-sector vertex's guard normal to its two_curve_normal where it has one
+//! (rings that are not even, GuardVertex::kUneven), marked two_curves and relaxed (trusted).
+void two_curve_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guard);
+
+//! The guard normals LsfStencil uses: two_curve_normals, relax_normals, relax_sliver_normals.
 inline void relax_guard_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guard,
                                 SectorNormals& sectors) {
+  two_curve_normals(m, f, guard);
   relax_normals(m, f, guard, kRelaxRounds);
   relax_sliver_normals(m, f, guard, sectors);
 }
