@@ -22,6 +22,7 @@ class ButterflyStencil final : public Split4Stencil {
   explicit ButterflyStencil(Extraordinary rule = Extraordinary::Zorin);
   void edge_points(const Level& coarse, std::span<Vec3> out) const override;
   bool interpolating() const override { return true; }
+  bool checks_against_normals() const override { return true; }
 
   //! Weight s_j of ring vertex j (offset from the edge's other end) in the rule around an
   //! extraordinary vertex of valence k; the centre weighs 3/4 and sum_j s_j = 1/4.
