@@ -247,7 +247,7 @@ std::uint64_t check_edge_points_bytes(const Mesh& m) {
 }
 
 std::size_t check_edge_points_against_normals(const Mesh& m, const Features& features,
-                                              BigVector<Vec3>& pos,
+                                              std::span<Vec3> edge_points,
                                               const NormalCheckParams& params) {
   params.validate();
   const std::uint32_t nv = static_cast<std::uint32_t>(m.num_vertices());
@@ -258,12 +258,14 @@ std::size_t check_edge_points_against_normals(const Mesh& m, const Features& fea
     const VertexId v(static_cast<std::uint32_t>(i));
     if (m.is_isolated(v)) return;
     double shortest = std::numeric_limits<double>::infinity(), longest = 0;
+    const Vec3 p = m.position(v);
     for_each_outgoing(m, v, [&](HalfedgeId s) {
-      const double l = distance(m.position(v), m.position(m.to(s)));
-      shortest = std::min(shortest, l);
-      longest = std::max(longest, l);
+      const Vec3 d = m.position(m.to(s)) - p;
+      const double l2 = dot(d, d);  // squared
+      shortest = std::min(shortest, l2);
+      longest = std::max(longest, l2);
     });
-    uneven[i] = longest >= params.uneven_spokes * shortest;
+    uneven[i] = longest >= (params.uneven_spokes * params.uneven_spokes) * shortest;
   });
   std::vector<std::uint8_t> moved(m.num_edges(), 0);
   parallel_for_each_index(m.num_edges(), [&](std::size_t e) {
@@ -282,7 +284,7 @@ std::size_t check_edge_points_against_normals(const Mesh& m, const Features& fea
     if (!(length > 0)) return;
     const Vec3 offset = hermite_midpoint_offset(b - a, length, na, nb);
     const Vec3 hermite = 0.5 * (a + b) + offset;
-    Vec3& q = pos[nv + e];
+    Vec3& q = edge_points[e];
     // What the normals cannot resolve: a fraction of the narrower face's height across the
     // edge (a 305 mm sliver's length would allow ten times the sagitta of its arc).
     const Vec3 c = m.position(m.opposite(h)), d = m.position(m.opposite(m.twin(h)));
@@ -486,9 +488,8 @@ std::uint64_t split4_step_bytes(const Level& coarse, const Split4Stencil& stenci
   // none, its work arrays, the plane rule's, and the fine level's smooth normals (12 per
   // coarse face) unless this is the last step.
   if (stencil.guards_folds())
-    bytes += ne + nf + guard_folds_normal_bytes(m) +
-             (stencil.checks_against_normals() ? check_edge_points_bytes(m) : 0) +
-             guard_folds_work_bytes(m) + keep_dominant_planes_bytes(m) +
+    bytes += ne + nf + guard_folds_normal_bytes(m) + guard_folds_work_bytes(m) +
+             keep_dominant_planes_bytes(m) +
              (coarse.pass_smooth_normals ? big_vector_bytes<Vec3>(12 * nf) : 0);
   return bytes;
 }
@@ -510,9 +511,6 @@ Level split4(const Level& coarse, const Split4Stencil& stencil, StepStats& stats
     const bool carried = coarse.smooth_normals.size() == 3 * std::size_t(m.num_faces());
     if (!carried) estimated = sector_normals(m, coarse.features);
     const BigVector<Vec3>& corner = carried ? coarse.smooth_normals : estimated;
-    if (stencil.checks_against_normals()) {
-      check_edge_points_against_normals(m, coarse.features, positions);
-    }
     keep_dominant_planes(m, coarse.features, positions);
     stats.fold_fallbacks += guard_folds(m, coarse.features, corner, positions);
     if (coarse.pass_smooth_normals) fine_normals = split4_smooth_normals(m, corner);

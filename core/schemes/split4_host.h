@@ -24,8 +24,8 @@ class Split4Stencil {
   //! Whether the host runs its fold guard after this stencil: interpolating stencils by
   //! default; butterfly-g1 (which moves a few later-level vertices) asks for it too.
   virtual bool guards_folds() const { return interpolating(); }
-  //! Whether the host checks this stencil's smooth edge points against the Hermite midpoints
-  //! of the surface's normals before its fold guard (check_edge_points_against_normals).
+  //! Whether this stencil checks its smooth edge points against the Hermite midpoints of the
+  //! surface's normals (check_edge_points_against_normals, within the default scratch_bytes).
   virtual bool checks_against_normals() const { return false; }
   //! Whether points() reads the level's irregular vertices (the spectral stencils): the
   //! host then finds them once and carries them to the next level.
@@ -123,7 +123,9 @@ struct NormalCheckParams {
   void validate() const;
 };
 
-//! Normal check (issue 17 item 3), ours, run before the plane rule and the fold guard. The
+//! Normal check (issue 17 item 3), ours: the butterfly stencil runs it on its edge points
+//! (indexed by EdgeId), so every host (split4, the adaptive ones) has it before its plane rule
+//! and fold guard. The
 //! butterfly's weights assume a lattice; on CAD tessellations (fans, zipped slivers, hull
 //! rings of uneven spokes) its point is off the surface by about the input's own chordal
 //! error, and the fold guard's flat midpoint keeps that error. So the point of a smooth
@@ -133,7 +135,7 @@ struct NormalCheckParams {
 //! slack |H - mid| + width_fraction (the narrower face's height). On a plane H is the midpoint
 //! and the stencil's point is on the plane: nothing moves. Returns how many moved.
 std::size_t check_edge_points_against_normals(const Mesh& coarse, const Features& features,
-                                              BigVector<Vec3>& positions,
+                                              std::span<Vec3> edge_points,
                                               const NormalCheckParams& params = {});
 
 //! What check_edge_points_against_normals allocates (a flag per vertex and per edge).
