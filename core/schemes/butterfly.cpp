@@ -7,6 +7,7 @@
 
 #include "core/parallel.h"
 #include "core/schemes/crease_rules.h"
+#include "core/schemes/split4_host.h"
 
 namespace stlrefine {
 
@@ -17,7 +18,8 @@ double ButterflyStencil::extraordinary_weight(int k, int j) {
   return (0.25 + std::cos(t) + 0.5 * std::cos(2.0 * t)) / k;
 }
 
-ButterflyStencil::ButterflyStencil(Extraordinary rule) : rule_(rule), weights_(kCachedValences) {
+ButterflyStencil::ButterflyStencil(Extraordinary rule, bool check_normals)
+    : rule_(rule), check_normals_(check_normals), weights_(kCachedValences) {
   for (int k = 3; k < kCachedValences; ++k) {
     weights_[k].resize(k);
     for (int j = 0; j < k; ++j) weights_[k][j] = extraordinary_weight(k, j);
@@ -109,6 +111,9 @@ void ButterflyStencil::edge_points(const Level& coarse, std::span<Vec3> out) con
       out[e] = eight_point(m, f, h);
     }
   });
+  // Ours (issue 17): Zorin's rule at uneven rings checked against the surface's normals. The
+  // original butterfly (butterfly-g1's base) stays the paper's.
+  if (checks_against_normals()) check_edge_points_against_normals(m, f, out);
 }
 
 }  // namespace stlrefine

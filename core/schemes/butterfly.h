@@ -19,9 +19,14 @@ class ButterflyStencil final : public Split4Stencil {
   //! original butterfly (w = 1/16) at every vertex, the base of Prautzsch and Umlauf's G1
   //! butterfly (spec 6).
   enum class Extraordinary { Zorin, EightPoint };
-  explicit ButterflyStencil(Extraordinary rule = Extraordinary::Zorin);
+  //! `check_normals`: run check_edge_points_against_normals (split4_host.h) on the Zorin
+  //! rule's points (off: the paper's stencil alone, for tests).
+  explicit ButterflyStencil(Extraordinary rule = Extraordinary::Zorin, bool check_normals = true);
   void edge_points(const Level& coarse, std::span<Vec3> out) const override;
   bool interpolating() const override { return true; }
+  bool checks_against_normals() const override {
+    return check_normals_ && rule_ == Extraordinary::Zorin;
+  }
 
   //! Weight s_j of ring vertex j (offset from the edge's other end) in the rule around an
   //! extraordinary vertex of valence k; the centre weighs 3/4 and sum_j s_j = 1/4.
@@ -33,6 +38,7 @@ class ButterflyStencil final : public Split4Stencil {
   //! Rows of s_j for valences below kCachedValences; larger ones are computed on the fly.
   static constexpr int kCachedValences = 64;
   Extraordinary rule_;
+  bool check_normals_;
   std::vector<std::vector<double>> weights_;
 };
 

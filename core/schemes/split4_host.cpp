@@ -5,12 +5,16 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <numbers>
+#include <stdexcept>
 
+#include "core/geometry/hermite.h"
 #include "core/parallel.h"
 #include "core/refine.h"
 #include "core/schemes/crease_rules.h"
 #include "core/schemes/dominant_planes.h"
+#include "core/schemes/lsf_rules.h"
 
 namespace stlrefine {
 
@@ -225,6 +229,69 @@ std::size_t keep_dominant_planes(const Mesh& m, const Features& features, BigVec
     Vec3& q = pos[nv + e];
     if (planes.on_plane(held, q, planes.plane[held].size)) return;
     q = planes.project(held, q);
+    moved[e] = 1;
+  });
+  return static_cast<std::size_t>(std::count(moved.begin(), moved.end(), 1));
+}
+
+void NormalCheckParams::validate() const {
+  if (!(slack >= 0 && slack <= 4)) throw std::invalid_argument("normal check slack outside [0, 4]");
+  if (!(width_fraction >= 0 && width_fraction <= 0.1))
+    throw std::invalid_argument("normal check width fraction outside [0, 0.1]");
+  if (!(uneven_spokes >= 1 && uneven_spokes <= 1000))
+    throw std::invalid_argument("normal check spoke ratio outside [1, 1000]");
+}
+
+std::uint64_t check_edge_points_bytes(const Mesh& m) {
+  return std::uint64_t(m.num_vertices()) + m.num_edges();
+}
+
+std::size_t check_edge_points_against_normals(const Mesh& m, const Features& features,
+                                              std::span<Vec3> edge_points,
+                                              const NormalCheckParams& params) {
+  params.validate();
+  const std::uint32_t nv = static_cast<std::uint32_t>(m.num_vertices());
+  // Where the butterfly's lattice assumption fails: a vertex whose longest spoke is at least
+  // uneven_spokes times its shortest (a fan, a zipper, a sliver's end, a hull's uneven ring).
+  std::vector<std::uint8_t> uneven(nv, 0);
+  parallel_for_each_index(nv, [&](std::size_t i) {
+    const VertexId v(static_cast<std::uint32_t>(i));
+    if (m.is_isolated(v)) return;
+    double shortest = std::numeric_limits<double>::infinity(), longest = 0;
+    const Vec3 p = m.position(v);
+    for_each_outgoing(m, v, [&](HalfedgeId s) {
+      const Vec3 d = m.position(m.to(s)) - p;
+      const double l2 = dot(d, d);  // squared
+      shortest = std::min(shortest, l2);
+      longest = std::max(longest, l2);
+    });
+    uneven[i] = longest >= (params.uneven_spokes * params.uneven_spokes) * shortest;
+  });
+  std::vector<std::uint8_t> moved(m.num_edges(), 0);
+  parallel_for_each_index(m.num_edges(), [&](std::size_t e) {
+    const EdgeId edge(static_cast<std::uint32_t>(e));
+    if (features.is_sharp(edge) || m.is_boundary(edge)) return;
+    const HalfedgeId h = m.halfedge(edge);
+    if (!uneven[m.from(h).idx] && !uneven[m.to(h).idx]) return;
+    // lsf's guard normals (sector normals of area- and angle-weighted faces, a dominant
+    // plane's where one rules the ring), at each end within the sector of h's face.
+    const Vec3 na = lsf::sector_normal(m, features, h);
+    const Vec3 nb = lsf::sector_normal(m, features, Mesh::next(h));
+    const Vec3 n = normalized(na + nb);
+    if (dot(n, n) == 0) return;
+    const Vec3 a = m.position(m.from(h)), b = m.position(m.to(h));
+    const double length = distance(a, b);
+    if (!(length > 0)) return;
+    const Vec3 offset = hermite_midpoint_offset(b - a, length, na, nb);
+    const Vec3 hermite = 0.5 * (a + b) + offset;
+    Vec3& q = edge_points[e];
+    // What the normals cannot resolve: a fraction of the narrower face's height across the
+    // edge (a 305 mm sliver's length would allow ten times the sagitta of its arc).
+    const Vec3 c = m.position(m.opposite(h)), d = m.position(m.opposite(m.twin(h)));
+    const double width = std::min(norm(cross(b - a, c - a)), norm(cross(b - a, d - a))) / length;
+    const double allowed = params.slack * norm(offset) + params.width_fraction * width;
+    if (std::abs(dot(q - hermite, n)) <= allowed) return;
+    q = hermite;
     moved[e] = 1;
   });
   return static_cast<std::size_t>(std::count(moved.begin(), moved.end(), 1));

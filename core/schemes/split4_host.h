@@ -24,6 +24,9 @@ class Split4Stencil {
   //! Whether the host runs its fold guard after this stencil: interpolating stencils by
   //! default; butterfly-g1 (which moves a few later-level vertices) asks for it too.
   virtual bool guards_folds() const { return interpolating(); }
+  //! Whether this stencil checks its smooth edge points against the Hermite midpoints of the
+  //! surface's normals (check_edge_points_against_normals, within the default scratch_bytes).
+  virtual bool checks_against_normals() const { return false; }
   //! Whether points() reads the level's irregular vertices (the spectral stencils): the
   //! host then finds them once and carries them to the next level.
   virtual bool uses_irregular() const { return false; }
@@ -103,6 +106,40 @@ BigVector<Vec3> split4_smooth_normals(const Mesh& coarse, const BigVector<Vec3>&
 //! the stencil's point is on it already and nothing moves. Returns how many moved.
 std::size_t keep_dominant_planes(const Mesh& coarse, const Features& features,
                                  BigVector<Vec3>& positions);
+
+//! The check of smooth edge points against the surface's normals (issue 17 item 3).
+struct NormalCheckParams {
+  //! How far (in the normal direction) an edge point may be from the Hermite midpoint of its
+  //! edge, as a fraction of that midpoint's own offset from the chord, [0, 4].
+  double slack = 0.25;
+  //! Plus this fraction of the narrower face's height across the edge, [0, 0.1]: what the
+  //! normals cannot resolve.
+  double width_fraction = 1e-3;
+  //! Only edges with an end whose longest spoke is at least this many times its shortest are
+  //! checked, [1, 1000]: the butterfly's lattice weights are the paper's elsewhere. 3 is lsf's
+  //! kEvenSpokes (a fan or a zipper).
+  double uneven_spokes = 3.0;
+  //! \throw std::invalid_argument when a value is outside its range.
+  void validate() const;
+};
+
+//! Normal check (issue 17 item 3), ours: the butterfly stencil runs it on its edge points
+//! (indexed by EdgeId), so every host (split4, the adaptive ones) has it before its plane rule
+//! and fold guard. The
+//! butterfly's weights assume a lattice; on CAD tessellations (fans, zipped slivers, hull
+//! rings of uneven spokes) its point is off the surface by about the input's own chordal
+//! error, and the fold guard's flat midpoint keeps that error. So the point of a smooth
+//! interior edge a-b with an uneven end (NormalCheckParams::uneven_spokes) becomes the edge's
+//! Hermite midpoint H (hermite_midpoint_offset from lsf's guard normals at a and b on this
+//! level: exact on circular arcs) when it is farther from H along their mean normal than
+//! slack |H - mid| + width_fraction (the narrower face's height). On a plane H is the midpoint
+//! and the stencil's point is on the plane: nothing moves. Returns how many moved.
+std::size_t check_edge_points_against_normals(const Mesh& coarse, const Features& features,
+                                              std::span<Vec3> edge_points,
+                                              const NormalCheckParams& params = {});
+
+//! What check_edge_points_against_normals allocates (a flag per vertex and per edge).
+std::uint64_t check_edge_points_bytes(const Mesh& coarse);
 
 //! What keep_dominant_planes allocates (a plane per face, a flag per corner and per edge).
 std::uint64_t keep_dominant_planes_bytes(const Mesh& coarse);

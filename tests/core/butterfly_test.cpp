@@ -12,6 +12,7 @@
 #include <numbers>
 
 #include "core/mesh/mesh_stats.h"
+#include "core/schemes/split4_host.h"
 #include "tests/core/reference_cases.h"
 #include "tests/core/test_util.h"
 #include "tests/support/mesh_queries.h"
@@ -519,8 +520,11 @@ TEST(ButterflyScheme, AffineInvariance) {
   };
   // The rules are affine invariant; the fold guard, which measures angles (60 degrees from
   // the smooth normals), is not: the shapes are ones it leaves alone before and after the map
-  // (bumpy_grid_soup(6, 0.2), made three times steeper by it, is not).
-  for (const auto& soup : {icosphere_soup(1), torus_soup(8, 6, 3, 1), fan_soup(7, 0.4),
+  // (bumpy_grid_soup(6, 0.2), made three times steeper by it, is not). Nor is the normal
+  // check, which measures spokes and normals: this torus's longest spoke is at most 1.8 times
+  // its shortest, 2.7 after the map (split once: the same), under the check's 3
+  // (torus_soup(8, 6, 3, 1): 3.06 and 3.96, a zipper by that measure, is checked).
+  for (const auto& soup : {icosphere_soup(1), torus_soup(12, 5, 4, 1.5), fan_soup(7, 0.4),
                            bipyramid_soup(5), octahedron_soup()}) {
     IndexedSoup moved = soup;
     for (Vec3& p : moved.positions) p = A(p);
@@ -552,10 +556,12 @@ TEST(ButterflyScheme, FoldGuardOnLongThinCylinder) {
   // (Since the guard holds 45 degrees from the carried smooth normals its levels are
   // flatter and the raw rule folds on fewer of them: 8 segments at h = 100 only among the
   // four shapes this test had, hence 10 and 16 segments and h = 50.)
+  // (The normal check moves the sides' points first and the raw rule folds on fewer of the
+  // later levels: 12 segments and h = 200 added to keep four folding configurations.)
   std::size_t raw_folds = 0;
   for (double angle : {180.0, 35.0}) {
-    for (int segments : {8, 10, 16, 24}) {
-      for (double height : {50.0, 100.0, 300.0}) {
+    for (int segments : {8, 10, 12, 16, 24}) {
+      for (double height : {50.0, 100.0, 200.0, 300.0}) {
         Level level = make_level(to_mesh(cylinder_soup(segments, 10, height)), angle);
         for (int l = 1; l <= 3; ++l) {
           const ReferenceStep raw = reference_butterfly_step(level);
@@ -569,7 +575,13 @@ TEST(ButterflyScheme, FoldGuardOnLongThinCylinder) {
           EXPECT_GE(cos, 0.0) << where << ": a child turned more than 90 degrees";
           if (raw_cos < 0) {
             ++raw_folds;
-            EXPECT_GT(stats.fold_fallbacks, 0u) << where << ": the raw rule folds";
+            // The normal check (at the side's slivers, uneven rings) may have moved the
+            // folding points before the guard saw them.
+            std::vector<Vec3> checked(raw.positions.begin() + level.mesh.num_vertices(),
+                                      raw.positions.end());
+            const std::size_t moved =
+                check_edge_points_against_normals(level.mesh, level.features, checked);
+            EXPECT_GT(stats.fold_fallbacks + moved, 0u) << where << ": the raw rule folds";
           } else if (angle < 180) {
             // With creases off the rims are smoothed, and rim children turn more than 60
             // degrees from the smooth normals there: the guard acts without a raw fold.
