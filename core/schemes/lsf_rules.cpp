@@ -11,6 +11,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "core/geometry/hermite.h"
 #include "core/parallel.h"
 #include "core/schemes/crease_rules.h"
 
@@ -519,27 +520,6 @@ constexpr double kSliverAspect = 30.0;
 // their chords, and the cosine of the screening angle (45 degrees) against the parent face.
 constexpr int kFoldRounds = 6;
 constexpr double kScreenCosine = 0.7071067811865476;
-
-// The midpoint of the cubic Hermite curve from a to b whose tangents are the chord projected
-// onto the tangent planes of n_a and n_b, scaled to the chord's length, relative to the
-// chord midpoint: (T_a - T_b) / 8. Zero when a normal has no direction or lies along the
-// chord (nothing to say).
-[[gnu::always_inline]] inline Vec3 hermite_offset(const Vec3& chord, double length, const Vec3& na,
-                                                  const Vec3& nb) {
-  if (!(length > 0)) return {};
-  const Vec3 ta = chord - dot(chord, na) * na, tb = chord - dot(chord, nb) * nb;
-  const double la2 = dot(ta, ta), lb2 = dot(tb, tb), min2 = 0.01 * (length * length);
-  if (!(la2 > min2) || !(lb2 > min2)) return {};
-  // The cubic Hermite midpoint's offset (length / 8) d, with |d| = 2 sin(alpha) for the angle
-  // alpha between the chord and each end's tangent on a circular arc, whose sagitta is
-  // (length / 2) tan(alpha / 2): divided by cos^2(alpha / 2) it is exact on every circular arc
-  // (a sphere's or a cylinder's cross-section: issue 17's rounded box corners were 0.01-0.04 mm
-  // inside their sphere on 3 mm chords) and the same to third order elsewhere.
-  const Vec3 d = (1.0 / std::sqrt(la2)) * ta - (1.0 / std::sqrt(lb2)) * tb;
-  const double sin2 = std::min(0.25 * dot(d, d), 1.0);
-  const double cos2_half = 0.5 * (1.0 + std::sqrt(1.0 - sin2));
-  return (length / (8.0 * cos2_half)) * d;
-}
 
 // Whether triangle (p, q, r) turns more than 60 degrees from the unit normal n (a degenerate
 // one does not count).
@@ -1099,7 +1079,7 @@ Vec3 guarded_edge_point(const GuardNormals& normal_of, EdgeId e, const Vec3& low
   const Vec3 na = normal_of(ha), nb = normal_of(hb);
   const double length2 = dot(chord, chord);
   const double length = std::sqrt(length2);
-  const Vec3 hermite = hermite_offset(chord, length, na, nb);
+  const Vec3 hermite = hermite_midpoint_offset(chord, length, na, nb);
   // A ruled strip's edge between its two curves: the ruled midpoint, unless it strays from the
   // Hermite midpoint by more than kRuledSlack of its offset (then not a ruled wall).
   if (Vec3 ruled; ruled_midpoint(m, f, ha, ruled)) {
