@@ -148,11 +148,12 @@ RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRe
   if (snap_levels)
     between_levels = [&](Mesh& level_mesh, const Features& level_features, int level) {
       if (!snap_levels) return;
+      // refine's own figure, as refine_grow takes it (the catch below adds the body and the
+      // surface to a refusal's figure once).
       const std::uint64_t need =
-          bytes.size() + surface_bytes + mesh_bytes(level_mesh) +
-          3 * sizeof(Vec3) * std::uint64_t{level_mesh.num_vertices()} +
+          mesh_bytes(level_mesh) + 3 * sizeof(Vec3) * std::uint64_t{level_mesh.num_vertices()} +
           primitives::InputSurface::predict_apply_bytes(level_mesh.num_vertices());
-      if (grow && !grow(need)) throw MemoryBudgetError("primitives", level, need);
+      if (refine_grow && !refine_grow(need)) throw MemoryBudgetError("primitives", level, need);
       primitives::PostPassParams pp;
       pp.refined_features = &level_features;
       pp.max_deviation = 0;  // snaps only
