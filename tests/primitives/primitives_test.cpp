@@ -1062,3 +1062,42 @@ TEST(PrimitivesMeasure, DISABLED_TurnedByTheBound) {
 }
 }  // namespace
 }  // namespace stlrefine::primitives
+
+// Where faces turn when each level is held to the bound before the next (FAM, SEED, STEPS,
+// SCHEME): faces > 60 degrees from the truth after each step, before and after its pass.
+namespace stlrefine::primitives {
+namespace {
+TEST(PrimitivesMeasure, DISABLED_TurnedPerLevel) {
+  const char* fam = std::getenv("FAM");
+  const std::uint64_t seed = std::getenv("SEED") ? std::stoull(std::getenv("SEED")) : 9000;
+  const int steps = std::getenv("STEPS") ? std::stoi(std::getenv("STEPS")) : 6;
+  CadFamily family = CadFamily::Sphere;
+  for (CadFamily f : test::cad_families())
+    if (fam && test::cad_family_name(f) == fam) family = f;
+  const test::CadShape shape = test::make_cad_shape(family, {seed, 1.0});
+  Mesh input = build_mesh(shape.soup).mesh;
+  for (Vec3& p : input.mutable_positions())
+    p = {double(float(p.x)), double(float(p.y)), double(float(p.z))};
+  RefineParams params;
+  params.scheme = std::getenv("SCHEME") ? std::getenv("SCHEME") : "sqrt3-interp";
+  params.levels = steps;
+  const Features features = detect_features(input, params.features);
+  const InputSurface surface(input, features, nullptr);
+  PostPassParams pp;
+  pp.snap = false;
+  auto pass = [&](Mesh& m, const Features& f, int level) {
+    const std::size_t before = test::faces_off_truth(m, *shape.surface, 60);
+    pp.refined_features = &f;
+    const PostPassReport r = surface.apply(m, pp);
+    std::printf(
+        "step %d: > 60 before %zu after %zu; past bound %zu pulled %zu unturned-left ?"
+        " worst vs input %.1f\n",
+        level, before, test::faces_off_truth(m, *shape.surface, 60), r.past_bound, r.pulled_back,
+        r.worst_normal_change_deg);
+  };
+  const auto scheme = make_scheme(params);
+  RefineResult out = refine(input, *scheme, params, {}, nullptr, {}, {}, pass);
+  pass(out.mesh, out.features, steps);
+}
+}  // namespace
+}  // namespace stlrefine::primitives
