@@ -138,8 +138,8 @@ RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRe
     };
   // With recognised primitives, each level's new vertices go onto them before the next
   // level is made from it (snapping the last level only, its points are made from points
-  // off the surfaces: the snaps then scatter neighbours of a sliver apart and turn it). The
-  // deviation bound is applied once, after the last level, as without primitives.
+  // off the surfaces: the snaps then scatter neighbours of a sliver apart and turn it). With
+  // snaps, the deviation bound is applied once, after the last level.
   // Snaps that turn a face more than 60 degrees are taken back as a whole, and the levels
   // after are left alone (as the last level's post-pass does, apply_guarded).
   // Without snaps, an interpolating scheme's levels are held to the deviation bound before
