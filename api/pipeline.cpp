@@ -138,21 +138,30 @@ RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRe
     };
   // With recognised primitives, each level's new vertices go onto them before the next
   // level is made from it (snapping the last level only, its points are made from points
-  // off the surfaces: the snaps then scatter neighbours of a sliver apart and turn it). The
-  // deviation bound is applied once, after the last level, as without primitives.
+  // off the surfaces: the snaps then scatter neighbours of a sliver apart and turn it). With
+  // snaps, the deviation bound is applied once, after the last level.
   // Snaps that turn a face more than 60 degrees are taken back as a whole, and the levels
   // after are left alone (as the last level's post-pass does, apply_guarded).
+  // Without snaps, an interpolating scheme's levels are held to the deviation bound before
+  // the next is made from them: pulled after the last level only, sqrt3's later slivers,
+  // made off the bound, were turned 60-90 degrees around the fixed input vertices (issue 17
+  // item 2: fans of slivers within 0.05-0.6 mm of an input vertex, a move that cannot be
+  // affine over them); made from the pulled surface, they need little or no pull.
   BetweenLevelsFn between_levels;
   bool snap_levels = surface && regions && !regions->regions.empty() && scheme.interpolating() &&
                      !request.refine.adaptive();
+  const bool pull_levels = surface && !snap_levels && scheme.interpolating() &&
+                           !request.refine.adaptive() && prim.max_deviation != 0.0;
+  // refine's own figure for a level's pass, as refine_grow takes it (the catch below adds the
+  // body and the surface to a refusal's figure once).
+  auto level_need = [](const Mesh& level_mesh) {
+    return mesh_bytes(level_mesh) + 3 * sizeof(Vec3) * std::uint64_t{level_mesh.num_vertices()} +
+           primitives::InputSurface::predict_apply_bytes(level_mesh.num_vertices());
+  };
   if (snap_levels)
     between_levels = [&](Mesh& level_mesh, const Features& level_features, int level) {
       if (!snap_levels) return;
-      // refine's own figure, as refine_grow takes it (the catch below adds the body and the
-      // surface to a refusal's figure once).
-      const std::uint64_t need =
-          mesh_bytes(level_mesh) + 3 * sizeof(Vec3) * std::uint64_t{level_mesh.num_vertices()} +
-          primitives::InputSurface::predict_apply_bytes(level_mesh.num_vertices());
+      const std::uint64_t need = level_need(level_mesh);
       if (refine_grow && !refine_grow(need)) throw MemoryBudgetError("primitives", level, need);
       primitives::PostPassParams pp;
       pp.refined_features = &level_features;
@@ -163,6 +172,17 @@ RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRe
         level_mesh.mutable_positions() = std::move(made);
         snap_levels = false;
       }
+    };
+  else if (pull_levels)
+    between_levels = [&](Mesh& level_mesh, const Features& level_features, int level) {
+      const std::uint64_t need = level_need(level_mesh);
+      if (refine_grow && !refine_grow(need)) throw MemoryBudgetError("primitives", level, need);
+      const CancelScope cancel_scope(cancel);
+      primitives::PostPassParams pp;
+      pp.refined_features = &level_features;
+      pp.snap = false;
+      pp.max_deviation = prim.max_deviation;
+      surface->apply(level_mesh, pp);
     };
   // The input mesh is not needed afterwards (the report only uses counters): move it in.
   RefineResult refined = [&] {
