@@ -6,14 +6,17 @@
 #include <array>
 #include <atomic>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <vector>
 
 #include "core/error.h"
+#include "core/geometry/pn_centroid.h"
 #include "core/parallel.h"
 #include "core/refine.h"
 #include "core/schemes/crease_rules.h"
 #include "core/schemes/dominant_planes.h"
+#include "core/schemes/lsf_rules.h"
 #include "core/schemes/split4_host.h"
 #include "core/schemes/sqrt3_guard_stage.h"
 
@@ -472,6 +475,143 @@ std::size_t keep_dominant_planes(const Mesh& m, const Features& features, const 
   return moved.load();
 }
 
+// The smooth surface's normals at the corners of the input level, for the normal check and
+// the fold guard (carried to later steps): lsf's guard normals, as LsfStencil makes them
+// (lsf::sector_normal per one-sector vertex, then lsf::relax_guard_normals: two-curve normals
+// at slivers' midpoints, the chord-symmetry relaxation of uneven rings, the slivers' crease
+// sector normals), within the crease sector of each corner. The plain angle-weighted sector
+// normals lean towards big flat triangles beside a fillet's strips (the rounded box, seeds
+// 9000-9002, first step: the face points' PN centroids 0.67 mm RMS off the truth from them,
+// 0.06 from lsf's unrelaxed normals); the relaxation halves the hull shapes' L2 error again
+// (sphere 0.29 -> 0.10 of the input's RMS).
+BigVector<Vec3> input_smooth_normals(const Mesh& m, const Features& features) {
+  std::vector<lsf::GuardVertex> guard(m.num_vertices());
+  parallel_for_each_index(m.num_vertices(), [&](std::size_t i) {
+    const VertexId v(static_cast<std::uint32_t>(i));
+    guard[i].one_sector = features.kind(v) <= VertexKind::Dart;
+    if (!guard[i].one_sector || !m.halfedge(v).valid()) return;
+    guard[i].normal = lsf::sector_normal(m, features, m.halfedge(v));
+    guard[i].spokes = lsf::ring_spoke_flags(m, v);
+  });
+  lsf::SectorNormals sectors;
+  lsf::relax_guard_normals(m, features, guard, sectors);
+  const lsf::GuardNormals normal_of{m, features, guard.data(), &sectors};
+  BigVector<Vec3> corner(3 * std::size_t(m.num_faces()));
+  parallel_for_each_index(corner.size(), [&](std::size_t h) {
+    corner[h] = normal_of(HalfedgeId(static_cast<std::uint32_t>(h)));
+  });
+  return corner;
+}
+
+// Whether v's ring is a lattice's seen along some direction u: valence 6, interior, and the
+// ring's departures from a hexagon (d_i + d_i+3 and d_i + d_i+2 - d_i+1 for its spokes d, all
+// zero on an affine image of the regular lattice) parallel to one u, over which the ring is
+// a graph (its faces keep their orientation seen along u, none edge-on). Then the ring is a
+// regular lattice lifted over the plane across u, where the paper's rule reproduces every
+// cubic height (a steep cubic's spokes differ by 3x and more): the normal check leaves it.
+bool lattice_ring(const Mesh& m, VertexId v) {
+  constexpr double kParallel = 0.02, kEdgeOn = 0.1;
+  if (m.is_boundary(v)) return false;
+  std::array<Vec3, 6> d;
+  int n = 0;
+  bool too_many = false;
+  for_each_outgoing(m, v, [&](HalfedgeId s) {
+    if (n == 6) {
+      too_many = true;
+      return;
+    }
+    d[n++] = m.position(m.to(s)) - m.position(v);
+  });
+  if (too_many || n != 6) return false;
+  std::array<Vec3, 9> defect;
+  double scale = 0;
+  for (int k = 0; k < 6; ++k) {
+    defect[k] = d[k] + d[(k + 2) % 6] - d[(k + 1) % 6];
+    if (k < 3) defect[6 + k] = d[k] + d[k + 3];
+    scale = std::max(scale, norm(d[k]));
+  }
+  const Vec3* largest = &defect[0];
+  for (const Vec3& e : defect)
+    if (dot(e, e) > dot(*largest, *largest)) largest = &e;
+  const Vec3 u = normalized(*largest);
+  for (const Vec3& e : defect)
+    if (norm(e - dot(e, u) * u) > kParallel * scale) return false;
+  if (dot(u, u) == 0) return true;  // a planar lattice
+  double sign = 0;
+  for (int k = 0; k < 6; ++k) {
+    const Vec3 c = cross(d[k], d[(k + 1) % 6]);
+    const double along = dot(c, u);
+    if (std::abs(along) < kEdgeOn * norm(c) || along * sign < 0) return false;
+    sign = along;
+  }
+  return true;
+}
+
+// The normal check's parameters: split4's slack and height fraction; checked from a spoke
+// ratio of 2, not 3: sqrt3's hull and torus rings of ratio 2-3 gave face points twice as far
+// off as the PN centroids' (seeds 9000-9005, L2 RMS / input, gate 3 -> 2 with lsf's unrelaxed
+// normals: torus 0.37 -> 0.28, sphere 0.35 -> 0.29; relaxed: 0.30 -> 0.18, 0.23 -> 0.10). A
+// regular lattice's ratio is at most sqrt 2 (a right-angled grid), and lifted lattices of
+// any ratio (a steep cubic height field) are left to the paper's rule by lattice_ring.
+constexpr NormalCheckParams kSqrt3NormalCheck{
+    .slack = 0.25, .width_fraction = 1e-3, .uneven_spokes = 2.0};
+
+// Normal check (issue 17 item 3), ours, the face-point counterpart of split4's
+// check_edge_points_against_normals. The interpolatory stencils' lattice weights assume a
+// regular ring; on fans, zipped slivers and hull rings their face point lands about as far
+// off the surface as the flat centroid (seeds 9000-9002, first step: 0.03-0.08 mm RMS against
+// 0.04-0.15 for the centroid), while the PN centroid of the corners' smooth normals is 3-25
+// times closer. So the face point of a face with a corner whose longest spoke is at least
+// params.uneven_spokes times its shortest (and whose ring is not a lattice_ring) becomes that PN
+// centroid P when it is farther from P along the corners' mean normal than params.slack |P -
+// centroid| + params.width_fraction (the face's smallest height). On a plane P is the centroid and
+// the stencil's point is on the plane: nothing moves. Returns how many face points moved.
+std::size_t check_face_points_against_normals(const Mesh& m, const Sqrt3Layout& layout,
+                                              std::span<const Vec3> corner,
+                                              const NormalCheckParams& params,
+                                              BigVector<Vec3>& pos) {
+  params.validate();
+  const std::uint32_t nv = static_cast<std::uint32_t>(m.num_vertices());
+  const double ratio2 = params.uneven_spokes * params.uneven_spokes;
+  std::vector<std::uint8_t> uneven(nv, 0);
+  parallel_for_each_index(nv, [&](std::size_t i) {
+    const VertexId v(static_cast<std::uint32_t>(i));
+    if (m.is_isolated(v)) return;
+    double shortest = std::numeric_limits<double>::infinity(), longest = 0;
+    const Vec3 p = m.position(v);
+    for_each_outgoing(m, v, [&](HalfedgeId s) {
+      const Vec3 d = m.position(m.to(s)) - p;
+      shortest = std::min(shortest, dot(d, d));
+      longest = std::max(longest, dot(d, d));
+    });
+    uneven[i] = longest >= ratio2 * shortest && !lattice_ring(m, v);
+  });
+  std::atomic<std::size_t> moved{0};
+  parallel_for_each_index(m.num_faces(), [&](std::size_t fi) {
+    const std::uint32_t f = static_cast<std::uint32_t>(fi);
+    if (layout.sharp_of(f).valid()) return;  // no face point
+    const auto vs = m.face_vertices(FaceId(f));
+    if (!uneven[vs[0].idx] && !uneven[vs[1].idx] && !uneven[vs[2].idx]) return;
+    const std::array<Vec3, 3> p = {m.position(vs[0]), m.position(vs[1]), m.position(vs[2])};
+    const std::array<Vec3, 3> n = {corner[3 * f], corner[3 * f + 1], corner[3 * f + 2]};
+    const Vec3 mean = normalized(n[0] + n[1] + n[2]);
+    if (dot(mean, mean) == 0) return;
+    const Vec3 offset = pn_centroid_offset(p, n);
+    const Vec3 reference = (p[0] + p[1] + p[2]) * (1.0 / 3.0) + offset;
+    // What the normals cannot resolve: a fraction of the face's smallest height.
+    double longest = 0;
+    for (int k = 0; k < 3; ++k) longest = std::max(longest, distance(p[k], p[(k + 1) % 3]));
+    if (!(longest > 0)) return;
+    const double height = norm(cross(p[1] - p[0], p[2] - p[0])) / longest;
+    const double allowed = params.slack * norm(offset) + params.width_fraction * height;
+    Vec3& q = pos[nv + f];
+    if (std::abs(dot(q - reference, mean)) <= allowed) return;
+    q = reference;
+    moved.fetch_add(1, std::memory_order_relaxed);
+  });
+  return moved.load();
+}
+
 // The whole fold guard of one step. First the flips that fold with the stencil's points are
 // not made; then face points move where a fine face still folds (guard_sqrt3_folds); a flip
 // that folds after that is not made either, the face points beside it go back to the
@@ -531,6 +671,8 @@ std::uint64_t sqrt3_step_bytes(const Level& coarse) {
       big_vector_bytes<Vec3>(3 * nf) + 3 * nf + nf + 2 * sizeof(Vec3) * nf +
       2 * sizeof(std::uint32_t) * 3 * std::uint64_t(nf) + big_vector_bytes<std::uint8_t>(ne) + ne +
       dominant_planes_bytes(m) +  // the plane rule's, freed before the guard's
+      // the input's smooth normals (lsf's guard records), the normal check's flags
+      (sizeof(lsf::GuardVertex) + 1) * std::uint64_t(nv) +
       // the fine level's smooth normals, unless this is the last step
       (coarse.pass_smooth_normals ? big_vector_bytes<Vec3>(9 * nf) : 0);
   if (trisects) bytes += big_vector_bytes<std::uint8_t>(nf) + big_vector_bytes<std::uint32_t>(ne);
@@ -582,14 +724,21 @@ Level sqrt3_refine(const Level& coarse, const Sqrt3Stencil& stencil, StepStats& 
   // The fold guard decides which edges are flipped, so it runs before the topology is made.
   BigVector<Vec3> fine_normals;
   if (guard == FoldGuard::AsStencil && stencil.guards_folds()) {
-    // The smooth normals: the input's sector normals, carried from step to step (the sector
-    // normals of this level follow the faces earlier steps bent, 30-37 degrees off the truth
-    // after 3 steps beside the rounded box's fanned corners).
+    // The smooth normals: the input's, carried from step to step (the sector normals of this
+    // level follow the faces earlier steps bent, 30-37 degrees off the truth after 3 steps
+    // beside the rounded box's fanned corners). For interpolating stencils lsf's relaxed guard
+    // normals, which the normal check needs; the approximating ones keep the sector normals
+    // their guard was tuned with.
     BigVector<Vec3> estimated;
     const bool carried = coarse.smooth_normals.size() == 3 * std::size_t(nf);
-    if (!carried) estimated = sector_normals(m, features);
+    if (!carried)
+      estimated =
+          stencil.interpolating() ? input_smooth_normals(m, features) : sector_normals(m, features);
     const BigVector<Vec3>& corner = carried ? coarse.smooth_normals : estimated;
-    if (stencil.interpolating()) keep_dominant_planes(m, features, layout, unflipped, positions);
+    if (stencil.interpolating()) {
+      check_face_points_against_normals(m, layout, corner, kSqrt3NormalCheck, positions);
+      keep_dominant_planes(m, features, layout, unflipped, positions);
+    }
     std::size_t kept = 0;
     stats.fold_fallbacks += guard_sqrt3_step(m, layout, corner, unflipped, positions, kept);
     stats.fold_fallbacks += kept;

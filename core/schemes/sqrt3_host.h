@@ -91,6 +91,12 @@ class Sqrt3Stencil {
 //! - geometric: where a fine face still folds, its face points move towards their face's
 //!   centroid (then towards its largest-angle corner); a child of a cut face with no face
 //!   point has its sharp edge's two trisection points moved towards the chord's thirds.
+//! Before the plane rule and the fold guard, for interpolating stencils, the normal check
+//! (issue 17 item 3, ours): the face point of a face with a corner of uneven spokes (ratio 2
+//! and up, unless its ring is a lifted lattice) becomes the PN-triangle centroid of the
+//! corners' smooth normals (core/geometry/pn_centroid.h) when it strays from it along their
+//! mean normal (split4's NormalCheckParams slack and height fraction); interpolating stencils
+//! take lsf's relaxed guard normals as the input's smooth normals (for the check and the guard).
 //! Old vertices never move (interpolating stencils stay interpolating); trisection points
 //! stay on their sharp edge's curve rule or move towards its chord, both sides alike.
 //! Counted in stats.fold_fallbacks (face points and trisection pairs moved, edges kept).
