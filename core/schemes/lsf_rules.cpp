@@ -27,6 +27,25 @@ constexpr double kCurveSpacingRatio = 0.2;
 // circle when the corner ended the curve). A corner of a box (90 degrees) still ends it.
 namespace {
 constexpr double kCornerThroughDeg = 45.0;
+// How far the vertex beyond a corner may lie from the circle through the corner and the next two
+// curve vertices, per unit of its distance, for the curve to continue through the corner.
+constexpr double kCurveThroughCornerTol = 1e-2;
+
+// The distance of q from the circle through p0, p1 and p2 (from their line when they are nearly
+// on one).
+double circle_distance(const Vec3& p0, const Vec3& p1, const Vec3& p2, const Vec3& q) {
+  const Vec3 u = p1 - p0, x = p2 - p0, n = cross(u, x);
+  const double n2 = dot(n, n);
+  if (!(n2 > 1e-24 * dot(u, u) * dot(x, x))) {
+    const Vec3 d = normalized(x), r = q - p0;
+    return norm(r - dot(r, d) * d);
+  }
+  const Vec3 centre = p0 + (1.0 / (2.0 * n2)) * cross(dot(u, u) * x - dot(x, x) * u, n);
+  const Vec3 r = q - centre, axis = (1.0 / std::sqrt(n2)) * n;
+  const double off_plane = dot(r, axis);
+  const Vec3 in_plane = r - off_plane * axis;
+  return std::hypot(off_plane, norm(in_plane) - distance(p0, centre));
+}
 
 // The sharp neighbour of corner x that continues the curve from `next` through x (the one
 // turning least), or invalid when each turns by kCornerThroughDeg or more.
@@ -50,25 +69,48 @@ VertexId corner_beyond(const Mesh& m, const Features& f, VertexId x, VertexId ne
 
 Vec3 lsf_curve_point(const Mesh& m, const Features& f, HalfedgeId h) {
   const VertexId a = m.from(h), b = m.to(h);
-  // Quadratic through (prev, x, next) at chord parameters (-d0, 0, d1), evaluated at d1/2.
-  auto endpoint_estimate = [&](VertexId x, VertexId next) {
+  // Quadratic through (prev, x, next) at chord parameters (-d0, 0, d1), evaluated at d1/2;
+  // false where the curve gives no neighbour beyond x (an end, a corner) or it is too near.
+  auto endpoint_estimate = [&](VertexId x, VertexId next, Vec3& estimate) {
     const Vec3& px = m.position(x);
     const Vec3& pn = m.position(next);
     VertexId before = f.curve_beyond(x, next);
-    if (!before.valid() && f.kind(x) == VertexKind::Corner) before = corner_beyond(m, f, x, next);
-    if (!before.valid()) return 0.5 * (px + pn);  // polyline end: linear
+    if (!before.valid() && f.kind(x) == VertexKind::Corner) {
+      before = corner_beyond(m, f, x, next);
+      // Through a corner only along one smooth curve: the vertex beyond on the circle (or
+      // line) through x, next and the curve vertex after next (a rim crossed by a false
+      // crease). Where a flat side meets an arc at a shallow crease (issue 17's plate outline,
+      // 6-12 degrees) the flat's far end is off the arc's circle by its length, and the
+      // quadratic through it is the chord: the arc's chord midpoint, its sagitta off.
+      const VertexId after = f.curve_beyond(next, x);
+      if (before.valid() && after.valid() &&
+          !(circle_distance(px, pn, m.position(after), m.position(before)) <=
+            kCurveThroughCornerTol * distance(px, m.position(before))))
+        before = VertexId();
+    }
+    if (!before.valid()) return false;
     const Vec3& pb = m.position(before);
     const double d0 = distance(pb, px), d1 = distance(px, pn);
     // A neighbour beyond much nearer than the edge is long (an arc's last short chord before
     // a long straight one, issue 17's plate outline): its bend, extrapolated over the long
     // edge, would bow a straight edge by a large fraction of its length. Linear, as at an end.
-    if (d0 <= 0 || d1 <= 0 || d0 < kCurveSpacingRatio * d1) return 0.5 * (px + pn);
+    if (d0 <= 0 || d1 <= 0 || d0 < kCurveSpacingRatio * d1) {
+      estimate = 0.5 * (px + pn);
+      return true;
+    }
     const double w_before = -d1 * d1 / (4.0 * d0 * (d0 + d1));
     const double w_x = (d0 + 0.5 * d1) / (2.0 * d0);
     const double w_next = (d0 + 0.5 * d1) / (2.0 * (d0 + d1));
-    return w_before * pb + w_x * px + w_next * pn;
+    estimate = w_before * pb + w_x * px + w_next * pn;
+    return true;
   };
-  return 0.5 * (endpoint_estimate(a, b) + endpoint_estimate(b, a));
+  Vec3 ea, eb;
+  const bool has_a = endpoint_estimate(a, b, ea), has_b = endpoint_estimate(b, a, eb);
+  if (has_a && has_b) return 0.5 * (ea + eb);
+  // At an end or a corner the other end's quadratic alone: it interpolates the edge's ends and
+  // the curve vertex beyond, where the linear end estimate halves the arc's sagitta.
+  if (has_a || has_b) return has_a ? ea : eb;
+  return 0.5 * (m.position(a) + m.position(b));
 }
 
 namespace lsf {
@@ -241,22 +283,6 @@ Vec3 arc_point(const Vec3& p, const Vec3& q, const Vec3& third, double w) {
   if (!(std::sin(angle) > 1e-9)) return p + w * u;
   return centre +
          (1.0 / std::sin(angle)) * (std::sin((1.0 - w) * angle) * r0 + std::sin(w * angle) * r1);
-}
-
-// The distance of q from the circle through p0, p1 and p2 (from their line when they are nearly
-// on one).
-double circle_distance(const Vec3& p0, const Vec3& p1, const Vec3& p2, const Vec3& q) {
-  const Vec3 u = p1 - p0, x = p2 - p0, n = cross(u, x);
-  const double n2 = dot(n, n);
-  if (!(n2 > 1e-24 * dot(u, u) * dot(x, x))) {
-    const Vec3 d = normalized(x), r = q - p0;
-    return norm(r - dot(r, d) * d);
-  }
-  const Vec3 centre = p0 + (1.0 / (2.0 * n2)) * cross(dot(u, u) * x - dot(x, x) * u, n);
-  const Vec3 r = q - centre, axis = (1.0 / std::sqrt(n2)) * n;
-  const double off_plane = dot(r, axis);
-  const Vec3 in_plane = r - off_plane * axis;
-  return std::hypot(off_plane, norm(in_plane) - distance(p0, centre));
 }
 
 // The extreme spokes of the crease-bounded sector of from(h) that holds h.
