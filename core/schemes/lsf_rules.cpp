@@ -218,6 +218,7 @@ bool foot_on_curve(const Mesh& m, std::span<const VertexId> chain, const Vec3& a
   for (std::size_t i = 0; i + 1 < chain.size(); ++i) {
     const Vec3 p0 = m.position(chain[i]), p1 = m.position(chain[i + 1]);
     const double g0 = dot(p0 - a, t), g1 = dot(p1 - a, t);
+    if (g0 == 0) return foot = p0, true;  // (a corner straight across a corner)
     if ((g0 > 0) == (g1 > 0) || g0 == g1) continue;
     const Vec3 q = p0 + (g0 / (g0 - g1)) * (p1 - p0);
     if (chain.size() < 3) return foot = q, true;
@@ -233,23 +234,59 @@ bool foot_on_curve(const Mesh& m, std::span<const VertexId> chain, const Vec3& a
   return false;
 }
 
+// The extreme spokes of the crease-bounded sector of from(h) that holds h.
+void sector_ends(const Mesh& m, const Features& f, HalfedgeId h, HalfedgeId& first,
+                 HalfedgeId& last) {
+  first = last = h;
+  for (HalfedgeId s = cw_within_patch(m, f, h); s.valid() && s != h; s = cw_within_patch(m, f, s))
+    first = s;
+  for (HalfedgeId s = ccw_within_patch(m, f, h); s.valid() && s != h; s = ccw_within_patch(m, f, s))
+    last = s;
+}
+
 // Whether the crease vertex v = from(first)'s sector (its extreme spokes `first` and `last`, as
 // sector_normal walks it) is a strip zipped between v's crease curve and another: every face's
 // far edge on the other curve, the first and last faces reaching it from v's own curve
 // neighbours by smooth edges (a zipped cylinder, cone or tube wall, an annulus, the plate's
 // long strips). Then sets `foot`, the point of the far curve straight across from v
-// (perpendicular to v's crease tangent, set in `tangent`), and returns true.
+// (perpendicular to v's crease tangent, set in `tangent`), `own`, two vertices of v's curve
+// beside v for its circle, and returns true. One end of the strip may instead be a sharp line
+// joining a corner of each curve (the plate's flat-to-arc creases, joining its end sections):
+// the end face of a crease vertex next to such a corner reaches the far curve along it, and a
+// corner's sector is bounded by it on one side (its own curve is the other bounding one, its
+// tangent that curve's circle's).
 bool ruled_foot(const Mesh& m, const Features& f, HalfedgeId first, HalfedgeId last, Vec3& foot,
-                Vec3& tangent) {
+                Vec3& tangent, std::array<VertexId, 2>& own) {
   const VertexId v = m.from(first);
-  std::array<VertexId, kRuledMaxFaces + 2> chain;
+  const bool corner = f.kind(v) == VertexKind::Corner;
+  std::array<VertexId, kRuledMaxFaces + 3> chain;
   std::size_t n = 1;  // chain[0]: a curve vertex before the far run, when there is one
+  bool far_first = false, far_last = false;  // an end face along a line joining the curves
   for (HalfedgeId s = first;; s = ccw_within_patch(m, f, s)) {
     if (!s.valid() || n == kRuledMaxFaces) return false;
     const bool end = s == first || s == last;
-    if (f.is_sharp(m.edge(Mesh::next(s))) == end) return false;
-    if (s != first) chain[n++] = m.to(s);
+    if (f.is_sharp(m.edge(Mesh::next(s))) == end) {
+      if (!end || first == last) return false;
+      (s == first ? far_first : far_last) = true;
+      // A crease vertex's end face may reach the far curve by that line from a corner of its
+      // own curve (the plate's strips next to its flat-to-arc creases).
+      if (!corner && f.kind(s == first ? m.to(s) : m.opposite(s)) != VertexKind::Corner)
+        return false;
+    }
+    if (s != first || (corner && far_first)) chain[n++] = m.to(s);
     if (s == last) break;
+  }
+  if (corner) {
+    if (far_first == far_last) return false;
+    if (far_last) chain[n++] = m.opposite(last);
+    own[0] = far_first ? m.opposite(last) : m.to(first);
+    own[1] = f.curve_beyond(own[0], v);
+    if (!own[1].valid()) return false;
+    tangent = curve_tangent_towards(m, f, v, own[0]);
+  } else {
+    if (far_first && far_last) return false;
+    own = f.curve_neighbours(v);
+    tangent = crease_tangent(m, f, v);
   }
   if (n < 2) return false;
   for (std::size_t i = 1; i < n; ++i)
@@ -262,11 +299,25 @@ bool ruled_foot(const Mesh& m, const Features& f, HalfedgeId first, HalfedgeId l
   } else if (f.kind(chain[1]) == VertexKind::Crease) {
     before = f.curve_neighbours(chain[1])[0];
     after = f.curve_neighbours(chain[1])[1];
+  } else {
+    // A lone far vertex at a corner (the plate's strip next to a flat-to-arc crease, whose
+    // other end is the crease line's): the far curve leaves it on the strip's side, the bound
+    // of the corner's sector holding the edge to v that is not on v's own curve.
+    HalfedgeId s = first;
+    while (m.to(s) != chain[1] && s != last) s = ccw_within_patch(m, f, s);
+    HalfedgeId first_c, last_c;
+    sector_ends(m, f, m.twin(s), first_c, last_c);
+    for (const VertexId w : {m.to(first_c), m.opposite(last_c)})
+      if (w != v && w != own[0] && w != own[1] && f.kind(w) >= VertexKind::Crease) after = w;
+    if (after.valid()) {
+      const VertexId beyond = f.curve_beyond(after, chain[1]);
+      chain[n++] = after;
+      after = beyond;
+    }
   }
   std::size_t begin = 1;
   if (before.valid()) chain[0] = before, begin = 0;
   if (after.valid()) chain[n++] = after;
-  tangent = crease_tangent(m, f, v);
   return dot(tangent, tangent) > 0 &&
          foot_on_curve(m, std::span(chain).subspan(begin, n - begin), m.position(v), tangent, foot);
 }
@@ -285,16 +336,6 @@ Vec3 arc_point(const Vec3& p, const Vec3& q, const Vec3& third, double w) {
          (1.0 / std::sin(angle)) * (std::sin((1.0 - w) * angle) * r0 + std::sin(w * angle) * r1);
 }
 
-// The extreme spokes of the crease-bounded sector of from(h) that holds h.
-void sector_ends(const Mesh& m, const Features& f, HalfedgeId h, HalfedgeId& first,
-                 HalfedgeId& last) {
-  first = last = h;
-  for (HalfedgeId s = cw_within_patch(m, f, h); s.valid() && s != h; s = cw_within_patch(m, f, s))
-    first = s;
-  for (HalfedgeId s = ccw_within_patch(m, f, h); s.valid() && s != h; s = ccw_within_patch(m, f, s))
-    last = s;
-}
-
 // The point of smooth edge a -> b (ha) between two crease vertices whose sectors at the edge are
 // ruled strips (ruled_foot) between their two curves: the middle of the ruling halfway between
 // the edge's ends, from the arcs of each curve between its end of the edge and the other end's
@@ -303,25 +344,25 @@ void sector_ends(const Mesh& m, const Features& f, HalfedgeId h, HalfedgeId& fir
 // sector is not a strip.
 bool ruled_midpoint(const Mesh& m, const Features& f, HalfedgeId ha, Vec3& point) {
   const VertexId va = m.from(ha), vb = m.to(ha);
-  if (f.kind(va) != VertexKind::Crease || f.kind(vb) != VertexKind::Crease) return false;
+  if (f.kind(va) < VertexKind::Crease || f.kind(vb) < VertexKind::Crease) return false;
   HalfedgeId first, last;
   Vec3 foot_a, foot_b, t;
+  std::array<VertexId, 2> own_a, own_b;
   sector_ends(m, f, ha, first, last);
-  if (!ruled_foot(m, f, first, last, foot_a, t)) return false;
+  if (!ruled_foot(m, f, first, last, foot_a, t, own_a)) return false;
   sector_ends(m, f, m.twin(ha), first, last);
-  if (!ruled_foot(m, f, first, last, foot_b, t)) return false;
+  if (!ruled_foot(m, f, first, last, foot_b, t, own_b)) return false;
   // The third point of each curve's circle: the end's curve neighbour farther from the foot.
   // Each foot must lie on the circle (or line) through the other end and its curve
   // neighbours, which then gives the arc between them: a foot on another piece of the curve
   // (the plate's outline, arc and flat meeting at an unmarked crease) makes no ruled midpoint.
-  auto third = [&](VertexId v, const Vec3& foot, Vec3& point) {
-    const auto& nb = f.curve_neighbours(v);
+  auto third = [&](VertexId v, const std::array<VertexId, 2>& nb, const Vec3& foot, Vec3& point) {
     const Vec3 p = m.position(v), p0 = m.position(nb[0]), p1 = m.position(nb[1]);
     point = dot(p0 - foot, p0 - foot) >= dot(p1 - foot, p1 - foot) ? p0 : p1;
     return circle_distance(p0, p, p1, foot) <= kRuledCircleTol * distance(p, foot);
   };
   Vec3 third_a, third_b;
-  if (!third(va, foot_b, third_a) || !third(vb, foot_a, third_b)) return false;
+  if (!third(va, own_a, foot_b, third_a) || !third(vb, own_b, foot_a, third_b)) return false;
   // The ruling through the chord's midpoint: at fraction w of the way from a to b across the
   // rulings (from the chords of the two arcs), at v along it.
   const Vec3 a = m.position(va), b = m.position(vb), mid = 0.5 * (a + b);
@@ -349,7 +390,8 @@ bool ruled_midpoint(const Mesh& m, const Features& f, HalfedgeId ha, Vec3& point
 Vec3 ruled_strip_normal(const Mesh& m, const Features& f, HalfedgeId first, HalfedgeId last,
                         const Vec3& fallback) {
   Vec3 foot, t;
-  if (!ruled_foot(m, f, first, last, foot, t)) return fallback;
+  std::array<VertexId, 2> own;
+  if (!ruled_foot(m, f, first, last, foot, t, own)) return fallback;
   Vec3 normal = normalized(cross(t, foot - m.position(m.from(first))));
   if (dot(normal, fallback) < 0) normal = -normal;
   return dot(normal, fallback) >= kRuledTurnCosine ? normal : fallback;
