@@ -961,19 +961,28 @@ void two_curve_normals(const Mesh& m, const Features& f, std::span<GuardVertex> 
 constexpr std::size_t kSliverRunNodes = 8;
 constexpr int kSliverSweeps = 200;
 constexpr double kSliverConverged = 1e-12;
+// How far (rad) a flat sector of slivers may break the chord symmetry with a trusted smooth
+// neighbour's normal and still be taken as a plane.
+constexpr double kFlatSliversBend = 1e-3;
 
 void relax_sliver_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guard,
                           SectorNormals& sectors) {
   // Both half-edges of every smooth sliver edge between two crease vertices (the only ones
   // that move), found from the crease vertices: a scan of the vertex kinds where there are none.
-  std::vector<std::uint32_t> sliver_spokes;
+  // Besides, every short smooth spoke (not a sliver's long edge) from a crease vertex to a
+  // smooth vertex whose guard normal is trusted (GuardVertex::relaxed: the two-curve normals
+  // of the strips' midpoints after a level): `anchor_spokes`.
+  std::vector<std::uint32_t> sliver_spokes, anchor_spokes;
   for (std::uint32_t i = 0; i < m.num_vertices(); ++i) {
     if (f.kind(VertexId(i)) != VertexKind::Crease) continue;
     for_each_outgoing(m, VertexId(i), [&](HalfedgeId h) {
       const VertexId w = m.to(h);
-      if (w.idx < i || f.kind(w) != VertexKind::Crease || f.is_sharp(m.edge(h)) ||
-          !sliver_edge(m, h))
+      if (f.is_sharp(m.edge(h))) return;
+      if (f.kind(w) == VertexKind::Smooth && guard[w.idx].one_sector && guard[w.idx].relaxed) {
+        if (!sliver_edge(m, h)) anchor_spokes.push_back(h.idx);
         return;
+      }
+      if (w.idx < i || f.kind(w) != VertexKind::Crease || !sliver_edge(m, h)) return;
       sliver_spokes.push_back(h.idx);
       sliver_spokes.push_back(m.twin(h).idx);
     });
@@ -984,6 +993,7 @@ void relax_sliver_normals(const Mesh& m, const Features& f, std::span<GuardVerte
   struct Node {
     Vec3 base, along;                   // the sector normal; the unit direction it may tilt in
     bool anchor = false;                // a flat sector, or one not all slivers
+    bool flat_slivers = false;          // flat, and all slivers
     std::vector<std::uint32_t> spokes;  // its sliver spokes
   };
   std::vector<Node> nodes;
@@ -1026,8 +1036,21 @@ void relax_sliver_normals(const Mesh& m, const Features& f, std::span<GuardVerte
         for (o = cw_within_patch(m, f, h); o.valid() && o != h; o = cw_within_patch(m, f, o))
           add(o);
       node.anchor = flat || !slivers;
+      node.flat_slivers = flat && slivers;
     }
     nodes.push_back(std::move(node));
+  }
+  // A flat sector of slivers is a plane's unless a trusted smooth neighbour across a short edge
+  // says the surface bends there (the plate's crease line after a level, whose three slivers
+  // lie in the chord plane of the arc's first strip, 3-7 degrees off): then it moves.
+  for (const std::uint32_t s : anchor_spokes) {
+    const HalfedgeId h(s);
+    const std::int64_t k = node_of(h);
+    if (k < 0 || !nodes[static_cast<std::size_t>(k)].flat_slivers) continue;
+    Node& node = nodes[static_cast<std::size_t>(k)];
+    const Vec3 u = normalized(m.position(m.to(h)) - m.position(m.from(h)));
+    if (std::abs(dot(node.base + guard[m.to(h).idx].normal, u)) > kFlatSliversBend)
+      node.anchor = false;
   }
   // The direction each node tilts in: about the crease curve (so it stays across the curve).
   std::vector<std::uint8_t> fixed(nodes.size(), 0);
@@ -1058,6 +1081,19 @@ void relax_sliver_normals(const Mesh& m, const Features& f, std::span<GuardVerte
     Equation eq{static_cast<std::size_t>(a), static_cast<std::size_t>(b), dot(na.along, u),
                 dot(nb.along, u), -dot(na.base + nb.base, u)};
     if (eq.ca * eq.ca + eq.cb * eq.cb > 0) equations.push_back(eq);
+  }
+  // An edge to a trusted smooth normal holds the node's tilt itself (b = a, cb = 0): what the
+  // equations between nodes leave free is then fixed, however short the run.
+  std::vector<std::uint8_t> anchored(nodes.size(), 0);
+  for (const std::uint32_t s : anchor_spokes) {
+    const HalfedgeId h(s);
+    const std::int64_t a = node_of(h);
+    if (a < 0 || fixed[static_cast<std::size_t>(a)]) continue;
+    const auto k = static_cast<std::size_t>(a);
+    const Vec3 u = normalized(m.position(m.to(h)) - m.position(m.from(h)));
+    const Equation eq{k, k, dot(nodes[k].along, u), 0.0,
+                      -dot(nodes[k].base + guard[m.to(h).idx].normal, u)};
+    if (eq.ca != 0) equations.push_back(eq), anchored[k] = 1;
   }
   // Kaczmarz sweeps from zero tilts: they converge to the least-norm tilts that meet the
   // equations, so what they leave undetermined (a lone strip's two ends tilting opposite ways)
@@ -1092,9 +1128,12 @@ void relax_sliver_normals(const Mesh& m, const Features& f, std::span<GuardVerte
     if (size[ra] < size[rb]) std::swap(ra, rb);
     parent[rb] = ra, size[ra] += size[rb];
   }
+  std::vector<std::uint8_t> run_anchored(nodes.size(), 0);
+  for (std::size_t k = 0; k < nodes.size(); ++k)
+    if (anchored[k]) run_anchored[root(k)] = 1;
   std::vector<Vec3> current(nodes.size());
   for (std::size_t k = 0; k < nodes.size(); ++k) {
-    if (size[root(k)] < kSliverRunNodes) fixed[k] = 1;
+    if (size[root(k)] < kSliverRunNodes && !run_anchored[root(k)]) fixed[k] = 1;
     current[k] = fixed[k] ? nodes[k].base : normalized(nodes[k].base + tilt[k] * nodes[k].along);
   }
   for (std::size_t k = 0; k < nodes.size(); ++k)

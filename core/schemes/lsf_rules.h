@@ -185,6 +185,10 @@ inline constexpr int kRelaxRounds = 100;
 //! sectors; Kaczmarz sweeps give the least tilts that meet them (exact on extrusions of
 //! circles). What the sums leave free, one alternating tilt per connected run, is averaged
 //! out only over many strips: runs of fewer than kSliverRunNodes sectors keep the face sums.
+//! A short edge from such a sector to a smooth vertex with a trusted normal (GuardVertex::relaxed)
+//! adds its equation with that normal held: the run's free tilt is then fixed, and a flat
+//! sector of slivers that breaks it by more than 1e-3 moves too (the plate's crease-line
+//! midpoints after a level, whose slivers lie in the chord plane of the arc's first strip).
 //! `sectors` receives the moved sector normals (GuardVertex::sectors_relaxed marks their
 //! vertices). Where no crease vertex has a sliver edge, one scan of the vertex kinds.
 void relax_sliver_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guard,
