@@ -916,15 +916,28 @@ bool two_curve_normal(const Mesh& m, VertexId v, const Vec3& face_sum, Vec3& nor
     n < kMaxSpokes ? void(spoke[n++] = m.position(m.to(h)) - p) : void(too_many = true);
   });
   if (too_many || n < 4) return false;
-  // The longest spoke, and the longest nearly opposite it (within 20 degrees).
-  int l0 = 0;
-  for (int i = 1; i < n; ++i)
-    if (dot(spoke[i], spoke[i]) > dot(spoke[l0], spoke[l0])) l0 = i;
-  int l1 = -1;
-  for (int i = 0; i < n; ++i)
-    if (i != l0 && dot(spoke[i], spoke[l0]) < -0.94 * norm(spoke[i]) * norm(spoke[l0]) &&
-        (l1 < 0 || dot(spoke[i], spoke[i]) > dot(spoke[l1], spoke[l1])))
-      l1 = i;
+  // The long spokes (at least half the longest): of their pairs nearly opposite (within 20
+  // degrees), the one v is most nearly the midpoint of. A sliver's midpoint after a level has
+  // the split edge's two ends, and beside them the ends' other neighbours' midpoints, as long
+  // (the plate's end outlines at 152 mm): the circle through the split edge's ends is the one
+  // whose tangent at v lies in the surface (on an extrusion, by symmetry), where a lopsided
+  // pair's tilts along the strip (0.3 mrad RMS on the plate, over 152 mm edges).
+  double longest2 = 0;
+  for (int i = 0; i < n; ++i) longest2 = std::max(longest2, dot(spoke[i], spoke[i]));
+  int l0 = -1, l1 = -1;
+  double best = std::numeric_limits<double>::infinity();
+  for (int i = 0; i < n; ++i) {
+    const double li2 = dot(spoke[i], spoke[i]);
+    if (4.0 * li2 < longest2) continue;
+    for (int j = i + 1; j < n; ++j) {
+      const double lj2 = dot(spoke[j], spoke[j]);
+      if (4.0 * lj2 < longest2 || !(dot(spoke[i], spoke[j]) < -0.94 * std::sqrt(li2 * lj2)))
+        continue;
+      const Vec3 sum = spoke[i] + spoke[j];
+      const double lopsided = dot(sum, sum) / (li2 + lj2);
+      if (lopsided < best) best = lopsided, l0 = i, l1 = j;
+    }
+  }
   if (l1 < 0) return false;
   const double short2 = std::min(dot(spoke[l0], spoke[l0]), dot(spoke[l1], spoke[l1])) /
                         (kTwoCurvesRatio * kTwoCurvesRatio);

@@ -195,8 +195,9 @@ void relax_sliver_normals(const Mesh& m, const Features& f, std::span<GuardVerte
                           SectorNormals& sectors);
 
 //! At a smooth vertex v whose ring is a sliver's midpoint (two long spokes, nearly opposite,
-//! kTwoCurvesRatio times longer than every other): the normal across the tangents at v of the
-//! circle through the long spokes' ends and of the circle through the two short neighbours
+//! kTwoCurvesRatio times longer than every other; of several such pairs, the one v is most
+//! nearly the midpoint of): the normal across the tangents at v of the circle through the long
+//! spokes' ends and of the circle through the two short neighbours
 //! most across them, one on each side (issue 17, round 8: the plate's strip midpoints after a
 //! level, whose face sums and relaxed normals were ~2 deg off). Both curves lie on the surface,
 //! so its normal is across both: exact on extrusions of circles. Writes `normal` (unit, on
