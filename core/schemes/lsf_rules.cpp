@@ -244,6 +244,8 @@ void sector_ends(const Mesh& m, const Features& f, HalfedgeId h, HalfedgeId& fir
     last = s;
 }
 
+bool sliver_face(const Mesh& m, HalfedgeId h);
+
 // Whether the crease vertex v = from(first)'s sector (its extreme spokes `first` and `last`, as
 // sector_normal walks it) is a strip zipped between v's crease curve and another: every face's
 // far edge on the other curve, the first and last faces reaching it from v's own curve
@@ -254,7 +256,7 @@ void sector_ends(const Mesh& m, const Features& f, HalfedgeId h, HalfedgeId& fir
 // joining a corner of each curve (the plate's flat-to-arc creases, joining its end sections):
 // the end face of a crease vertex next to such a corner reaches the far curve along it, and a
 // corner's sector is bounded by it on one side (its own curve is the other bounding one, its
-// tangent that curve's circle's).
+// tangent that curve's circle's). That end face must be a sliver (kSliverAspect).
 bool ruled_foot(const Mesh& m, const Features& f, HalfedgeId first, HalfedgeId last, Vec3& foot,
                 Vec3& tangent, std::array<VertexId, 2>& own) {
   const VertexId v = m.from(first);
@@ -266,7 +268,9 @@ bool ruled_foot(const Mesh& m, const Features& f, HalfedgeId first, HalfedgeId l
     if (!s.valid() || n == kRuledMaxFaces) return false;
     const bool end = s == first || s == last;
     if (f.is_sharp(m.edge(Mesh::next(s))) == end) {
-      if (!end || first == last) return false;
+      // (only along a sliver: on the xyz cube's letters, walls a few times longer than tall
+      // between two outlines, these midpoints doubled the largest distance from the input)
+      if (!end || first == last || !sliver_face(m, s)) return false;
       (s == first ? far_first : far_last) = true;
       // A crease vertex's end face may reach the far curve by that line from a corner of its
       // own curve (the plate's strips next to its flat-to-arc creases).
