@@ -68,7 +68,10 @@ QuadricFit vertex_fit(const Mesh& mesh, const Features& features, VertexId v);
 
 //! 1-D analogue on a sharp edge a-b (spec 5 gap 3): for each endpoint, the quadratic
 //! through its curve neighbours in chord-length parameters evaluated at the edge's
-//! half-parameter (linear at polyline ends), averaged over both endpoints.
+//! half-parameter, averaged over both endpoints. Where the curve ends at one endpoint (a
+//! polyline end, or a corner it does not continue through on one circle), the other
+//! endpoint's quadratic alone (issue 17: the spec's linear end estimate kept half the arc's
+//! sagitta next to the plate outline's corners); the chord midpoint when both end there.
 Vec3 lsf_curve_point(const Mesh& mesh, const Features& features, HalfedgeId h);
 
 //! The edge point of smooth edge e from its two endpoint estimates (`lower_estimate` by the

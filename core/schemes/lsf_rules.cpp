@@ -27,6 +27,25 @@ constexpr double kCurveSpacingRatio = 0.2;
 // circle when the corner ended the curve). A corner of a box (90 degrees) still ends it.
 namespace {
 constexpr double kCornerThroughDeg = 45.0;
+// How far the vertex beyond a corner may lie from the circle through the corner and the next two
+// curve vertices, per unit of its distance, for the curve to continue through the corner.
+constexpr double kCurveThroughCornerTol = 1e-2;
+
+// The distance of q from the circle through p0, p1 and p2 (from their line when they are nearly
+// on one).
+double circle_distance(const Vec3& p0, const Vec3& p1, const Vec3& p2, const Vec3& q) {
+  const Vec3 u = p1 - p0, x = p2 - p0, n = cross(u, x);
+  const double n2 = dot(n, n);
+  if (!(n2 > 1e-24 * dot(u, u) * dot(x, x))) {
+    const Vec3 d = normalized(x), r = q - p0;
+    return norm(r - dot(r, d) * d);
+  }
+  const Vec3 centre = p0 + (1.0 / (2.0 * n2)) * cross(dot(u, u) * x - dot(x, x) * u, n);
+  const Vec3 r = q - centre, axis = (1.0 / std::sqrt(n2)) * n;
+  const double off_plane = dot(r, axis);
+  const Vec3 in_plane = r - off_plane * axis;
+  return std::hypot(off_plane, norm(in_plane) - distance(p0, centre));
+}
 
 // The sharp neighbour of corner x that continues the curve from `next` through x (the one
 // turning least), or invalid when each turns by kCornerThroughDeg or more.
@@ -50,25 +69,48 @@ VertexId corner_beyond(const Mesh& m, const Features& f, VertexId x, VertexId ne
 
 Vec3 lsf_curve_point(const Mesh& m, const Features& f, HalfedgeId h) {
   const VertexId a = m.from(h), b = m.to(h);
-  // Quadratic through (prev, x, next) at chord parameters (-d0, 0, d1), evaluated at d1/2.
-  auto endpoint_estimate = [&](VertexId x, VertexId next) {
+  // Quadratic through (prev, x, next) at chord parameters (-d0, 0, d1), evaluated at d1/2;
+  // false where the curve gives no neighbour beyond x (an end, a corner) or it is too near.
+  auto endpoint_estimate = [&](VertexId x, VertexId next, Vec3& estimate) {
     const Vec3& px = m.position(x);
     const Vec3& pn = m.position(next);
     VertexId before = f.curve_beyond(x, next);
-    if (!before.valid() && f.kind(x) == VertexKind::Corner) before = corner_beyond(m, f, x, next);
-    if (!before.valid()) return 0.5 * (px + pn);  // polyline end: linear
+    if (!before.valid() && f.kind(x) == VertexKind::Corner) {
+      before = corner_beyond(m, f, x, next);
+      // Through a corner only along one smooth curve: the vertex beyond on the circle (or
+      // line) through x, next and the curve vertex after next (a rim crossed by a false
+      // crease). Where a flat side meets an arc at a shallow crease (issue 17's plate outline,
+      // 6-12 degrees) the flat's far end is off the arc's circle by its length, and the
+      // quadratic through it is the chord: the arc's chord midpoint, its sagitta off.
+      const VertexId after = f.curve_beyond(next, x);
+      if (before.valid() && after.valid() &&
+          !(circle_distance(px, pn, m.position(after), m.position(before)) <=
+            kCurveThroughCornerTol * distance(px, m.position(before))))
+        before = VertexId();
+    }
+    if (!before.valid()) return false;
     const Vec3& pb = m.position(before);
     const double d0 = distance(pb, px), d1 = distance(px, pn);
     // A neighbour beyond much nearer than the edge is long (an arc's last short chord before
     // a long straight one, issue 17's plate outline): its bend, extrapolated over the long
     // edge, would bow a straight edge by a large fraction of its length. Linear, as at an end.
-    if (d0 <= 0 || d1 <= 0 || d0 < kCurveSpacingRatio * d1) return 0.5 * (px + pn);
+    if (d0 <= 0 || d1 <= 0 || d0 < kCurveSpacingRatio * d1) {
+      estimate = 0.5 * (px + pn);
+      return true;
+    }
     const double w_before = -d1 * d1 / (4.0 * d0 * (d0 + d1));
     const double w_x = (d0 + 0.5 * d1) / (2.0 * d0);
     const double w_next = (d0 + 0.5 * d1) / (2.0 * (d0 + d1));
-    return w_before * pb + w_x * px + w_next * pn;
+    estimate = w_before * pb + w_x * px + w_next * pn;
+    return true;
   };
-  return 0.5 * (endpoint_estimate(a, b) + endpoint_estimate(b, a));
+  Vec3 ea, eb;
+  const bool has_a = endpoint_estimate(a, b, ea), has_b = endpoint_estimate(b, a, eb);
+  if (has_a && has_b) return 0.5 * (ea + eb);
+  // At an end or a corner the other end's quadratic alone: it interpolates the edge's ends and
+  // the curve vertex beyond, where the linear end estimate halves the arc's sagitta.
+  if (has_a || has_b) return has_a ? ea : eb;
+  return 0.5 * (m.position(a) + m.position(b));
 }
 
 namespace lsf {
@@ -176,6 +218,7 @@ bool foot_on_curve(const Mesh& m, std::span<const VertexId> chain, const Vec3& a
   for (std::size_t i = 0; i + 1 < chain.size(); ++i) {
     const Vec3 p0 = m.position(chain[i]), p1 = m.position(chain[i + 1]);
     const double g0 = dot(p0 - a, t), g1 = dot(p1 - a, t);
+    if (g0 == 0) return foot = p0, true;  // (a corner straight across a corner)
     if ((g0 > 0) == (g1 > 0) || g0 == g1) continue;
     const Vec3 q = p0 + (g0 / (g0 - g1)) * (p1 - p0);
     if (chain.size() < 3) return foot = q, true;
@@ -191,23 +234,63 @@ bool foot_on_curve(const Mesh& m, std::span<const VertexId> chain, const Vec3& a
   return false;
 }
 
+// The extreme spokes of the crease-bounded sector of from(h) that holds h.
+void sector_ends(const Mesh& m, const Features& f, HalfedgeId h, HalfedgeId& first,
+                 HalfedgeId& last) {
+  first = last = h;
+  for (HalfedgeId s = cw_within_patch(m, f, h); s.valid() && s != h; s = cw_within_patch(m, f, s))
+    first = s;
+  for (HalfedgeId s = ccw_within_patch(m, f, h); s.valid() && s != h; s = ccw_within_patch(m, f, s))
+    last = s;
+}
+
+bool sliver_face(const Mesh& m, HalfedgeId h);
+
 // Whether the crease vertex v = from(first)'s sector (its extreme spokes `first` and `last`, as
 // sector_normal walks it) is a strip zipped between v's crease curve and another: every face's
 // far edge on the other curve, the first and last faces reaching it from v's own curve
 // neighbours by smooth edges (a zipped cylinder, cone or tube wall, an annulus, the plate's
 // long strips). Then sets `foot`, the point of the far curve straight across from v
-// (perpendicular to v's crease tangent, set in `tangent`), and returns true.
+// (perpendicular to v's crease tangent, set in `tangent`), `own`, two vertices of v's curve
+// beside v for its circle, and returns true. One end of the strip may instead be a sharp line
+// joining a corner of each curve (the plate's flat-to-arc creases, joining its end sections):
+// the end face of a crease vertex next to such a corner reaches the far curve along it, and a
+// corner's sector is bounded by it on one side (its own curve is the other bounding one, its
+// tangent that curve's circle's). That end face must be a sliver (kSliverAspect).
 bool ruled_foot(const Mesh& m, const Features& f, HalfedgeId first, HalfedgeId last, Vec3& foot,
-                Vec3& tangent) {
+                Vec3& tangent, std::array<VertexId, 2>& own) {
   const VertexId v = m.from(first);
-  std::array<VertexId, kRuledMaxFaces + 2> chain;
+  const bool corner = f.kind(v) == VertexKind::Corner;
+  std::array<VertexId, kRuledMaxFaces + 3> chain;
   std::size_t n = 1;  // chain[0]: a curve vertex before the far run, when there is one
+  bool far_first = false, far_last = false;  // an end face along a line joining the curves
   for (HalfedgeId s = first;; s = ccw_within_patch(m, f, s)) {
     if (!s.valid() || n == kRuledMaxFaces) return false;
     const bool end = s == first || s == last;
-    if (f.is_sharp(m.edge(Mesh::next(s))) == end) return false;
-    if (s != first) chain[n++] = m.to(s);
+    if (f.is_sharp(m.edge(Mesh::next(s))) == end) {
+      // (only along a sliver: on the xyz cube's letters, walls a few times longer than tall
+      // between two outlines, these midpoints doubled the largest distance from the input)
+      if (!end || first == last || !sliver_face(m, s)) return false;
+      (s == first ? far_first : far_last) = true;
+      // A crease vertex's end face may reach the far curve by that line from a corner of its
+      // own curve (the plate's strips next to its flat-to-arc creases).
+      if (!corner && f.kind(s == first ? m.to(s) : m.opposite(s)) != VertexKind::Corner)
+        return false;
+    }
+    if (s != first || (corner && far_first)) chain[n++] = m.to(s);
     if (s == last) break;
+  }
+  if (corner) {
+    if (far_first == far_last) return false;
+    if (far_last) chain[n++] = m.opposite(last);
+    own[0] = far_first ? m.opposite(last) : m.to(first);
+    own[1] = f.curve_beyond(own[0], v);
+    if (!own[1].valid()) return false;
+    tangent = curve_tangent_towards(m, f, v, own[0]);
+  } else {
+    if (far_first && far_last) return false;
+    own = f.curve_neighbours(v);
+    tangent = crease_tangent(m, f, v);
   }
   if (n < 2) return false;
   for (std::size_t i = 1; i < n; ++i)
@@ -220,11 +303,25 @@ bool ruled_foot(const Mesh& m, const Features& f, HalfedgeId first, HalfedgeId l
   } else if (f.kind(chain[1]) == VertexKind::Crease) {
     before = f.curve_neighbours(chain[1])[0];
     after = f.curve_neighbours(chain[1])[1];
+  } else {
+    // A lone far vertex at a corner (the plate's strip next to a flat-to-arc crease, whose
+    // other end is the crease line's): the far curve leaves it on the strip's side, the bound
+    // of the corner's sector holding the edge to v that is not on v's own curve.
+    HalfedgeId s = first;
+    while (m.to(s) != chain[1] && s != last) s = ccw_within_patch(m, f, s);
+    HalfedgeId first_c, last_c;
+    sector_ends(m, f, m.twin(s), first_c, last_c);
+    for (const VertexId w : {m.to(first_c), m.opposite(last_c)})
+      if (w != v && w != own[0] && w != own[1] && f.kind(w) >= VertexKind::Crease) after = w;
+    if (after.valid()) {
+      const VertexId beyond = f.curve_beyond(after, chain[1]);
+      chain[n++] = after;
+      after = beyond;
+    }
   }
   std::size_t begin = 1;
   if (before.valid()) chain[0] = before, begin = 0;
   if (after.valid()) chain[n++] = after;
-  tangent = crease_tangent(m, f, v);
   return dot(tangent, tangent) > 0 &&
          foot_on_curve(m, std::span(chain).subspan(begin, n - begin), m.position(v), tangent, foot);
 }
@@ -243,32 +340,6 @@ Vec3 arc_point(const Vec3& p, const Vec3& q, const Vec3& third, double w) {
          (1.0 / std::sin(angle)) * (std::sin((1.0 - w) * angle) * r0 + std::sin(w * angle) * r1);
 }
 
-// The distance of q from the circle through p0, p1 and p2 (from their line when they are nearly
-// on one).
-double circle_distance(const Vec3& p0, const Vec3& p1, const Vec3& p2, const Vec3& q) {
-  const Vec3 u = p1 - p0, x = p2 - p0, n = cross(u, x);
-  const double n2 = dot(n, n);
-  if (!(n2 > 1e-24 * dot(u, u) * dot(x, x))) {
-    const Vec3 d = normalized(x), r = q - p0;
-    return norm(r - dot(r, d) * d);
-  }
-  const Vec3 centre = p0 + (1.0 / (2.0 * n2)) * cross(dot(u, u) * x - dot(x, x) * u, n);
-  const Vec3 r = q - centre, axis = (1.0 / std::sqrt(n2)) * n;
-  const double off_plane = dot(r, axis);
-  const Vec3 in_plane = r - off_plane * axis;
-  return std::hypot(off_plane, norm(in_plane) - distance(p0, centre));
-}
-
-// The extreme spokes of the crease-bounded sector of from(h) that holds h.
-void sector_ends(const Mesh& m, const Features& f, HalfedgeId h, HalfedgeId& first,
-                 HalfedgeId& last) {
-  first = last = h;
-  for (HalfedgeId s = cw_within_patch(m, f, h); s.valid() && s != h; s = cw_within_patch(m, f, s))
-    first = s;
-  for (HalfedgeId s = ccw_within_patch(m, f, h); s.valid() && s != h; s = ccw_within_patch(m, f, s))
-    last = s;
-}
-
 // The point of smooth edge a -> b (ha) between two crease vertices whose sectors at the edge are
 // ruled strips (ruled_foot) between their two curves: the middle of the ruling halfway between
 // the edge's ends, from the arcs of each curve between its end of the edge and the other end's
@@ -277,25 +348,25 @@ void sector_ends(const Mesh& m, const Features& f, HalfedgeId h, HalfedgeId& fir
 // sector is not a strip.
 bool ruled_midpoint(const Mesh& m, const Features& f, HalfedgeId ha, Vec3& point) {
   const VertexId va = m.from(ha), vb = m.to(ha);
-  if (f.kind(va) != VertexKind::Crease || f.kind(vb) != VertexKind::Crease) return false;
+  if (f.kind(va) < VertexKind::Crease || f.kind(vb) < VertexKind::Crease) return false;
   HalfedgeId first, last;
   Vec3 foot_a, foot_b, t;
+  std::array<VertexId, 2> own_a, own_b;
   sector_ends(m, f, ha, first, last);
-  if (!ruled_foot(m, f, first, last, foot_a, t)) return false;
+  if (!ruled_foot(m, f, first, last, foot_a, t, own_a)) return false;
   sector_ends(m, f, m.twin(ha), first, last);
-  if (!ruled_foot(m, f, first, last, foot_b, t)) return false;
+  if (!ruled_foot(m, f, first, last, foot_b, t, own_b)) return false;
   // The third point of each curve's circle: the end's curve neighbour farther from the foot.
   // Each foot must lie on the circle (or line) through the other end and its curve
   // neighbours, which then gives the arc between them: a foot on another piece of the curve
   // (the plate's outline, arc and flat meeting at an unmarked crease) makes no ruled midpoint.
-  auto third = [&](VertexId v, const Vec3& foot, Vec3& point) {
-    const auto& nb = f.curve_neighbours(v);
+  auto third = [&](VertexId v, const std::array<VertexId, 2>& nb, const Vec3& foot, Vec3& point) {
     const Vec3 p = m.position(v), p0 = m.position(nb[0]), p1 = m.position(nb[1]);
     point = dot(p0 - foot, p0 - foot) >= dot(p1 - foot, p1 - foot) ? p0 : p1;
     return circle_distance(p0, p, p1, foot) <= kRuledCircleTol * distance(p, foot);
   };
   Vec3 third_a, third_b;
-  if (!third(va, foot_b, third_a) || !third(vb, foot_a, third_b)) return false;
+  if (!third(va, own_a, foot_b, third_a) || !third(vb, own_b, foot_a, third_b)) return false;
   // The ruling through the chord's midpoint: at fraction w of the way from a to b across the
   // rulings (from the chords of the two arcs), at v along it.
   const Vec3 a = m.position(va), b = m.position(vb), mid = 0.5 * (a + b);
@@ -323,7 +394,8 @@ bool ruled_midpoint(const Mesh& m, const Features& f, HalfedgeId ha, Vec3& point
 Vec3 ruled_strip_normal(const Mesh& m, const Features& f, HalfedgeId first, HalfedgeId last,
                         const Vec3& fallback) {
   Vec3 foot, t;
-  if (!ruled_foot(m, f, first, last, foot, t)) return fallback;
+  std::array<VertexId, 2> own;
+  if (!ruled_foot(m, f, first, last, foot, t, own)) return fallback;
   Vec3 normal = normalized(cross(t, foot - m.position(m.from(first))));
   if (dot(normal, fallback) < 0) normal = -normal;
   return dot(normal, fallback) >= kRuledTurnCosine ? normal : fallback;
@@ -848,15 +920,28 @@ bool two_curve_normal(const Mesh& m, VertexId v, const Vec3& face_sum, Vec3& nor
     n < kMaxSpokes ? void(spoke[n++] = m.position(m.to(h)) - p) : void(too_many = true);
   });
   if (too_many || n < 4) return false;
-  // The longest spoke, and the longest nearly opposite it (within 20 degrees).
-  int l0 = 0;
-  for (int i = 1; i < n; ++i)
-    if (dot(spoke[i], spoke[i]) > dot(spoke[l0], spoke[l0])) l0 = i;
-  int l1 = -1;
-  for (int i = 0; i < n; ++i)
-    if (i != l0 && dot(spoke[i], spoke[l0]) < -0.94 * norm(spoke[i]) * norm(spoke[l0]) &&
-        (l1 < 0 || dot(spoke[i], spoke[i]) > dot(spoke[l1], spoke[l1])))
-      l1 = i;
+  // The long spokes (at least half the longest): of their pairs nearly opposite (within 20
+  // degrees), the one v is most nearly the midpoint of. A sliver's midpoint after a level has
+  // the split edge's two ends, and beside them the ends' other neighbours' midpoints, as long
+  // (the plate's end outlines at 152 mm): the circle through the split edge's ends is the one
+  // whose tangent at v lies in the surface (on an extrusion, by symmetry), where a lopsided
+  // pair's tilts along the strip (0.3 mrad RMS on the plate, over 152 mm edges).
+  double longest2 = 0;
+  for (int i = 0; i < n; ++i) longest2 = std::max(longest2, dot(spoke[i], spoke[i]));
+  int l0 = -1, l1 = -1;
+  double best = std::numeric_limits<double>::infinity();
+  for (int i = 0; i < n; ++i) {
+    const double li2 = dot(spoke[i], spoke[i]);
+    if (4.0 * li2 < longest2) continue;
+    for (int j = i + 1; j < n; ++j) {
+      const double lj2 = dot(spoke[j], spoke[j]);
+      if (4.0 * lj2 < longest2 || !(dot(spoke[i], spoke[j]) < -0.94 * std::sqrt(li2 * lj2)))
+        continue;
+      const Vec3 sum = spoke[i] + spoke[j];
+      const double lopsided = dot(sum, sum) / (li2 + lj2);
+      if (lopsided < best) best = lopsided, l0 = i, l1 = j;
+    }
+  }
   if (l1 < 0) return false;
   const double short2 = std::min(dot(spoke[l0], spoke[l0]), dot(spoke[l1], spoke[l1])) /
                         (kTwoCurvesRatio * kTwoCurvesRatio);
@@ -893,19 +978,28 @@ void two_curve_normals(const Mesh& m, const Features& f, std::span<GuardVertex> 
 constexpr std::size_t kSliverRunNodes = 8;
 constexpr int kSliverSweeps = 200;
 constexpr double kSliverConverged = 1e-12;
+// How far (rad) a flat sector of slivers may break the chord symmetry with a trusted smooth
+// neighbour's normal and still be taken as a plane.
+constexpr double kFlatSliversBend = 1e-3;
 
 void relax_sliver_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guard,
                           SectorNormals& sectors) {
   // Both half-edges of every smooth sliver edge between two crease vertices (the only ones
   // that move), found from the crease vertices: a scan of the vertex kinds where there are none.
-  std::vector<std::uint32_t> sliver_spokes;
+  // Besides, every short smooth spoke (not a sliver's long edge) from a crease vertex to a
+  // smooth vertex whose guard normal is trusted (GuardVertex::relaxed: the two-curve normals
+  // of the strips' midpoints after a level): `anchor_spokes`.
+  std::vector<std::uint32_t> sliver_spokes, anchor_spokes;
   for (std::uint32_t i = 0; i < m.num_vertices(); ++i) {
     if (f.kind(VertexId(i)) != VertexKind::Crease) continue;
     for_each_outgoing(m, VertexId(i), [&](HalfedgeId h) {
       const VertexId w = m.to(h);
-      if (w.idx < i || f.kind(w) != VertexKind::Crease || f.is_sharp(m.edge(h)) ||
-          !sliver_edge(m, h))
+      if (f.is_sharp(m.edge(h))) return;
+      if (f.kind(w) == VertexKind::Smooth && guard[w.idx].one_sector && guard[w.idx].relaxed) {
+        if (!sliver_edge(m, h)) anchor_spokes.push_back(h.idx);
         return;
+      }
+      if (w.idx < i || f.kind(w) != VertexKind::Crease || !sliver_edge(m, h)) return;
       sliver_spokes.push_back(h.idx);
       sliver_spokes.push_back(m.twin(h).idx);
     });
@@ -916,6 +1010,7 @@ void relax_sliver_normals(const Mesh& m, const Features& f, std::span<GuardVerte
   struct Node {
     Vec3 base, along;                   // the sector normal; the unit direction it may tilt in
     bool anchor = false;                // a flat sector, or one not all slivers
+    bool flat_slivers = false;          // flat, and all slivers
     std::vector<std::uint32_t> spokes;  // its sliver spokes
   };
   std::vector<Node> nodes;
@@ -958,8 +1053,21 @@ void relax_sliver_normals(const Mesh& m, const Features& f, std::span<GuardVerte
         for (o = cw_within_patch(m, f, h); o.valid() && o != h; o = cw_within_patch(m, f, o))
           add(o);
       node.anchor = flat || !slivers;
+      node.flat_slivers = flat && slivers;
     }
     nodes.push_back(std::move(node));
+  }
+  // A flat sector of slivers is a plane's unless a trusted smooth neighbour across a short edge
+  // says the surface bends there (the plate's crease line after a level, whose three slivers
+  // lie in the chord plane of the arc's first strip, 3-7 degrees off): then it moves.
+  for (const std::uint32_t s : anchor_spokes) {
+    const HalfedgeId h(s);
+    const std::int64_t k = node_of(h);
+    if (k < 0 || !nodes[static_cast<std::size_t>(k)].flat_slivers) continue;
+    Node& node = nodes[static_cast<std::size_t>(k)];
+    const Vec3 u = normalized(m.position(m.to(h)) - m.position(m.from(h)));
+    if (std::abs(dot(node.base + guard[m.to(h).idx].normal, u)) > kFlatSliversBend)
+      node.anchor = false;
   }
   // The direction each node tilts in: about the crease curve (so it stays across the curve).
   std::vector<std::uint8_t> fixed(nodes.size(), 0);
@@ -990,6 +1098,19 @@ void relax_sliver_normals(const Mesh& m, const Features& f, std::span<GuardVerte
     Equation eq{static_cast<std::size_t>(a), static_cast<std::size_t>(b), dot(na.along, u),
                 dot(nb.along, u), -dot(na.base + nb.base, u)};
     if (eq.ca * eq.ca + eq.cb * eq.cb > 0) equations.push_back(eq);
+  }
+  // An edge to a trusted smooth normal holds the node's tilt itself (b = a, cb = 0): what the
+  // equations between nodes leave free is then fixed, however short the run.
+  std::vector<std::uint8_t> anchored(nodes.size(), 0);
+  for (const std::uint32_t s : anchor_spokes) {
+    const HalfedgeId h(s);
+    const std::int64_t a = node_of(h);
+    if (a < 0 || fixed[static_cast<std::size_t>(a)]) continue;
+    const auto k = static_cast<std::size_t>(a);
+    const Vec3 u = normalized(m.position(m.to(h)) - m.position(m.from(h)));
+    const Equation eq{k, k, dot(nodes[k].along, u), 0.0,
+                      -dot(nodes[k].base + guard[m.to(h).idx].normal, u)};
+    if (eq.ca != 0) equations.push_back(eq), anchored[k] = 1;
   }
   // Kaczmarz sweeps from zero tilts: they converge to the least-norm tilts that meet the
   // equations, so what they leave undetermined (a lone strip's two ends tilting opposite ways)
@@ -1024,9 +1145,12 @@ void relax_sliver_normals(const Mesh& m, const Features& f, std::span<GuardVerte
     if (size[ra] < size[rb]) std::swap(ra, rb);
     parent[rb] = ra, size[ra] += size[rb];
   }
+  std::vector<std::uint8_t> run_anchored(nodes.size(), 0);
+  for (std::size_t k = 0; k < nodes.size(); ++k)
+    if (anchored[k]) run_anchored[root(k)] = 1;
   std::vector<Vec3> current(nodes.size());
   for (std::size_t k = 0; k < nodes.size(); ++k) {
-    if (size[root(k)] < kSliverRunNodes) fixed[k] = 1;
+    if (size[root(k)] < kSliverRunNodes && !run_anchored[root(k)]) fixed[k] = 1;
     current[k] = fixed[k] ? nodes[k].base : normalized(nodes[k].base + tilt[k] * nodes[k].along);
   }
   for (std::size_t k = 0; k < nodes.size(); ++k)

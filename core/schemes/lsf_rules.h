@@ -185,14 +185,19 @@ inline constexpr int kRelaxRounds = 100;
 //! sectors; Kaczmarz sweeps give the least tilts that meet them (exact on extrusions of
 //! circles). What the sums leave free, one alternating tilt per connected run, is averaged
 //! out only over many strips: runs of fewer than kSliverRunNodes sectors keep the face sums.
+//! A short edge from such a sector to a smooth vertex with a trusted normal (GuardVertex::relaxed)
+//! adds its equation with that normal held: the run's free tilt is then fixed, and a flat
+//! sector of slivers that breaks it by more than 1e-3 moves too (the plate's crease-line
+//! midpoints after a level, whose slivers lie in the chord plane of the arc's first strip).
 //! `sectors` receives the moved sector normals (GuardVertex::sectors_relaxed marks their
 //! vertices). Where no crease vertex has a sliver edge, one scan of the vertex kinds.
 void relax_sliver_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guard,
                           SectorNormals& sectors);
 
 //! At a smooth vertex v whose ring is a sliver's midpoint (two long spokes, nearly opposite,
-//! kTwoCurvesRatio times longer than every other): the normal across the tangents at v of the
-//! circle through the long spokes' ends and of the circle through the two short neighbours
+//! kTwoCurvesRatio times longer than every other; of several such pairs, the one v is most
+//! nearly the midpoint of): the normal across the tangents at v of the circle through the long
+//! spokes' ends and of the circle through the two short neighbours
 //! most across them, one on each side (issue 17, round 8: the plate's strip midpoints after a
 //! level, whose face sums and relaxed normals were ~2 deg off). Both curves lie on the surface,
 //! so its normal is across both: exact on extrusions of circles. Writes `normal` (unit, on
