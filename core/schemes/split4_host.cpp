@@ -246,15 +246,9 @@ std::uint64_t check_edge_points_bytes(const Mesh& m) {
   return std::uint64_t(m.num_vertices()) + m.num_edges();
 }
 
-std::size_t check_edge_points_against_normals(const Mesh& m, const Features& features,
-                                              std::span<Vec3> edge_points,
-                                              const NormalCheckParams& params) {
-  params.validate();
-  const std::uint32_t nv = static_cast<std::uint32_t>(m.num_vertices());
-  // Where the butterfly's lattice assumption fails: a vertex whose longest spoke is at least
-  // uneven_spokes times its shortest (a fan, a zipper, a sliver's end, a hull's uneven ring).
-  std::vector<std::uint8_t> uneven(nv, 0);
-  parallel_for_each_index(nv, [&](std::size_t i) {
+std::vector<std::uint8_t> uneven_spoke_vertices(const Mesh& m, double ratio) {
+  std::vector<std::uint8_t> uneven(m.num_vertices(), 0);
+  parallel_for_each_index(m.num_vertices(), [&](std::size_t i) {
     const VertexId v(static_cast<std::uint32_t>(i));
     if (m.is_isolated(v)) return;
     double shortest = std::numeric_limits<double>::infinity(), longest = 0;
@@ -265,8 +259,17 @@ std::size_t check_edge_points_against_normals(const Mesh& m, const Features& fea
       shortest = std::min(shortest, l2);
       longest = std::max(longest, l2);
     });
-    uneven[i] = longest >= (params.uneven_spokes * params.uneven_spokes) * shortest;
+    uneven[i] = longest >= (ratio * ratio) * shortest;
   });
+  return uneven;
+}
+
+std::size_t check_edge_points_against_normals(const Mesh& m, const Features& features,
+                                              std::span<Vec3> edge_points,
+                                              const NormalCheckParams& params) {
+  params.validate();
+  // Where the butterfly's lattice assumption fails.
+  const std::vector<std::uint8_t> uneven = uneven_spoke_vertices(m, params.uneven_spokes);
   std::vector<std::uint8_t> moved(m.num_edges(), 0);
   parallel_for_each_index(m.num_edges(), [&](std::size_t e) {
     const EdgeId edge(static_cast<std::uint32_t>(e));

@@ -123,6 +123,11 @@ struct NormalCheckParams {
   void validate() const;
 };
 
+//! Per vertex: 1 where its longest spoke is at least `ratio` times its shortest (a fan, a
+//! zipper, a sliver's end, a hull's uneven ring), where lattice weights do not hold; 0 for
+//! isolated vertices. The normal checks of split4 and sqrt3 start from it.
+std::vector<std::uint8_t> uneven_spoke_vertices(const Mesh& m, double ratio);
+
 //! Normal check (issue 17 item 3), ours: the butterfly stencil runs it on its edge points
 //! (indexed by EdgeId), so every host (split4, the adaptive ones) has it before its plane rule
 //! and fold guard. The

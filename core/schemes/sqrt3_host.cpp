@@ -572,19 +572,9 @@ std::size_t check_face_points_against_normals(const Mesh& m, const Sqrt3Layout& 
                                               BigVector<Vec3>& pos) {
   params.validate();
   const std::uint32_t nv = static_cast<std::uint32_t>(m.num_vertices());
-  const double ratio2 = params.uneven_spokes * params.uneven_spokes;
-  std::vector<std::uint8_t> uneven(nv, 0);
+  std::vector<std::uint8_t> uneven = uneven_spoke_vertices(m, params.uneven_spokes);
   parallel_for_each_index(nv, [&](std::size_t i) {
-    const VertexId v(static_cast<std::uint32_t>(i));
-    if (m.is_isolated(v)) return;
-    double shortest = std::numeric_limits<double>::infinity(), longest = 0;
-    const Vec3 p = m.position(v);
-    for_each_outgoing(m, v, [&](HalfedgeId s) {
-      const Vec3 d = m.position(m.to(s)) - p;
-      shortest = std::min(shortest, dot(d, d));
-      longest = std::max(longest, dot(d, d));
-    });
-    uneven[i] = longest >= ratio2 * shortest && !lattice_ring(m, v);
+    if (uneven[i]) uneven[i] = !lattice_ring(m, VertexId(static_cast<std::uint32_t>(i)));
   });
   std::atomic<std::size_t> moved{0};
   parallel_for_each_index(m.num_faces(), [&](std::size_t fi) {
