@@ -142,15 +142,19 @@ RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRe
   // snaps, the deviation bound is applied once, after the last level.
   // Snaps that turn a face more than 60 degrees are taken back as a whole, and the levels
   // after are left alone (as the last level's post-pass does, apply_guarded).
-  // Without snaps, an interpolating scheme's levels are held to the deviation bound before
-  // the next is made from them: pulled after the last level only, sqrt3's later slivers,
-  // made off the bound, were turned 60-90 degrees around the fixed input vertices (issue 17
-  // item 2: fans of slivers within 0.05-0.6 mm of an input vertex, a move that cannot be
-  // affine over them); made from the pulled surface, they need little or no pull.
+  // Without snaps, an interpolating sqrt3 scheme's steps are held to the deviation bound
+  // before the next is made from them: pulled after the last step only, sqrt3's later
+  // slivers, made off the bound, were turned 60-90 degrees around the fixed input vertices
+  // (issue 17 item 2: fans of slivers within 0.05-0.6 mm of an input vertex, a move that
+  // cannot be affine over them); made from the pulled surface, they need little or no pull.
+  // The 1-to-4 schemes turn no face with one pass after the last level (CAD-like families,
+  // round 8 and 9), and a pass per level made their long refinements much slower (8 M faces
+  // of butterfly under ASan: 47 s -> past 150 s), so they keep the one pass.
   BetweenLevelsFn between_levels;
   bool snap_levels = surface && regions && !regions->regions.empty() && scheme.interpolating() &&
                      !request.refine.adaptive();
-  const bool pull_levels = surface && !snap_levels && scheme.interpolating() &&
+  const bool one_to_three = scheme.predict_faces(1, 1) == 3;  // a sqrt3 step
+  const bool pull_levels = surface && !snap_levels && scheme.interpolating() && one_to_three &&
                            !request.refine.adaptive() && prim.max_deviation != 0.0;
   // refine's own figure for a level's pass, as refine_grow takes it (the catch below adds the
   // body and the surface to a refusal's figure once).
