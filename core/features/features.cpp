@@ -190,7 +190,7 @@ Features detect_auto(const Mesh& mesh) {
     angle[e] = std::atan2(norm(cross(n1, n2)), dot(n1, n2));
   });
   // Why an edge is sharp: its dihedral alone, a planar face on one side, standing out.
-  constexpr std::uint8_t kAlways = 1, kPlanarSide = 2, kStandsOut = 3;
+  constexpr std::uint8_t kAlways = 1, kPlanarSide = 2, kStandsOut = 3, kBetweenWalls = 4;
   const double always = kAutoCreaseAlwaysDeg * kDeg;
   const double flat = kAutoCreaseFlatDeg * kDeg;
   // Planar regions: faces joined across edges flatter than kAutoCreaseFlatDeg, with their
@@ -369,9 +369,15 @@ Features detect_auto(const Mesh& mesh) {
                      : 0;
     } else {
       const double around = std::max(s1.bend, s2.bend);
-      sharp[e] = a >= around + kAutoCreaseStandOutDeg * kDeg && a >= kAutoCreaseRatio * around
-                     ? kStandsOut
-                     : 0;
+      const bool stands_out =
+          a >= around + kAutoCreaseStandOutDeg * kDeg && a >= kAutoCreaseRatio * around;
+      // Two planar faces that bend nowhere but here (every other edge around them flat or
+      // steep): two walls of an extruded polygon, not chords of a curve (a coarse prism's
+      // facets bend alike at their far edges). Such an edge runs between the steep edges
+      // capping the walls, so it is kept without continuing a chain (the xyz cube's letter
+      // walls meet at 32 degrees).
+      const bool walls = s1.planar && s2.planar && around < flat;
+      sharp[e] = !stands_out ? 0 : walls ? kBetweenWalls : kStandsOut;
     }
   });
   // A crease is a chain: an edge found by standing out alone needs, at both of its ends, a

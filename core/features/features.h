@@ -109,7 +109,9 @@ class Features {
 //!   whose "plane" is one facet, are smooth; a plane meeting a fillet at a crease is not; or
 //! - it stands out: at least kAutoCreaseRatio times and kAutoCreaseStandOutDeg above the
 //!   bend of both faces, and at both of its ends a sharp edge continues it turning by less
-//!   than kAutoCreaseTurnDeg (a crease is a chain).
+//!   than kAutoCreaseTurnDeg (a crease is a chain); or both faces are planar and bend
+//!   nowhere else (two walls of an extruded polygon between the steep edges that cap them:
+//!   no chain needed).
 //! Then gaps in chains are filled: an edge continued (as above) by sharp edges at both
 //! ends, bending at least kAutoCreaseGapRatio times as much as they do and kAutoCreaseRatio
 //! times its faces' bend, is sharp too. Last, an edge found by a rule other than the steep

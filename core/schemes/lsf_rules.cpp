@@ -82,10 +82,15 @@ Vec3 lsf_curve_point(const Mesh& m, const Features& f, HalfedgeId h) {
       // crease). Where a flat side meets an arc at a shallow crease (issue 17's plate outline,
       // 6-12 degrees) the flat's far end is off the arc's circle by its length, and the
       // quadratic through it is the chord: the arc's chord midpoint, its sagitta off.
-      const VertexId after = f.curve_beyond(next, x);
-      if (before.valid() && after.valid() &&
-          !(circle_distance(px, pn, m.position(after), m.position(before)) <=
-            kCurveThroughCornerTol * distance(px, m.position(before))))
+      // When next is a corner too, the vertex after it is the one its own curve continues
+      // to; with none, three points say nothing of a curve and the corner ends it (a polygon's
+      // outline, the xyz cube's letters: 0.2 mm bows on edges between two corners).
+      VertexId after = f.curve_beyond(next, x);
+      if (!after.valid() && f.kind(next) == VertexKind::Corner)
+        after = corner_beyond(m, f, next, x);
+      if (before.valid() &&
+          !(after.valid() && circle_distance(px, pn, m.position(after), m.position(before)) <=
+                                 kCurveThroughCornerTol * distance(px, m.position(before))))
         before = VertexId();
     }
     if (!before.valid()) return false;

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdint>
 #include <map>
+#include <numbers>
 #include <set>
 #include <string>
 #include <tuple>
@@ -17,11 +18,13 @@
 
 #include "core/error.h"
 #include "core/features/features.h"
+#include "core/geometry/point_triangle.h"
 #include "core/mesh/build_mesh.h"
 #include "core/refine.h"
 #include "core/schemes/split4_host.h"
 #include "tests/support/cad_like.h"
 #include "tests/support/mesh_queries.h"
+#include "tests/support/shapes.h"
 #include "tests/support/true_surface.h"
 
 namespace stlrefine::test {
@@ -323,6 +326,83 @@ TEST(FoldGuard, Sqrt3InterpFourStepsRarelyPast60Degrees) {
         const std::size_t per_mille = family == CadFamily::RoundedBox ? 60 : 3;
         EXPECT_LE(off * 1000, per_mille * r.mesh.num_faces()) << off << " faces past 60 degrees";
       }
+}
+
+// An extruded convex quadrilateral (an embossed letter's stroke, as on the xyz cube): walls of
+// two triangles each, capped by fans; the outline turns by 32 degrees at one corner and by 100,
+// 100 and 128 at the others. Every face is planar, so a refinement that reads it right
+// reproduces it exactly: new vertices on the input's faces, crease vertices on its straight
+// edges.
+IndexedSoup extruded_polygon(double height) {
+  const double deg = std::numbers::pi / 180.0;
+  const Vec3 b{10, 0, 0}, c = b + 4.0 * Vec3{std::cos(32 * deg), std::sin(32 * deg), 0};
+  // d = c + s u = t w: the wall leaving c at 132 degrees meets the one reaching the origin
+  // from 52 degrees.
+  const Vec3 u{std::cos(132 * deg), std::sin(132 * deg), 0};
+  const Vec3 w{std::cos(52 * deg), std::sin(52 * deg), 0};
+  const double t = (c.x * u.y - c.y * u.x) / (w.x * u.y - w.y * u.x);
+  const std::vector<Vec3> outline{{0, 0, 0}, b, c, t * w};
+  const auto n = static_cast<std::uint32_t>(outline.size());
+  IndexedSoup soup;
+  for (const Vec3& p : outline) soup.positions.push_back(p);
+  for (const Vec3& p : outline) soup.positions.push_back(p + Vec3{0, 0, height});
+  for (std::uint32_t i = 1; i + 1 < n; ++i) {
+    soup.triangles.push_back({0, i + 1, i});          // bottom, facing down
+    soup.triangles.push_back({n, n + i, n + i + 1});  // top, facing up
+  }
+  for (std::uint32_t i = 0; i < n; ++i) {
+    const std::uint32_t j = (i + 1) % n;
+    soup.triangles.push_back({i, j, n + j});
+    soup.triangles.push_back({i, n + j, n + i});
+  }
+  return soup;
+}
+
+TEST(CreasesPolyhedra, WallsOfAnExtrudedPolygonMeetAtACrease) {
+  const Mesh m = to_mesh(extruded_polygon(0.5));
+  const Features f = detect_features(m, FeatureParams{});
+  // Every edge but the walls' and caps' diagonals: 4 + 4 outline edges, 4 wall edges.
+  EXPECT_EQ(f.num_sharp_edges(), 12u);
+  // A coarse 12-gon prism's facets (30 degrees, each bending the same at its far edge) stay
+  // smooth: the rule needs the walls to bend nowhere else.
+  IndexedSoup prism;
+  const int k = 12;
+  for (int z = 0; z < 2; ++z)
+    for (int i = 0; i < k; ++i) {
+      const double a = 2 * std::numbers::pi * i / k;
+      prism.positions.push_back({10 * std::cos(a), 10 * std::sin(a), 20.0 * z});
+    }
+  for (std::uint32_t i = 0; i < std::uint32_t(k); ++i) {
+    const std::uint32_t j = (i + 1) % k;
+    prism.triangles.push_back({i, j, k + j});
+    prism.triangles.push_back({i, k + j, k + i});
+  }
+  const Mesh tube = to_mesh(prism);
+  EXPECT_EQ(detect_features(tube, FeatureParams{}).num_sharp_edges(), 2u * k);  // the rims
+}
+
+TEST(CreasesPolyhedra, ExtrudedPolygonRefinesOntoItself) {
+  const Mesh input = to_mesh(extruded_polygon(0.5));
+  for (const char* scheme : {"lsf", "butterfly", "sqrt3-interp", "butterfly-g1"}) {
+    SCOPED_TRACE(scheme);
+    RefineParams params;
+    params.scheme = scheme;
+    params.levels = std::string(scheme) == "sqrt3-interp" ? 4 : 2;
+    const Mesh out = refine(input, params).mesh;
+    double worst = 0;
+    for (std::uint32_t v = 0; v < out.num_vertices(); ++v) {
+      const Vec3 p = out.position(VertexId(v));
+      double best = INFINITY;
+      for (std::uint32_t fi = 0; fi < input.num_faces(); ++fi) {
+        const auto vs = input.face_vertices(FaceId(fi));
+        best =
+            std::min(best, point_triangle_distance(p, input.position(vs[0]), input.position(vs[1]),
+                                                   input.position(vs[2])));
+      }
+      worst = std::max(worst, best);
+    }
+    EXPECT_LE(worst, 1e-9);  // mm
+  }
 }
 
 }  // namespace
