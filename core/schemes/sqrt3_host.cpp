@@ -307,9 +307,10 @@ class Sqrt3FoldTest {
   }
   // A triangle's height (twice its area over its longest edge), its thinness (the height over
   // the longest edge: 0 flat, sqrt 3 / 2 equilateral), and the float grid at it
-  // (kThinFloatUlps float epsilons of its largest coordinate).
+  // (kThinFloatUlps float epsilons of its largest coordinate). Squared, from its cross
+  // product n: the check below runs on every fine face.
   struct Shape {
-    double height = 0, thinness = 0, grid = 0;
+    double height2 = 0, thinness2 = 0, grid2 = 0;
   };
   static Shape shape_of(const std::array<Vec3, 3>& p, const Vec3& n) {
     double longest2 = 0, largest = 0;
@@ -318,11 +319,12 @@ class Sqrt3FoldTest {
       longest2 = std::max(longest2, dot(d, d));
       largest = std::max({largest, std::abs(p[k].x), std::abs(p[k].y), std::abs(p[k].z)});
     }
+    const double grid = kThinFloatUlps * std::numeric_limits<float>::epsilon() * largest;
     Shape s;
-    s.grid = kThinFloatUlps * std::numeric_limits<float>::epsilon() * largest;
+    s.grid2 = grid * grid;
     if (!(longest2 > 0)) return s;
-    s.height = std::sqrt(dot(n, n) / longest2);
-    s.thinness = s.height / std::sqrt(longest2);
+    s.height2 = dot(n, n) / longest2;
+    s.thinness2 = s.height2 / longest2;
     return s;
   }
   Shape coarse_shape(std::uint32_t f) const {
@@ -335,13 +337,14 @@ class Sqrt3FoldTest {
   // is below the grid itself (no split of it can help).
   bool degenerate(const std::array<Vec3, 3>& p, const Vec3& n, std::uint32_t f,
                   std::uint32_t g) const {
+    constexpr double kFraction2 = kThinParentFraction * kThinParentFraction;
     const Shape child = shape_of(p, n);
     // Cheap first: no coarse face's thinness exceeds sqrt 3 / 2.
-    if (child.height >= child.grid && child.thinness >= kThinParentFraction * 0.8661) return false;
+    if (child.height2 >= child.grid2 && child.thinness2 >= kFraction2 * 0.75) return false;
     const Shape sf = coarse_shape(f), sg = g == f ? sf : coarse_shape(g);
-    if (sf.height < sf.grid || sg.height < sg.grid) return false;
-    return child.height < child.grid ||
-           child.thinness < kThinParentFraction * std::min(sf.thinness, sg.thinness);
+    if (sf.height2 < sf.grid2 || sg.height2 < sg.grid2) return false;
+    return child.height2 < child.grid2 ||
+           child.thinness2 < kFraction2 * std::min(sf.thinness2, sg.thinness2);
   }
 
   const Mesh& m_;
