@@ -200,12 +200,33 @@ std::uint32_t rank_boundary_edges(const Mesh& m, const Features& features,
   return count;
 }
 
+// How thin a fine face may be, in float32 ulps of its largest coordinate (epsilon times the
+// coordinate: 1-2 ulps). The binary STL rounds every coordinate by up to half an ulp, which
+// moves a corner's distance from the opposite edge by up to sqrt 3 ulps: a thinner face can
+// turn over in the output although it faces the right way in double precision (issue 17:
+// slivers of height 1e-6 mm beside the plate's trisected creases, 180 degrees off in the STL).
+// At 4 the rounding tilts a face by at most about atan(sqrt 3 / 4) = 23 degrees. Such a face
+// counts as a fold where the coarse faces it comes from are not that thin themselves (their
+// 1-to-3 split at the centroid keeps a third of their height; a thin input face cannot be
+// helped): the guard then keeps the edge instead of flipping it into the sliver, or moves the
+// face point on to its next stage.
+constexpr double kThinFloatUlps = 4.0;
+// The float grid alone leaves chains: a flip whose quad is nearly flat at one end made a child
+// 1e-4 times as thin as its parents (plate 9502, step 3; 9501, step 6), whose own children,
+// a third as thin each step, fell below the grid three steps later. So a fine face thinner
+// (height over longest edge) than this fraction of the thinner of the coarse faces it comes
+// from is degenerate too. Below 1/9, every split the guard falls back to passes: the centroid
+// keeps at least a third of the coarse face's thinness, the stages towards the largest-angle
+// corner at least 2/9 and 1/9 (sqrt3_guard_stage_point); a flip past it is kept instead.
+constexpr double kThinParentFraction = 0.1;
+
 // The smooth surface's normals at the fine faces of one step (issue 17 item 2), from the
 // coarse level's sector normals (split4_host.h): at an old vertex the one of its corner in
 // the coarse face the fine face belongs to, at a face point the mean of its face's three
 // corner normals, at a trisection point the mean of its edge's two corners weighted by
 // nearness. A fine face folds when its normal is more than kFoldAngleDeg from the mean of
-// its corners' smooth normals.
+// its corners' smooth normals, or when it is thinner than the float grid of its coordinates
+// while the coarse faces it is made from are not (degenerate).
 class Sqrt3FoldTest {
  public:
   Sqrt3FoldTest(const Mesh& m, const Sqrt3Layout& layout, std::span<const Vec3> corner,
@@ -217,7 +238,12 @@ class Sqrt3FoldTest {
         cos_fold_(std::cos(kSqrt3FoldAngleDeg * std::numbers::pi / 180.0)) {}
 
   //! Fine face h, with the current flips (layout.kept) and positions.
-  bool folds(HalfedgeId h) const { return folds(layout_.corners(h), smooth_normal(h)); }
+  bool folds(HalfedgeId h) const {
+    const std::uint32_t f = h.idx / 3;
+    // A flipped child spans its coarse face and the twin's; a kept or cut one its own face.
+    const std::uint32_t g = layout_.kept(h) ? f : m_.twin(h).idx / 3;
+    return folds(layout_.corners(h), smooth_normal(h), f, g);
+  }
 
   //! Whether flipping the (non-sharp, interior) edge of h, a -> b, would fold: one of the
   //! two flipped children (a, q_g, q_f), (b, q_f, q_g) turns more than kFoldAngleDeg from
@@ -239,8 +265,9 @@ class Sqrt3FoldTest {
     const HalfedgeId t = m_.twin(h);
     const VertexId a = m_.from(h), b = m_.to(h), qf = layout_.apex(h), qg = layout_.apex(t);
     const Vec3 nf = apex_normal(h), ng = apex_normal(t);
-    if (folds({a, qg, qf}, corner_[h.idx] + ng + nf)) return true;
-    if (folds({b, qf, qg}, corner_[t.idx] + nf + ng)) return true;
+    const std::uint32_t f = h.idx / 3, g = t.idx / 3;
+    if (folds({a, qg, qf}, corner_[h.idx] + ng + nf, f, g)) return true;
+    if (folds({b, qf, qg}, corner_[t.idx] + nf + ng, f, g)) return true;
     const Vec3 edge_normal =
         corner_[h.idx] + corner_[Mesh::next(h).idx] + corner_[t.idx] + corner_[Mesh::next(t).idx];
     const Vec3 &pa = pos_[a.idx], &pb = pos_[b.idx], &pf = pos_[qf.idx], &pg = pos_[qg.idx];
@@ -269,10 +296,55 @@ class Sqrt3FoldTest {
     if (layout_.kept(h)) return corner_[h.idx] + corner_[Mesh::next(h).idx] + apex_normal(h);
     return corner_[h.idx] + apex_normal(m_.twin(h)) + apex_normal(h);
   }
-  bool folds(const std::array<VertexId, 3>& c, const Vec3& smooth) const {
-    const Vec3 n = triangle_normal(pos_[c[0].idx], pos_[c[1].idx], pos_[c[2].idx]);
+  // Triangle c (made from coarse faces f and g) folds against `smooth`, or is degenerate.
+  bool folds(const std::array<VertexId, 3>& c, const Vec3& smooth, std::uint32_t f,
+             std::uint32_t g) const {
+    const std::array<Vec3, 3> p = {pos_[c[0].idx], pos_[c[1].idx], pos_[c[2].idx]};
+    const Vec3 n = triangle_normal(p[0], p[1], p[2]);
     const double len = norm(n) * norm(smooth);
-    return len > 0 && dot(n, smooth) < cos_fold_ * len;
+    if (len > 0 && dot(n, smooth) < cos_fold_ * len) return true;
+    return degenerate(p, n, f, g);
+  }
+  // A triangle's height (twice its area over its longest edge), its thinness (the height over
+  // the longest edge: 0 flat, sqrt 3 / 2 equilateral), and the float grid at it
+  // (kThinFloatUlps float epsilons of its largest coordinate). Squared, from its cross
+  // product n: the check below runs on every fine face.
+  struct Shape {
+    double height2 = 0, thinness2 = 0, grid2 = 0;
+  };
+  static Shape shape_of(const std::array<Vec3, 3>& p, const Vec3& n) {
+    double longest2 = 0, largest = 0;
+    for (int k = 0; k < 3; ++k) {
+      const Vec3 d = p[(k + 1) % 3] - p[k];
+      longest2 = std::max(longest2, dot(d, d));
+      largest = std::max({largest, std::abs(p[k].x), std::abs(p[k].y), std::abs(p[k].z)});
+    }
+    const double grid = kThinFloatUlps * std::numeric_limits<float>::epsilon() * largest;
+    Shape s;
+    s.grid2 = grid * grid;
+    if (!(longest2 > 0)) return s;
+    s.height2 = dot(n, n) / longest2;
+    s.thinness2 = s.height2 / longest2;
+    return s;
+  }
+  Shape coarse_shape(std::uint32_t f) const {
+    const auto [a, b, c] = m_.face_vertices(FaceId(f));
+    const std::array<Vec3, 3> p = {m_.position(a), m_.position(b), m_.position(c)};
+    return shape_of(p, triangle_normal(p[0], p[1], p[2]));
+  }
+  // Fine triangle p (n its cross product), made from coarse faces f and g, is lower than the
+  // float grid, or thinner than kThinParentFraction of the thinner of f and g; unless f or g
+  // is below the grid itself (no split of it can help).
+  bool degenerate(const std::array<Vec3, 3>& p, const Vec3& n, std::uint32_t f,
+                  std::uint32_t g) const {
+    constexpr double kFraction2 = kThinParentFraction * kThinParentFraction;
+    const Shape child = shape_of(p, n);
+    // Cheap first: no coarse face's thinness exceeds sqrt 3 / 2.
+    if (child.height2 >= child.grid2 && child.thinness2 >= kFraction2 * 0.75) return false;
+    const Shape sf = coarse_shape(f), sg = g == f ? sf : coarse_shape(g);
+    if (sf.height2 < sf.grid2 || sg.height2 < sg.grid2) return false;
+    return child.height2 < child.grid2 ||
+           child.thinness2 < kFraction2 * std::min(sf.thinness2, sg.thinness2);
   }
 
   const Mesh& m_;

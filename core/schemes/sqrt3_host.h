@@ -91,6 +91,9 @@ class Sqrt3Stencil {
 //! - geometric: where a fine face still folds, its face points move towards their face's
 //!   centroid (then towards its largest-angle corner); a child of a cut face with no face
 //!   point has its sharp edge's two trisection points moved towards the chord's thirds.
+//! - a degenerate fine face counts as folded (both halves): lower than a few float ulps of
+//!   its coordinates (the binary STL's rounding could turn it over), or thinner than a tenth
+//!   of the coarse faces it comes from (a near-flat flip), unless those are that thin already.
 //! Before the plane rule and the fold guard, for interpolating stencils, the normal check
 //! (issue 17 item 3, ours): the face point of a face with a corner of uneven spokes (ratio 2
 //! and up, unless its ring is a lifted lattice) becomes the PN-triangle centroid of the

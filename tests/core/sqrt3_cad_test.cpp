@@ -11,9 +11,11 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 
 #include "core/features/features.h"
 #include "core/geometry/pn_centroid.h"
+#include "core/refine.h"
 #include "core/schemes/sqrt3_host.h"
 #include "core/schemes/sqrt3_interp.h"
 #include "tests/core/test_util.h"
@@ -83,6 +85,50 @@ TEST(Sqrt3NormalCheck, SliverFacePointsOfACylinderGoNearTheSurface) {
   EXPECT_GE(moved, 40u);
   // Measured: 46 points moved, 0.032 mm RMS off the cylinder (all faces) -> 0.065 of that.
   EXPECT_LE(std::sqrt(checked_sq), 0.2 * std::sqrt(raw_sq));
+}
+
+// Positions rounded to float, as a binary STL stores them.
+Mesh float_rounded(Mesh m) {
+  for (Vec3& p : m.mutable_positions())
+    p = {double(float(p.x)), double(float(p.y)), double(float(p.z))};
+  return m;
+}
+
+// Issue 17 item 2 in the file a bureau gets: the plate refined 6 sqrt3 steps (level 3),
+// written as float coordinates. On main, sqrt3-interp made slivers 1e-6 mm high on the flat
+// end faces (near-flat flips beside trisected creases, face points the fold guard left almost
+// on a kept edge) that faced the right way in double precision and turned over in the float
+// output: seeds 9002, 9006 (2), 9008, 9501, 9502, 180 degrees off the truth; 1-13 faces per
+// seed lower than 2 float ulps of their coordinates (rounding moves a corner's distance from
+// the opposite edge by up to sqrt 3 ulps). The host's fold guard counts such degenerate faces
+// as folds (sqrt3_host.cpp, kThinFloatUlps, kThinParentFraction).
+TEST(Sqrt3Cad, PlateSliversSurviveTheFloatOutput) {
+  const double eps = std::numeric_limits<float>::epsilon();
+  for (const std::uint64_t seed : {9002, 9006, 9008, 9501, 9502}) {
+    const CadShape shape = make_cad_shape(CadFamily::Plate, {seed, 1.0});
+    const Mesh input = float_rounded(to_mesh(shape.soup));  // as read from its STL
+    RefineParams params;
+    params.scheme = "sqrt3-interp";
+    params.levels = 6;
+    const Mesh out = refine(Mesh(input), params).mesh;
+    const Mesh stl = float_rounded(out);
+    std::size_t reversed = 0, below_grid = 0;
+    for (std::uint32_t f = 0; f < out.num_faces(); ++f) {
+      const auto [a, b, c] = out.face_vertices(FaceId(f));
+      const std::array<Vec3, 3> p = {out.position(a), out.position(b), out.position(c)};
+      reversed += dot(out.face_normal(FaceId(f)), stl.face_normal(FaceId(f))) <= 0;
+      double longest = 0, largest = 0;
+      for (int k = 0; k < 3; ++k) {
+        longest = std::max(longest, distance(p[k], p[(k + 1) % 3]));
+        largest = std::max({largest, std::abs(p[k].x), std::abs(p[k].y), std::abs(p[k].z)});
+      }
+      // Float ulps are eps times the largest coordinate or up to half of it.
+      below_grid += norm(out.face_normal(FaceId(f))) / longest < 2 * eps * largest;
+    }
+    EXPECT_EQ(reversed, 0u) << "seed " << seed;
+    EXPECT_EQ(below_grid, 0u) << "seed " << seed;
+    EXPECT_EQ(faces_off_truth(stl, *shape.surface, 90), 0u) << "seed " << seed;
+  }
 }
 
 // The PN centroid of a sphere's small triangle with its true normals is on the sphere to
