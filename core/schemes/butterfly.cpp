@@ -111,7 +111,8 @@ void ButterflyStencil::edge_points(const Level& coarse, std::span<Vec3> out) con
       out[e] = eight_point(m, f, h);
     }
   });
-  // Ours (issue 17): the points at uneven rings checked against the surface's normals.
+  // Ours (issue 17): Zorin's rule at uneven rings checked against the surface's normals. The
+  // original butterfly (butterfly-g1's base) stays the paper's.
   if (checks_against_normals()) check_edge_points_against_normals(m, f, out);
 }
 

@@ -19,16 +19,14 @@ class ButterflyStencil final : public Split4Stencil {
   //! original butterfly (w = 1/16) at every vertex, the base of Prautzsch and Umlauf's G1
   //! butterfly (spec 6).
   enum class Extraordinary { Zorin, EightPoint };
-  //! The check on by default for Zorin's rule (our `butterfly`), off for the 8-point rule (the
-  //! paper's stencil, which the spectral analysis and butterfly-g1's masks are derived from).
-  explicit ButterflyStencil(Extraordinary rule = Extraordinary::Zorin)
-      : ButterflyStencil(rule, rule == Extraordinary::Zorin) {}
-  //! `check_normals`: run check_edge_points_against_normals (split4_host.h) on the edge
-  //! points (off: the paper's stencil alone; on for the 8-point rule: butterfly-g1's base).
-  ButterflyStencil(Extraordinary rule, bool check_normals);
+  //! `check_normals`: run check_edge_points_against_normals (split4_host.h) on the Zorin
+  //! rule's points (off: the paper's stencil alone, for tests).
+  explicit ButterflyStencil(Extraordinary rule = Extraordinary::Zorin, bool check_normals = true);
   void edge_points(const Level& coarse, std::span<Vec3> out) const override;
   bool interpolating() const override { return true; }
-  bool checks_against_normals() const override { return check_normals_; }
+  bool checks_against_normals() const override {
+    return check_normals_ && rule_ == Extraordinary::Zorin;
+  }
 
   //! Weight s_j of ring vertex j (offset from the edge's other end) in the rule around an
   //! extraordinary vertex of valence k; the centre weighs 3/4 and sum_j s_j = 1/4.

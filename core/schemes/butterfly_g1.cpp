@@ -33,7 +33,7 @@ const SpectralMaskTable& butterfly_g1_masks() {
 
 std::unique_ptr<Split4Stencil> make_butterfly_g1_stencil() {
   return std::make_unique<SpectralStencil>(
-      std::make_unique<ButterflyStencil>(ButterflyStencil::Extraordinary::EightPoint, true),
+      std::make_unique<ButterflyStencil>(ButterflyStencil::Extraordinary::EightPoint),
       butterfly_g1_masks(), SpectralSchedule{kButterflyG1Fraction, 1, 0});
 }
 
