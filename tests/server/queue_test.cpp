@@ -42,6 +42,22 @@ using namespace std::chrono_literals;
 using Json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
 
+// The files of a finished job's directory once its run has tidied it: a run records its end
+// in Redis before it removes the input (were the record lost, the run taking the job over
+// would need it), so "done" can be read a moment before input.stl goes. Waits up to 10 s
+// for the input to go, then returns what is there.
+std::set<std::string> settled_job_files(const fs::path& dir) {
+  std::set<std::string> files;
+  const auto until = Clock::now() + 10s;
+  do {
+    files.clear();
+    for (const auto& e : fs::directory_iterator(dir)) files.insert(e.path().filename().string());
+    if (!files.count("input.stl")) break;
+    std::this_thread::sleep_for(50ms);
+  } while (Clock::now() < until);
+  return files;
+}
+
 std::string redis_server_path() {
   for (const char* p : {"/usr/bin/redis-server", "/usr/local/bin/redis-server"})
     if (::access(p, X_OK) == 0) return p;
@@ -369,10 +385,8 @@ TEST_F(QueueMode, KilledReplicasJobFinishesOnAnotherWithOneResult) {
   ASSERT_EQ(stl->status, 200);
   EXPECT_EQ(read_binary_stl(stl->body).size(), std::size_t{32} << 16);
   // One result: no second copy or half file beside it (the killed run was still computing).
-  std::set<std::string> files;
-  for (const auto& e : fs::directory_iterator(dir_ / "data" / id))
-    files.insert(e.path().filename().string());
-  EXPECT_EQ(files, (std::set<std::string>{"result.stl", "report.json"}));
+  EXPECT_EQ(settled_job_files(dir_ / "data" / id),
+            (std::set<std::string>{"result.stl", "report.json"}));
   auto metrics = survivor.client()->Get("/metrics");
   ASSERT_TRUE(metrics);
   EXPECT_NE(metrics->body.find("stlrefine_queue_reclaims_total 1\n"), std::string::npos)
@@ -463,10 +477,8 @@ TEST_F(QueueMode, StalledReplicaStoppedAfterItsLeaseDoesNotHandBackTheJob) {
   const Json j = wait_ended(survivor, id, 150s);
   ASSERT_EQ(j.value("state", ""), "done") << j.dump();
   EXPECT_EQ(j.value("worker", ""), survivor.name);
-  std::set<std::string> files;
-  for (const auto& e : fs::directory_iterator(dir_ / "data" / id))
-    files.insert(e.path().filename().string());
-  EXPECT_EQ(files, (std::set<std::string>{"result.stl", "report.json"}));
+  EXPECT_EQ(settled_job_files(dir_ / "data" / id),
+            (std::set<std::string>{"result.stl", "report.json"}));
   auto stl = survivor.client()->Get(("/v1/jobs/" + id + "/result.stl").c_str());
   ASSERT_TRUE(stl);
   ASSERT_EQ(stl->status, 200);
@@ -539,10 +551,8 @@ TEST_F(QueueMode, ReplicaCutOffFromRedisStopsItsRunAndDoesNotHandItBack) {
   const Json j = wait_ended(b, id, 150s);
   ASSERT_EQ(j.value("state", ""), "done") << j.dump();
   EXPECT_EQ(j.value("worker", ""), "b");
-  std::set<std::string> files;
-  for (const auto& e : fs::directory_iterator(dir_ / "data" / id))
-    files.insert(e.path().filename().string());
-  EXPECT_EQ(files, (std::set<std::string>{"result.stl", "report.json"}));
+  EXPECT_EQ(settled_job_files(dir_ / "data" / id),
+            (std::set<std::string>{"result.stl", "report.json"}));
   auto stl = b.client()->Get(("/v1/jobs/" + id + "/result.stl").c_str());
   ASSERT_TRUE(stl);
   ASSERT_EQ(stl->status, 200);
