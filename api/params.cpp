@@ -585,11 +585,12 @@ const ParamRow kParams[] = {
      .type = ParamType::String,
      .description =
          "auto: recognise planes, spheres, cylinders, cones and tori on the input and put "
-         "the new vertices of their regions exactly on them; off (default): do not (auto can "
-         "still turn thin faces along some rims over).",
+         "the new vertices of their regions exactly on them (where that turns faces over, the "
+         "part is refined again without them and the report's primitives.withdrawn says so); "
+         "off (default): do not.",
      .help = "auto: recognise planes, spheres, cylinders, cones and tori on the input and put "
-             "the new vertices of their regions exactly on them; off: do not (auto can still "
-             "turn thin faces along some rims over)",
+             "the new vertices of their regions exactly on them (where that would turn faces, "
+             "the part is refined again without them: see the report); off: do not",
      .example = "auto",
      .default_value = "off",
      .refine = refine_primitives},

@@ -72,9 +72,11 @@ struct SliceRequest {
 //! deviation bound (primitives/).
 struct PrimitiveOptions {
   //! `primitives`: auto recognises planes, spheres, cylinders, cones and tori on the input
-  //! and puts the new vertices of their regions on them; off (the default) does not. Off by
-  //! default because the snaps still turn thin faces along some rims over (gearwheel,
-  //! featuretype: bench/RESULTS.md, issue 17), which the deviation bound alone does not.
+  //! and puts the new vertices of their regions on them; off (the default) does not. Where
+  //! the part refined with them turns faces over (thin faces along some rims: gearwheel,
+  //! featuretype), the pipeline refines it again without them and says so in the report
+  //! (api/pipeline.cpp). Still off by default: on the CAD-like torus that check (against the
+  //! input's normals) misses a few faces folded against the truth (bench/RESULTS.md).
   bool enabled = false;
   //! `primitive_tol`: a region is recognised when every input vertex of it lies within this
   //! fraction of the bounding box diagonal of the primitive, (0, 1e-2], default 1e-6.

@@ -2,6 +2,7 @@
 // Copyright (c) 2026 stlrefine authors
 #include "api/pipeline.h"
 
+#include <algorithm>
 #include <chrono>
 #include <memory>
 #include <optional>
@@ -117,6 +118,8 @@ RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRe
   if (prim.post_pass()) {
     surface_bytes = primitives::InputSurface::predict_bytes(
         in.result.mesh.num_vertices(), in.result.mesh.num_faces(), prim.enabled);
+    // With primitives, a copy of the input is held for the refinement without them (below).
+    if (prim.enabled) surface_bytes += mesh_bytes(in.result.mesh);
     const std::uint64_t need = bytes.size() + mesh_bytes(in.result.mesh) + surface_bytes;
     if (grow && !grow(need)) throw MemoryBudgetError("primitives", 0, need);
     features = detect_features(in.result.mesh, request.refine.features);
@@ -125,132 +128,191 @@ RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRe
     surface = std::make_unique<primitives::InputSurface>(in.result.mesh, *features,
                                                          regions ? &*regions : nullptr);
   }
+  const bool with_regions = regions && !regions->regions.empty();
+  std::optional<Mesh> input_copy;
+  if (with_regions) input_copy = in.result.mesh;
   const double detect_seconds = seconds_since(phase);
 
   phase = Clock::now();
   const std::size_t input_faces = in.result.mesh.num_faces();
-  // refine's figures are its own: the body (and the post-pass's surface) are held beside
-  // them for the whole request.
-  MemoryGrowFn refine_grow;
-  if (grow)
-    refine_grow = [&](std::uint64_t refining) {
-      return grow(bytes.size() + surface_bytes + refining);
-    };
-  // With recognised primitives, each level's new vertices go onto them before the next
-  // level is made from it (snapping the last level only, its points are made from points
-  // off the surfaces: the snaps then scatter neighbours of a sliver apart and turn it). With
-  // snaps, the deviation bound is applied once, after the last level.
-  // Snaps that turn a face more than 60 degrees are taken back as a whole, and the levels
-  // after are left alone (as the last level's post-pass does, apply_guarded).
-  // Without snaps, an interpolating sqrt3 scheme's steps are held to the deviation bound
-  // before the next is made from them: pulled after the last step only, sqrt3's later
-  // slivers, made off the bound, were turned 60-90 degrees around the fixed input vertices
-  // (issue 17 item 2: fans of slivers within 0.05-0.6 mm of an input vertex, a move that
-  // cannot be affine over them); made from the pulled surface, they need little or no pull.
-  // The 1-to-4 schemes turn no face with one pass after the last level (CAD-like families,
-  // round 8 and 9), and a pass per level made their long refinements much slower (8 M faces
-  // of butterfly under ASan: 47 s -> past 150 s), so they keep the one pass.
-  BetweenLevelsFn between_levels;
-  bool snap_levels = surface && regions && !regions->regions.empty() && scheme.interpolating() &&
-                     !request.refine.adaptive();
-  const bool one_to_three = scheme.predict_faces(1, 1) == 3;  // a sqrt3 step
-  const bool pull_levels = surface && !snap_levels && scheme.interpolating() && one_to_three &&
-                           !request.refine.adaptive() && prim.max_deviation != 0.0;
-  // refine's own figure for a level's pass, as refine_grow takes it (the catch below adds the
-  // body and the surface to a refusal's figure once).
-  auto level_need = [](const Mesh& level_mesh) {
-    return mesh_bytes(level_mesh) + 3 * sizeof(Vec3) * std::uint64_t{level_mesh.num_vertices()} +
-           primitives::InputSurface::predict_apply_bytes(level_mesh.num_vertices());
-  };
-  if (snap_levels)
-    between_levels = [&](Mesh& level_mesh, const Features& level_features, int level) {
-      if (!snap_levels) return;
-      const std::uint64_t need = level_need(level_mesh);
-      if (refine_grow && !refine_grow(need)) throw MemoryBudgetError("primitives", level, need);
-      primitives::PostPassParams pp;
-      pp.refined_features = &level_features;
-      pp.max_deviation = 0;  // snaps only
-      pp.snap_inside_regions_only = true;
-      BigVector<Vec3> made = level_mesh.mutable_positions();
-      if (surface->apply(level_mesh, pp).faces_turned_over_60_deg > 0) {
-        level_mesh.mutable_positions() = std::move(made);
-        snap_levels = false;
-      }
-    };
-  else if (pull_levels)
-    between_levels = [&](Mesh& level_mesh, const Features& level_features, int level) {
-      const std::uint64_t need = level_need(level_mesh);
-      if (refine_grow && !refine_grow(need)) throw MemoryBudgetError("primitives", level, need);
-      const CancelScope cancel_scope(cancel);
-      primitives::PostPassParams pp;
-      pp.refined_features = &level_features;
-      pp.snap = false;
-      pp.max_deviation = prim.max_deviation;
-      surface->apply(level_mesh, pp);
-    };
-  // The input mesh is not needed afterwards (the report only uses counters): move it in.
-  RefineResult refined = [&] {
-    try {
-      return refine(std::move(in.result.mesh), scheme, request.refine, progress, cancel,
-                    refine_grow, std::move(features), between_levels);
-    } catch (const MemoryBudgetError& e) {
-      throw MemoryBudgetError(e.field(), e.level(),
-                              bytes.size() + surface_bytes + e.needed_bytes());
-    }
-  }();
-  times.refine = seconds_since(phase);
-  std::optional<primitives::PostPassReport> post;
   // An approximating scheme moves the input vertices on purpose (loop, sqrt3 with alpha < 1):
   // the default post-pass would undo that, so it runs there only when max_deviation is given.
-  const bool approximating = refined.report.max_input_displacement > 0;
-  // There it only measures (no snap, no bound), for the report's figures.
-  const bool measure_only = approximating && !prim.max_deviation_given;
+  // There it only measures (no snap, no bound), for the report's figures. Decided on the
+  // scheme's refinement (max_input_displacement), so the same for both runs below.
+  bool measure_only = false;
+  // One refinement of `mesh` and its post-pass against `surf` (null: none); with `snaps`,
+  // the new vertices of the surface's recognised regions go onto their primitives. `held`: bytes
+  // held beside it for the whole run (the body, the surface, a result kept for comparison).
+  struct Refined {
+    RefineResult result;
+    std::optional<primitives::PostPassReport> post;
+  };
+  auto refine_and_pass = [&](Mesh mesh, std::optional<Features> mesh_features,
+                             primitives::InputSurface* surf, bool snaps,
+                             std::uint64_t held) -> Refined {
+    // refine's figures are its own: what is held is beside them for the whole request.
+    MemoryGrowFn refine_grow;
+    if (grow) refine_grow = [&](std::uint64_t refining) { return grow(held + refining); };
+    // With recognised primitives, each level's new vertices go onto them before the next
+    // level is made from it (snapping the last level only, its points are made from points
+    // off the surfaces: the snaps then scatter neighbours of a sliver apart and turn it).
+    // With snaps, the deviation bound is applied once, after the last level.
+    // Snaps that turn a face more than 60 degrees are taken back as a whole, and the levels
+    // after are left alone (as the last level's post-pass does, apply_guarded).
+    // Without snaps, an interpolating sqrt3 scheme's steps are held to the deviation bound
+    // before the next is made from them: pulled after the last step only, sqrt3's later
+    // slivers, made off the bound, were turned 60-90 degrees around the fixed input vertices
+    // (issue 17 item 2: fans of slivers within 0.05-0.6 mm of an input vertex, a move that
+    // cannot be affine over them); made from the pulled surface, they need little or no
+    // pull. The 1-to-4 schemes turn no face with one pass after the last level (CAD-like
+    // families, round 8 and 9), and a pass per level made their long refinements much
+    // slower (8 M faces of butterfly under ASan: 47 s -> past 150 s), so they keep the one
+    // pass.
+    BetweenLevelsFn between_levels;
+    bool snap_levels =
+        surf && snaps && with_regions && scheme.interpolating() && !request.refine.adaptive();
+    const bool one_to_three = scheme.predict_faces(1, 1) == 3;  // a sqrt3 step
+    const bool pull_levels = surf && !snap_levels && scheme.interpolating() && one_to_three &&
+                             !request.refine.adaptive() && prim.max_deviation != 0.0;
+    // refine's own figure for a level's pass, as refine_grow takes it (the catch below adds
+    // the body and the surface to a refusal's figure once).
+    auto level_need = [](const Mesh& level_mesh) {
+      return mesh_bytes(level_mesh) + 3 * sizeof(Vec3) * std::uint64_t{level_mesh.num_vertices()} +
+             primitives::InputSurface::predict_apply_bytes(level_mesh.num_vertices());
+    };
+    if (snap_levels)
+      between_levels = [&](Mesh& level_mesh, const Features& level_features, int level) {
+        if (!snap_levels) return;
+        const std::uint64_t need = level_need(level_mesh);
+        if (refine_grow && !refine_grow(need)) throw MemoryBudgetError("primitives", level, need);
+        primitives::PostPassParams pp;
+        pp.refined_features = &level_features;
+        pp.max_deviation = 0;  // snaps only
+        pp.snap_inside_regions_only = true;
+        BigVector<Vec3> made = level_mesh.mutable_positions();
+        if (surf->apply(level_mesh, pp).faces_turned_over_60_deg > 0) {
+          level_mesh.mutable_positions() = std::move(made);
+          snap_levels = false;
+        }
+      };
+    else if (pull_levels)
+      between_levels = [&](Mesh& level_mesh, const Features& level_features, int level) {
+        const std::uint64_t need = level_need(level_mesh);
+        if (refine_grow && !refine_grow(need)) throw MemoryBudgetError("primitives", level, need);
+        const CancelScope cancel_scope(cancel);
+        primitives::PostPassParams pp;
+        pp.refined_features = &level_features;
+        pp.snap = false;
+        pp.max_deviation = prim.max_deviation;
+        surf->apply(level_mesh, pp);
+      };
+    Refined made;
+    made.result = [&] {
+      try {
+        return refine(std::move(mesh), scheme, request.refine, progress, cancel, refine_grow,
+                      std::move(mesh_features), between_levels);
+      } catch (const MemoryBudgetError& e) {
+        throw MemoryBudgetError(e.field(), e.level(), held + e.needed_bytes());
+      }
+    }();
+    measure_only = made.result.report.max_input_displacement > 0 && !prim.max_deviation_given;
+    if (surf) {
+      const CancelScope cancel_scope(cancel);  // a disconnect or deadline stops the pass too
+      primitives::PostPassParams pp;
+      pp.refined_features = &made.result.features;
+      pp.snap = snaps && !measure_only;
+      pp.max_deviation = measure_only ? std::optional<double>(0.0) : prim.max_deviation;
+      // With snapping, two copies of the positions: the refinement's and the snapped ones.
+      const std::uint64_t positions_bytes =
+          pp.snap ? 2 * sizeof(Vec3) * std::uint64_t{made.result.mesh.num_vertices()} : 0;
+      const std::uint64_t need =
+          held + mesh_bytes(made.result.mesh) + positions_bytes +
+          primitives::InputSurface::predict_apply_bytes(made.result.mesh.num_vertices());
+      if (grow && !grow(need))
+        throw MemoryBudgetError("primitives", made.result.report.levels, need);
+      made.post = surf->apply_guarded(made.result.mesh, pp);
+      made.result.features = Features{};  // the rest needs only the mesh
+    }
+    return made;
+  };
+  // The input mesh is not needed afterwards (the report only uses counters): move it in.
+  Refined refined = refine_and_pass(std::move(in.result.mesh), std::move(features), surface.get(),
+                                    prim.enabled, bytes.size() + surface_bytes);
+  surface.reset();
+  // Recognised primitives must never cost a fold: when the refinement with them still turns
+  // faces more than 60 degrees from the input's (snaps between levels that each looked
+  // right, the tight bound of a region at its border), or when the last level's snaps were
+  // taken back (its levels were still made from snapped ones: on the CAD-like cones that
+  // left 1-5 faces folded against the truth that the input's normals do not show), the
+  // part is refined again without them, as primitives=off would. The answer is the run
+  // without them unless the one with them turned fewer faces and kept its snaps.
+  std::size_t withdrawn_turned = 0;
+  if (input_copy && refined.post && !measure_only &&
+      (refined.post->faces_turned_over_60_deg > 0 || refined.post->withdrawn_turned_faces > 0)) {
+    const std::size_t turned = refined.post->faces_turned_over_60_deg;
+    const bool snaps_kept = refined.post->withdrawn_turned_faces == 0;
+    // Held: the body, the input copy, the result with primitives (for the comparison) and
+    // the surface without them; a budget that cannot hold the result drops it (off wins).
+    const std::uint64_t plain_surface_bytes = primitives::InputSurface::predict_bytes(
+        input_copy->num_vertices(), input_copy->num_faces(), false);
+    std::uint64_t held = bytes.size() + mesh_bytes(*input_copy) + plain_surface_bytes;
+    bool keep_first = !grow || grow(held + mesh_bytes(refined.result.mesh));
+    if (keep_first)
+      held += mesh_bytes(refined.result.mesh);
+    else
+      refined.result.mesh = Mesh{};
+    std::optional<Features> plain_features = detect_features(*input_copy, request.refine.features);
+    auto plain_surface =
+        std::make_unique<primitives::InputSurface>(*input_copy, *plain_features, nullptr);
+    Refined plain = refine_and_pass(std::move(*input_copy), std::move(plain_features),
+                                    plain_surface.get(), false, held);
+    if (!keep_first || !snaps_kept || plain.post->faces_turned_over_60_deg < turned) {
+      withdrawn_turned = std::max(turned, refined.post->withdrawn_turned_faces);
+      plain.post->seconds += refined.post->seconds;
+      refined = std::move(plain);
+    }
+  }
+  input_copy.reset();
+  std::optional<primitives::PostPassReport>& post = refined.post;
+  if (post) post->detect_seconds = detect_seconds;
   PrimitiveOptions reported = prim;
   if (measure_only) reported.max_deviation = 0;
-  if (surface) {
-    const CancelScope cancel_scope(cancel);  // a disconnect or deadline stops the pass too
-    primitives::PostPassParams pp;
-    pp.refined_features = &refined.features;
-    pp.snap = prim.enabled && !measure_only;
-    pp.max_deviation = reported.max_deviation;
-    // With snapping, two copies of the positions: the refinement's and the snapped ones.
-    const std::uint64_t positions_bytes =
-        pp.snap ? 2 * sizeof(Vec3) * std::uint64_t{refined.mesh.num_vertices()} : 0;
-    const std::uint64_t need =
-        bytes.size() + surface_bytes + mesh_bytes(refined.mesh) + positions_bytes +
-        primitives::InputSurface::predict_apply_bytes(refined.mesh.num_vertices());
-    if (grow && !grow(need)) throw MemoryBudgetError("primitives", refined.report.levels, need);
-    post = surface->apply_guarded(refined.mesh, pp);
-    post->detect_seconds = detect_seconds;
-    surface.reset();
-    refined.features = Features{};  // the rest needs only the mesh
-  }
+  times.refine = seconds_since(phase);
   if (grow) {
     // The hierarchy is gone; the mesh, its STL (and contours) are what the rest holds.
     const StlShape sniffed = shape || !request.slice ? StlShape{} : stl_shape(bytes);
     const std::uint64_t rest =
         refined_memory_bytes(bytes, shape ? *shape : sniffed, request, input_faces,
-                             refined.mesh.num_faces(), mesh_bytes(refined.mesh));
+                             refined.result.mesh.num_faces(), mesh_bytes(refined.result.mesh));
     if (!grow(rest))
       throw MemoryBudgetError(request.refine.adaptive() ? "max_level" : "levels",
-                              refined.report.levels, rest);
+                              refined.result.report.levels, rest);
   }
 
   phase = Clock::now();
   RefineOutcome out;
   const bool stream = keep && request.output_format == StlFormat::Binary;
-  if (!stream) out.stl = write_stl(refined.mesh, request.output_format);
-  const std::size_t stl_size = stream ? binary_stl_size(refined.mesh.num_faces()) : out.stl.size();
+  if (!stream) out.stl = write_stl(refined.result.mesh, request.output_format);
+  const std::size_t stl_size =
+      stream ? binary_stl_size(refined.result.mesh.num_faces()) : out.stl.size();
   times.write = seconds_since(phase);
   slicer::SliceStats slice_stats;
   if (request.slice)
-    out.contours = slice_to_string(refined.mesh, *request.slice, &slice_stats, progress, cancel);
+    out.contours =
+        slice_to_string(refined.result.mesh, *request.slice, &slice_stats, progress, cancel);
   times.total = seconds_since(start);
-  out.report = refine_report(in, refined.report, request, stl_size, times);
+  out.report = refine_report(in, refined.result.report, request, stl_size, times);
   if (post && !measure_only) {
     out.report["primitives"] =
         primitives_report_json(regions ? &*regions : nullptr, *post, request.primitives);
-    if (post->withdrawn_turned_faces > 0)
+    if (withdrawn_turned > 0)
+      out.report["primitives"]["withdrawn"] =
+          "with the primitives the part turned " + std::to_string(withdrawn_turned) +
+          " faces more than 60 degrees from the input's (thin faces along rims): it was "
+          "refined again without them, as primitives=off, which turned " +
+          std::to_string(post->faces_turned_over_60_deg) +
+          "; the regions are listed, nothing was snapped";
+    else if (post->withdrawn_turned_faces > 0)
       out.report["primitives"]["withdrawn"] =
           "the snaps turned " + std::to_string(post->withdrawn_turned_faces) +
           " faces more than 60 degrees (thin faces along rims): not applied; the regions are "
@@ -265,7 +327,7 @@ RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRe
   if (post) out.report["deviation"] = deviation_report_json(*post, reported);
   if (request.slice)
     out.report["slice"] = slice_stats_json(slice_stats, *request.slice, out.contours->size());
-  if (stream) *keep = std::move(refined.mesh);
+  if (stream) *keep = std::move(refined.result.mesh);
   return out;
 }
 

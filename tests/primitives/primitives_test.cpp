@@ -647,6 +647,26 @@ TEST(PrimitivesApi, DefaultRequestPullsBetweenLevelsKeepingPlanesAndInputs) {
     }
 }
 
+// primitives=auto never costs a fold: on gearwheel sqrt3-interp's snaps between levels turn
+// 7 of its thin rim faces over at 2 levels (26 at 3), which the last pass's take-back did not
+// undo (its levels were made from the snapped ones). The part is then refined again without
+// the primitives: the answer is primitives=off's, byte for byte, and the report says why.
+TEST(PrimitivesApi, AutoThatTurnsFacesFallsBackToTheRefinementWithoutPrimitives) {
+  const std::string stl = stl_of(load("gearwheel.stl"));
+  const api::RawParams base{{"scheme", "sqrt3-interp"}, {"levels", "2"}};
+  api::RawParams with = base, without = base;
+  with.emplace_back("primitives", "auto");
+  without.emplace_back("primitives", "off");
+  const api::RefineOutcome a = run(stl, with), off = run(stl, without);
+  const auto& primitives = a.report.at("primitives");
+  ASSERT_TRUE(primitives.contains("withdrawn")) << primitives.dump();
+  EXPECT_NE(primitives.at("withdrawn").get<std::string>().find("refined again"), std::string::npos);
+  EXPECT_GT(primitives.at("regions_found").get<std::size_t>(), 0u);
+  EXPECT_EQ(primitives.at("snapped").get<std::size_t>(), 0u);
+  EXPECT_EQ(a.report.at("deviation").at("faces_turned_over_60_deg").get<std::size_t>(), 0u);
+  EXPECT_TRUE(a.stl == off.stl) << "not the refinement without primitives";
+}
+
 TEST(PrimitivesApi, Parameters) {
   expect_rejected({{"primitives", "on"}}, "primitives", "unknown_value");
   expect_rejected({{"primitive_tol", "0"}}, "primitive_tol", "out_of_range");
@@ -781,11 +801,12 @@ TEST(PrimitivesMemory, RunRefineAsksBeforeTheSurface) {
     return true;
   });
   // Both: the surface, refine's figures, the post-pass's, the rest; refine's figures hold the
-  // surface they keep beside them.
+  // surface they keep beside them, and with primitives the copy of the input kept for a
+  // refinement without them (api/pipeline.cpp).
   ASSERT_EQ(with.size(), without.size());
   ASSERT_GE(with.size(), 4u);
   for (std::size_t i = 1; i + 2 < with.size(); ++i)
-    EXPECT_EQ(with[i] - without[i], surface - plain_surface);
+    EXPECT_EQ(with[i] - without[i], surface - plain_surface + mesh_bytes(mesh));
   EXPECT_GE(with[with.size() - 2], stl.size() + surface + InputSurface::predict_apply_bytes(0));
   // A refusal of the post-pass's own figure, after refining.
   std::size_t call = 0;
