@@ -20,6 +20,7 @@
 // (bench/results-issue17-s6-adaptive.md; tests/core/adaptive_sqrt3_guard_test.cpp).
 #include <array>
 #include <cmath>
+#include <utility>
 
 #include "core/schemes/adaptive_sqrt3_hierarchy.h"
 #include "core/schemes/sqrt3_guard_stage.h"
@@ -79,12 +80,25 @@ Vec3 AdaptiveSqrt3::Hierarchy::guard_view(VertexId v, int l, View view) {
 }
 
 bool AdaptiveSqrt3::Hierarchy::folds(const std::array<VertexId, 3>& c, int l, const Vec3& smooth,
-                                     View view, VertexId moved, const Vec3& at) {
+                                     FaceId f, FaceId g, View view, VertexId moved,
+                                     const Vec3& at) {
   std::array<Vec3, 3> p;
   for (int i = 0; i < 3; ++i) p[i] = c[i] == moved ? at : guard_view(c[i], l, view);
   const Vec3 n = triangle_normal(p[0], p[1], p[2]);
   const double len = norm(n) * norm(smooth);
-  return len > 0 && dot(n, smooth) < cos_fold_ * len;
+  if (len > 0 && dot(n, smooth) < cos_fold_ * len) return true;
+  return sqrt3_degenerate(p, n, [&] {
+    const Sqrt3Shape sf = shape(f);
+    return std::pair(sf, g == f ? sf : shape(g));
+  });
+}
+
+// Triangle t at its level's positions, for the degenerate test.
+Sqrt3Shape AdaptiveSqrt3::Hierarchy::shape(FaceId t) {
+  const int l = level(t);
+  const std::array<Vec3, 3> p = {position(tris_[t].v[0], l), position(tris_[t].v[1], l),
+                                 position(tris_[t].v[2], l)};
+  return sqrt3_shape(p, triangle_normal(p[0], p[1], p[2]));
 }
 
 // sqrt3_host's stages (sqrt3_guard_stage_point) for the face point q of face f.
@@ -143,6 +157,7 @@ int AdaptiveSqrt3::Hierarchy::guard_stage(VertexId q, int pass, int round) {
   struct Fine {
     std::array<VertexId, 3> c;
     Vec3 smooth;
+    FaceId across;  // the other coarse triangle it is made from (f for a kept child)
   };
   std::array<Fine, 6> fine;
   int n = 0;
@@ -150,17 +165,18 @@ int AdaptiveSqrt3::Hierarchy::guard_stage(VertexId q, int pass, int round) {
     const HalfedgeId h = he(f, k);
     const HalfedgeId t = twin(h);
     if (kept(h, pass)) {
-      fine[n++] = {{from(h), to(h), q},
-                   sector_normal(h) + sector_normal(Mesh::next(h)) + apex_normal(h)};
+      fine[n++] = {
+          {from(h), to(h), q}, sector_normal(h) + sector_normal(Mesh::next(h)) + apex_normal(h), f};
       continue;
     }
     const VertexId across = apex(t);
-    fine[n++] = {{from(h), across, q}, sector_normal(h) + apex_normal(t) + apex_normal(h)};
-    fine[n++] = {{to(h), q, across}, sector_normal(t) + apex_normal(h) + apex_normal(t)};
+    const FaceId g = Mesh::face(t);
+    fine[n++] = {{from(h), across, q}, sector_normal(h) + apex_normal(t) + apex_normal(h), g};
+    fine[n++] = {{to(h), q, across}, sector_normal(t) + apex_normal(h) + apex_normal(t), g};
   }
   auto any_folds = [&](const Vec3& at) {
     for (int i = 0; i < n; ++i)
-      if (folds(fine[i].c, l, fine[i].smooth, view, q, at)) return true;
+      if (folds(fine[i].c, l, fine[i].smooth, f, fine[i].across, view, q, at)) return true;
     return false;
   };
   constexpr int kLastStage = 5;
@@ -181,8 +197,9 @@ bool AdaptiveSqrt3::Hierarchy::flip_folds(HalfedgeId h, int pass) {
   const VertexId a = from(h), b = to(h), qf = apex(h), qg = apex(t);
   const Vec3 nf = apex_normal(h), ng = apex_normal(t);
   const Vec3 nh = sector_normal(h), nt = sector_normal(t);
-  if (folds({a, qg, qf}, l, nh + ng + nf, view)) return true;
-  if (folds({b, qf, qg}, l, nt + nf + ng, view)) return true;
+  const FaceId f = Mesh::face(h), g = Mesh::face(t);
+  if (folds({a, qg, qf}, l, nh + ng + nf, f, g, view)) return true;
+  if (folds({b, qf, qg}, l, nt + nf + ng, f, g, view)) return true;
   const Vec3 edge_normal = nh + sector_normal(Mesh::next(h)) + nt + sector_normal(Mesh::next(t));
   const Vec3 pa = guard_view(a, l, view), pb = guard_view(b, l, view), pf = guard_view(qf, l, view),
              pg = guard_view(qg, l, view);

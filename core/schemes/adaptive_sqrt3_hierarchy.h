@@ -27,6 +27,7 @@
 #include "core/mesh/handles.h"
 #include "core/mesh/mesh.h"
 #include "core/schemes/adaptive_sqrt3.h"
+#include "core/schemes/sqrt3_degenerate.h"
 
 namespace stlrefine::adaptive_sqrt3_detail {
 
@@ -235,8 +236,11 @@ class AdaptiveSqrt3::Hierarchy {
   struct View {
     int pass = -1, round = 0;
   };
-  bool folds(const std::array<VertexId, 3>& c, int level, const Vec3& smooth, View view,
-             VertexId moved = VertexId(), const Vec3& at = Vec3{});
+  // Fine triangle c of `level`, made from the triangles f and g of the level before (f twice
+  // for a child of one), folds against `smooth` or is degenerate (sqrt3_degenerate.h).
+  bool folds(const std::array<VertexId, 3>& c, int level, const Vec3& smooth, FaceId f, FaceId g,
+             View view, VertexId moved = VertexId(), const Vec3& at = Vec3{});
+  Sqrt3Shape shape(FaceId t);
   // The geometric half, for one face point: where a fine face round it folds, it moves.
   // The stage it stopped at in round `round` of pass `pass`, and its point there.
   int guard_stage(VertexId q, int pass, int round);

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <utility>
 #include <vector>
 
 #include "core/error.h"
@@ -18,6 +19,7 @@
 #include "core/schemes/dominant_planes.h"
 #include "core/schemes/lsf_rules.h"
 #include "core/schemes/split4_host.h"
+#include "core/schemes/sqrt3_degenerate.h"
 #include "core/schemes/sqrt3_guard_stage.h"
 
 namespace stlrefine {
@@ -200,26 +202,6 @@ std::uint32_t rank_boundary_edges(const Mesh& m, const Features& features,
   return count;
 }
 
-// How thin a fine face may be, in float32 ulps of its largest coordinate (epsilon times the
-// coordinate: 1-2 ulps). The binary STL rounds every coordinate by up to half an ulp, which
-// moves a corner's distance from the opposite edge by up to sqrt 3 ulps: a thinner face can
-// turn over in the output although it faces the right way in double precision (issue 17:
-// slivers of height 1e-6 mm beside the plate's trisected creases, 180 degrees off in the STL).
-// At 4 the rounding tilts a face by at most about atan(sqrt 3 / 4) = 23 degrees. Such a face
-// counts as a fold where the coarse faces it comes from are not that thin themselves (their
-// 1-to-3 split at the centroid keeps a third of their height; a thin input face cannot be
-// helped): the guard then keeps the edge instead of flipping it into the sliver, or moves the
-// face point on to its next stage.
-constexpr double kThinFloatUlps = 4.0;
-// The float grid alone leaves chains: a flip whose quad is nearly flat at one end made a child
-// 1e-4 times as thin as its parents (plate 9502, step 3; 9501, step 6), whose own children,
-// a third as thin each step, fell below the grid three steps later. So a fine face thinner
-// (height over longest edge) than this fraction of the thinner of the coarse faces it comes
-// from is degenerate too. Below 1/9, every split the guard falls back to passes: the centroid
-// keeps at least a third of the coarse face's thinness, the stages towards the largest-angle
-// corner at least 2/9 and 1/9 (sqrt3_guard_stage_point); a flip past it is kept instead.
-constexpr double kThinParentFraction = 0.1;
-
 // The smooth surface's normals at the fine faces of one step (issue 17 item 2), from the
 // coarse level's sector normals (split4_host.h): at an old vertex the one of its corner in
 // the coarse face the fine face belongs to, at a face point the mean of its face's three
@@ -239,10 +221,11 @@ class Sqrt3FoldTest {
 
   //! Fine face h, with the current flips (layout.kept) and positions.
   bool folds(HalfedgeId h) const {
-    const std::uint32_t f = h.idx / 3;
-    // A flipped child spans its coarse face and the twin's; a kept or cut one its own face.
-    const std::uint32_t g = layout_.kept(h) ? f : m_.twin(h).idx / 3;
-    return folds(layout_.corners(h), smooth_normal(h), f, g);
+    return folds(layout_.corners(h), smooth_normal(h), [&] {
+      const std::uint32_t f = h.idx / 3;
+      // A flipped child spans its coarse face and the twin's; a kept or cut one its own face.
+      return parent_shapes(f, layout_.kept(h) ? f : m_.twin(h).idx / 3);
+    });
   }
 
   //! Whether flipping the (non-sharp, interior) edge of h, a -> b, would fold: one of the
@@ -265,9 +248,9 @@ class Sqrt3FoldTest {
     const HalfedgeId t = m_.twin(h);
     const VertexId a = m_.from(h), b = m_.to(h), qf = layout_.apex(h), qg = layout_.apex(t);
     const Vec3 nf = apex_normal(h), ng = apex_normal(t);
-    const std::uint32_t f = h.idx / 3, g = t.idx / 3;
-    if (folds({a, qg, qf}, corner_[h.idx] + ng + nf, f, g)) return true;
-    if (folds({b, qf, qg}, corner_[t.idx] + nf + ng, f, g)) return true;
+    auto parents = [&] { return parent_shapes(h.idx / 3, t.idx / 3); };
+    if (folds({a, qg, qf}, corner_[h.idx] + ng + nf, parents)) return true;
+    if (folds({b, qf, qg}, corner_[t.idx] + nf + ng, parents)) return true;
     const Vec3 edge_normal =
         corner_[h.idx] + corner_[Mesh::next(h).idx] + corner_[t.idx] + corner_[Mesh::next(t).idx];
     const Vec3 &pa = pos_[a.idx], &pb = pos_[b.idx], &pf = pos_[qf.idx], &pg = pos_[qg.idx];
@@ -296,55 +279,24 @@ class Sqrt3FoldTest {
     if (layout_.kept(h)) return corner_[h.idx] + corner_[Mesh::next(h).idx] + apex_normal(h);
     return corner_[h.idx] + apex_normal(m_.twin(h)) + apex_normal(h);
   }
-  // Triangle c (made from coarse faces f and g) folds against `smooth`, or is degenerate.
-  bool folds(const std::array<VertexId, 3>& c, const Vec3& smooth, std::uint32_t f,
-             std::uint32_t g) const {
+  // Triangle c folds against `smooth`, or is degenerate (sqrt3_degenerate; parents() gives
+  // the shapes of the coarse faces it is made from).
+  template <class Parents>
+  bool folds(const std::array<VertexId, 3>& c, const Vec3& smooth, Parents&& parents) const {
     const std::array<Vec3, 3> p = {pos_[c[0].idx], pos_[c[1].idx], pos_[c[2].idx]};
     const Vec3 n = triangle_normal(p[0], p[1], p[2]);
     const double len = norm(n) * norm(smooth);
     if (len > 0 && dot(n, smooth) < cos_fold_ * len) return true;
-    return degenerate(p, n, f, g);
+    return sqrt3_degenerate(p, n, parents);
   }
-  // A triangle's height (twice its area over its longest edge), its thinness (the height over
-  // the longest edge: 0 flat, sqrt 3 / 2 equilateral), and the float grid at it
-  // (kThinFloatUlps float epsilons of its largest coordinate). Squared, from its cross
-  // product n: the check below runs on every fine face.
-  struct Shape {
-    double height2 = 0, thinness2 = 0, grid2 = 0;
-  };
-  static Shape shape_of(const std::array<Vec3, 3>& p, const Vec3& n) {
-    double longest2 = 0, largest = 0;
-    for (int k = 0; k < 3; ++k) {
-      const Vec3 d = p[(k + 1) % 3] - p[k];
-      longest2 = std::max(longest2, dot(d, d));
-      largest = std::max({largest, std::abs(p[k].x), std::abs(p[k].y), std::abs(p[k].z)});
-    }
-    const double grid = kThinFloatUlps * std::numeric_limits<float>::epsilon() * largest;
-    Shape s;
-    s.grid2 = grid * grid;
-    if (!(longest2 > 0)) return s;
-    s.height2 = dot(n, n) / longest2;
-    s.thinness2 = s.height2 / longest2;
-    return s;
-  }
-  Shape coarse_shape(std::uint32_t f) const {
+  Sqrt3Shape coarse_shape(std::uint32_t f) const {
     const auto [a, b, c] = m_.face_vertices(FaceId(f));
     const std::array<Vec3, 3> p = {m_.position(a), m_.position(b), m_.position(c)};
-    return shape_of(p, triangle_normal(p[0], p[1], p[2]));
+    return sqrt3_shape(p, triangle_normal(p[0], p[1], p[2]));
   }
-  // Fine triangle p (n its cross product), made from coarse faces f and g, is lower than the
-  // float grid, or thinner than kThinParentFraction of the thinner of f and g; unless f or g
-  // is below the grid itself (no split of it can help).
-  bool degenerate(const std::array<Vec3, 3>& p, const Vec3& n, std::uint32_t f,
-                  std::uint32_t g) const {
-    constexpr double kFraction2 = kThinParentFraction * kThinParentFraction;
-    const Shape child = shape_of(p, n);
-    // Cheap first: no coarse face's thinness exceeds sqrt 3 / 2.
-    if (child.height2 >= child.grid2 && child.thinness2 >= kFraction2 * 0.75) return false;
-    const Shape sf = coarse_shape(f), sg = g == f ? sf : coarse_shape(g);
-    if (sf.height2 < sf.grid2 || sg.height2 < sg.grid2) return false;
-    return child.height2 < child.grid2 ||
-           child.thinness2 < kFraction2 * std::min(sf.thinness2, sg.thinness2);
+  std::pair<Sqrt3Shape, Sqrt3Shape> parent_shapes(std::uint32_t f, std::uint32_t g) const {
+    const Sqrt3Shape sf = coarse_shape(f);
+    return {sf, g == f ? sf : coarse_shape(g)};
   }
 
   const Mesh& m_;
@@ -355,17 +307,25 @@ class Sqrt3FoldTest {
 };
 
 // The topological half of the fold guard: marks in `unflipped` every non-sharp interior
-// edge whose flip folds (Sqrt3FoldTest::flip_folds) with the points of the moment, among
-// the edges with candidate[e] (all when empty). Such an edge stays, like a sharp edge in an
-// odd step: the face points of its two faces join both of its ends. Returns how many edges
-// it marked.
+// edge whose flip folds (Sqrt3FoldTest::flip_folds) with the points of the moment. Such an
+// edge stays, like a sharp edge in an odd step: the face points of its two faces join both
+// of its ends. With `changed` (per new vertex v, at v - nv: moved since the last call), only
+// the edges with an apex that moved: flip_folds reads the positions of the edge's ends (old
+// vertices, fixed) and its two apexes alone, so an edge whose flip passed before and whose
+// apexes stayed still passes, and the guard's later rounds re-test the few edges round the
+// points they moved instead of every edge. Returns how many edges it marked.
 std::size_t keep_folding_flips(const Mesh& m, const Sqrt3Layout& layout, const Sqrt3FoldTest& test,
-                               std::span<std::uint8_t> unflipped) {
+                               std::span<std::uint8_t> unflipped,
+                               std::span<const std::uint8_t> changed = {}) {
+  const std::uint32_t nv = static_cast<std::uint32_t>(m.num_vertices());
   std::atomic<std::size_t> marked{0};
   parallel_for_each_index(m.num_edges(), [&](std::size_t e) {
     const EdgeId edge(static_cast<std::uint32_t>(e));
     const HalfedgeId h = m.halfedge(edge);
     if (unflipped[e] || layout.kept(h)) return;  // sharp, boundary or already kept
+    if (!changed.empty() && !changed[layout.apex(h).idx - nv] &&
+        !changed[layout.apex(m.twin(h)).idx - nv])
+      return;
     if (!test.flip_folds(h)) return;
     unflipped[e] = 1;
     marked.fetch_add(1, std::memory_order_relaxed);
@@ -381,10 +341,10 @@ std::size_t keep_folding_flips(const Mesh& m, const Sqrt3Layout& layout, const S
 // trisection points of that edge pulled towards the thirds of its chord in steps (1/2, 1/4,
 // then the thirds: the linear rule), the same points on both sides of the crease, so the
 // crease stays a curve of the mesh through its old vertices. Old vertices never move, so an
-// interpolating stencil stays interpolating. Returns how many face points and sharp edges'
-// trisection pairs moved.
+// interpolating stencil stays interpolating. Marks the points it moves in `changed` (per new
+// vertex v, at v - nv). Returns how many face points and sharp edges' trisection pairs moved.
 std::size_t guard_sqrt3_folds(const Mesh& m, const Sqrt3Layout& layout, const Sqrt3FoldTest& test,
-                              BigVector<Vec3>& pos) {
+                              BigVector<Vec3>& pos, std::span<std::uint8_t> changed) {
   const std::uint32_t nv = static_cast<std::uint32_t>(m.num_vertices());
   const std::uint32_t nf = static_cast<std::uint32_t>(m.num_faces());
   const std::uint32_t nh = 3 * nf;
@@ -480,6 +440,7 @@ std::size_t guard_sqrt3_folds(const Mesh& m, const Sqrt3Layout& layout, const Sq
           const Vec3 t1 = a + (1.0 / 3.0) * (b - a), t2 = a + (2.0 / 3.0) * (b - a);
           pos[m1.idx] = t1 + scale * (original[item][0] - t1);
           pos[m2.idx] = t2 + scale * (original[item][1] - t2);
+          changed[m1.idx - nv] = changed[m2.idx - nv] = 1;
           touch_around(s.idx / 3);
           if (m.twin(s).valid()) touch_around(m.twin(s).idx / 3);
           continue;
@@ -494,6 +455,7 @@ std::size_t guard_sqrt3_folds(const Mesh& m, const Sqrt3Layout& layout, const Sq
         const auto [a, b, c] = m.face_vertices(FaceId(f));
         pos[q.idx] =
             sqrt3_guard_stage_point({pos[a.idx], pos[b.idx], pos[c.idx]}, original[f][0], stage[f]);
+        changed[q.idx - nv] = 1;
         touch_around(f);
       }
     }
@@ -688,12 +650,14 @@ std::size_t guard_sqrt3_step(const Mesh& m, const Sqrt3Layout& layout,
   const Sqrt3FoldTest test(m, layout, corner, pos);
   kept += keep_folding_flips(m, layout, test, unflipped);
   std::vector<Vec3> stencil_points(pos.begin() + nv, pos.begin() + nv + nf);
+  std::vector<std::uint8_t> changed(pos.size() - nv, 0);  // new points moved since the flips' test
   std::size_t moved = 0;
   for (int round = 0;; ++round) {
-    moved += guard_sqrt3_folds(m, layout, test, pos);
+    moved += guard_sqrt3_folds(m, layout, test, pos, changed);
     if (round + 1 == kRounds) break;
     std::vector<std::uint8_t> before(unflipped.begin(), unflipped.end());
-    const std::size_t more = keep_folding_flips(m, layout, test, unflipped);
+    const std::size_t more = keep_folding_flips(m, layout, test, unflipped, changed);
+    std::fill(changed.begin(), changed.end(), 0);
     if (more == 0) break;
     kept += more;
     for (std::uint32_t e = 0; e < m.num_edges(); ++e) {
@@ -701,7 +665,9 @@ std::size_t guard_sqrt3_step(const Mesh& m, const Sqrt3Layout& layout,
       const HalfedgeId h = m.halfedge(EdgeId(e));
       for (const HalfedgeId g : {h, m.twin(h)}) {
         const std::uint32_t f = g.idx / 3;
-        if (!layout.sharp_of(f).valid()) pos[nv + f] = stencil_points[f];
+        if (layout.sharp_of(f).valid()) continue;
+        pos[nv + f] = stencil_points[f];
+        changed[f] = 1;
       }
     }
   }
@@ -729,9 +695,10 @@ std::uint64_t sqrt3_step_bytes(const Level& coarse) {
       32 * std::uint64_t(nv) +  // stencil scratch
       // fold guard: sector normals, a flag per fine face, a stage and an original point
       // per coarse face, two lists of fine faces, the stencil's face points; the edges
-      // left unflipped (and their copy)
+      // left unflipped (and their copy), a flag per new point (moved since the flips' test)
       big_vector_bytes<Vec3>(3 * nf) + 3 * nf + nf + 2 * sizeof(Vec3) * nf +
       2 * sizeof(std::uint32_t) * 3 * std::uint64_t(nf) + big_vector_bytes<std::uint8_t>(ne) + ne +
+      (fine_vertices - nv) +
       dominant_planes_bytes(m) +  // the plane rule's, freed before the guard's
       // the input's smooth normals (lsf's guard records), the normal check's flags
       (sizeof(lsf::GuardVertex) + 1) * std::uint64_t(nv) +

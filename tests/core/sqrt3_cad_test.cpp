@@ -101,7 +101,7 @@ Mesh float_rounded(Mesh m) {
 // output: seeds 9002, 9006 (2), 9008, 9501, 9502, 180 degrees off the truth; 1-13 faces per
 // seed lower than 2 float ulps of their coordinates (rounding moves a corner's distance from
 // the opposite edge by up to sqrt 3 ulps). The host's fold guard counts such degenerate faces
-// as folds (sqrt3_host.cpp, kThinFloatUlps, kThinParentFraction).
+// as folds (sqrt3_degenerate.h, kSqrt3ThinFloatUlps, kSqrt3ThinParentFraction).
 TEST(Sqrt3Cad, PlateSliversSurviveTheFloatOutput) {
   const double eps = std::numeric_limits<float>::epsilon();
   for (const std::uint64_t seed : {9002, 9006, 9008, 9501, 9502}) {
