@@ -999,6 +999,7 @@ void relax_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guar
   for (std::uint32_t k = 0; k < relaxed.size(); ++k) {
     GuardVertex& g = guard[relaxed[k]];
     g.relaxed = dot(next[k], next[k]) > 0;
+    g.curved = curved[k];
     if (!g.relaxed) g.normal = initial[k];
   }
 }
@@ -1066,9 +1067,7 @@ void fit_guard_normals(const Mesh& m, const Features& f, std::span<GuardVertex> 
   parallel_for_each_index(m.num_vertices(), [&](std::size_t i) {
     GuardVertex& g = guard[i];
     const VertexId v(static_cast<std::uint32_t>(i));
-    if (!g.relaxed || g.two_curves || (g.spokes & GuardVertex::kUneven) ||
-        f.kind(v) != VertexKind::Smooth)
-      return;
+    if (!g.relaxed || !g.curved || g.two_curves || f.kind(v) != VertexKind::Smooth) return;
     const QuadricFit q = vertex_fit(m, f, v);
     if (!q.valid) return;
     Vec3 n = normalized(cross(q.c[0], q.c[1]));

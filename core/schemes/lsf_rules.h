@@ -107,6 +107,9 @@ struct alignas(32) GuardVertex {
   std::uint8_t relaxed = 0;
   //! Its normal is the two-curve normal (two_curve_normal): relax_normals leaves it.
   std::uint8_t two_curves = 0;
+  //! relax_normals with curvature terms: the plain chord symmetry did not hold along its ring
+  //! (kCurvedResidual), so its equations got the curvature terms.
+  std::uint8_t curved = 0;
 };
 
 //! Crease vertices' sector normals that replace sector_normal (relax_sliver_normals), per
@@ -217,13 +220,16 @@ inline constexpr double kTwoCurvesRatio = 4.0;
 //! (rings that are not even, GuardVertex::kUneven), marked two_curves and relaxed (trusted).
 void two_curve_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guard);
 
-//! At a relaxed smooth vertex whose ring is not a fan or zipper (GuardVertex::kUneven), the
+//! At a relaxed smooth vertex where the plain chord symmetry did not hold (GuardVertex::curved:
+//! its ring is not a fan or zipper, and the curvature changes along its edges), the
 //! normal of its LSF fit (the whole ring's quadric, c1 x c2) when it lies within
 //! kFitNormalDegrees of the relaxed normal (issue 17, the torus: the Hermite midpoints of the
 //! fits' normals were 9 um RMS off the truth at the first level, of the relaxed ones 13-15;
 //! the hulls alike). The fit's normal errors vary smoothly from vertex to vertex, which the
-//! Hermite midpoint (it reads the normals' difference) mostly cancels. Fans and zippers, and
-//! fits far from the relaxed normal (a plane meeting a fillet), keep the relaxed normal.
+//! Hermite midpoint (it reads the normals' difference) mostly cancels. Where the symmetry holds
+//! (the rounded box's pieces, cylinders, cones), and at fits far from the relaxed normal, the
+//! relaxed normal stays (the fits there made the cone's L2 10% and the rounded box's L3 17%
+//! worse).
 void fit_guard_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guard);
 inline constexpr double kFitNormalDegrees = 5.0;
 
