@@ -194,7 +194,7 @@ void LsfStencil::edge_points(const Level& coarse, std::span<Vec3> out) const {
     }
   });
   lsf::SectorNormals sectors;
-  lsf::relax_guard_normals(m, f, guard, sectors);
+  lsf::relax_guard_normals(m, f, guard, sectors, /*lsf_terms=*/true);
   const lsf::GuardNormals normal_of{m, f, guard.data(), &sectors};
   // The guard reads, per edge, the corners of its two faces, their four positions and its ends'
   // guard records: a chain of dependent loads at random places, which the edges before it

@@ -713,8 +713,33 @@ constexpr double kConverging = 0.1;
 // n_v . u + n_w . u is at most kRelaxTrusted and its normal turned by at most 30 degrees (cosine
 // kRelaxTurnCosine) from its face sum; otherwise the face sum comes back.
 constexpr double kRelaxTrusted = 0.1, kRelaxTurnCosine = 0.866;
+// relax_normals: a vertex whose ring's RMS of n_v . u + n_w . u stays above kCurvedResidual after
+// the plain rounds gets the equations' third-order curvature terms.
+constexpr double kCurvedResidual = 5e-3;
 
-void relax_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guard, int rounds) {
+namespace {
+// The normal curvature along the unit direction u of the fit q, against the unit normal `side`
+// (the fit's normal taken on its side): n . s_dd / |s_d|^2 for the parameter direction d whose
+// tangent s_d is u's projection onto the fit's tangent plane. Zero for a degenerate fit.
+double fit_normal_curvature(const QuadricFit& q, const Vec3& side, const Vec3& u) {
+  if (!q.valid) return 0;
+  const Vec3 &su = q.c[0], &sv = q.c[1];
+  Vec3 n = normalized(cross(su, sv));
+  if (dot(n, side) < 0) n = -1.0 * n;
+  const Vec3 t = u - dot(u, n) * n;
+  const double e = dot(su, su), g = dot(sv, sv), fm = dot(su, sv), det = e * g - fm * fm;
+  if (!(det > 1e-24 * (e * g))) return 0;
+  const double a = dot(su, t), b = dot(sv, t);
+  const double du = (g * a - fm * b) / det, dv = (e * b - fm * a) / det;
+  const Vec3 sd = du * su + dv * sv;
+  const double sd2 = dot(sd, sd);
+  if (!(sd2 > 0)) return 0;
+  return dot(n, du * du * q.c[2] + 2.0 * du * dv * q.c[3] + dv * dv * q.c[4]) / sd2;
+}
+}  // namespace
+
+void relax_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guard, int rounds,
+                   bool curvature_terms) {
   const std::size_t nv = m.num_vertices();
   // Which smooth one-sector vertices move: those whose ring is not even (hulls, fillets, fans
   // and zippers) and their even neighbours (a corner's fan centre between fillets), unless
@@ -777,6 +802,7 @@ void relax_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guar
     active.push_back({b, e, 0.0});
     b = e;
   }
+  const std::vector<Component> active_all = active;
   // Each round solves, per vertex, the normal equations of
   //   sum over spokes (n . u + n_w . u)^2 + damping |n - n_round_before|^2
   // (u the unit spoke): the matrix and the fixed neighbours' part of the right-hand side are the
@@ -838,46 +864,112 @@ void relax_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guar
     q.c00 = c00 * r, q.c01 = c01 * r, q.c02 = c02 * r, q.c11 = c11 * r, q.c12 = c12 * r,
     q.c22 = c22 * r;
   });
-  std::vector<std::uint32_t> work;
   std::vector<Vec3> current(relaxed.size()), next(relaxed.size()), initial(relaxed.size());
   for (std::uint32_t k = 0; k < relaxed.size(); ++k) initial[k] = guard[relaxed[k]].normal;
   current = initial;
-  for (int round = 0; round < rounds && !active.empty(); ++round) {
-    work.clear();
-    for (const Component& c : active)
-      work.insert(work.end(), order.begin() + c.begin, order.begin() + c.end);
-    parallel_for_each_index(work.size(), [&](std::size_t w) {
-      const std::size_t k = work[w];
-      const Solve& q = solve[k];
-      const Vec3 own = current[k];
-      next[k] = own;
-      if (q.damping == 0) return;
-      Vec3 b = q.fixed + q.damping * own;
-      for (std::uint32_t j = q.begin; j < q.end; ++j)
-        b += -dot(current[spokes[j].slot], spokes[j].u) * spokes[j].u;
-      const Vec3 n((q.c00 * b.x + q.c01 * b.y + q.c02 * b.z),
-                   (q.c01 * b.x + q.c11 * b.y + q.c12 * b.z),
-                   (q.c02 * b.x + q.c12 * b.y + q.c22 * b.z));
-      if (dot(n, n) > 0) next[k] = normalized(n);
-    });
-    // A component whose largest turn this round is below kRelaxConverged rad is done.
-    std::size_t kept = 0;
-    for (Component& c : active) {
-      double largest2 = 0;
-      for (std::uint32_t o = c.begin; o < c.end; ++o) {
-        const std::uint32_t k = order[o];
-        const Vec3 d = next[k] - current[k];
-        largest2 = std::max(largest2, dot(d, d));
-        current[k] = next[k];
+  // curvature[k]: the third-order terms' part of vertex k's right-hand side (below); empty in
+  // the first pass.
+  std::vector<Vec3> curvature;
+  auto run_rounds = [&](std::vector<Component> active) {
+    std::vector<std::uint32_t> work;
+    for (int round = 0; round < rounds && !active.empty(); ++round) {
+      work.clear();
+      for (const Component& c : active)
+        work.insert(work.end(), order.begin() + c.begin, order.begin() + c.end);
+      parallel_for_each_index(work.size(), [&](std::size_t w) {
+        const std::size_t k = work[w];
+        const Solve& q = solve[k];
+        const Vec3 own = current[k];
+        next[k] = own;
+        if (q.damping == 0) return;
+        Vec3 b = q.fixed + q.damping * own;
+        if (!curvature.empty()) b += curvature[k];
+        for (std::uint32_t j = q.begin; j < q.end; ++j)
+          b += -dot(current[spokes[j].slot], spokes[j].u) * spokes[j].u;
+        const Vec3 n((q.c00 * b.x + q.c01 * b.y + q.c02 * b.z),
+                     (q.c01 * b.x + q.c11 * b.y + q.c12 * b.z),
+                     (q.c02 * b.x + q.c12 * b.y + q.c22 * b.z));
+        if (dot(n, n) > 0) next[k] = normalized(n);
+      });
+      // A component whose largest turn this round is below kRelaxConverged rad is done.
+      std::size_t kept = 0;
+      for (Component& c : active) {
+        double largest2 = 0;
+        for (std::uint32_t o = c.begin; o < c.end; ++o) {
+          const std::uint32_t k = order[o];
+          const Vec3 d = next[k] - current[k];
+          largest2 = std::max(largest2, dot(d, d));
+          current[k] = next[k];
+        }
+        if (round == 0) c.first2 = largest2;
+        // Past kShortRelaxRounds only while converging: its largest turn shrunk to a tenth of
+        // the first round's (a scan's rings, where the equations do not hold, keep turning).
+        const bool converging =
+            round + 1 < kShortRelaxRounds || largest2 <= (kConverging * kConverging) * c.first2;
+        if (largest2 >= kRelaxConverged * kRelaxConverged && converging) active[kept++] = c;
       }
-      if (round == 0) c.first2 = largest2;
-      // Past kShortRelaxRounds only while converging: its largest turn shrunk to a tenth of the
-      // first round's (a scan's rings, where the equations do not hold, keep turning).
-      const bool converging =
-          round + 1 < kShortRelaxRounds || largest2 <= (kConverging * kConverging) * c.first2;
-      if (largest2 >= kRelaxConverged * kRelaxConverged && converging) active[kept++] = c;
+      active.resize(kept);
     }
-    active.resize(kept);
+  };
+  run_rounds(active);
+  // The chord symmetry is exact where the normal curvature along the chord is the same at both
+  // ends (circles, spheres, cylinders, planes: the rounded box's pieces, where the rounds above
+  // converge to residuals of 1e-4); where it changes (a coarse torus: by 0.05 / mm between
+  // neighbouring rings) n_v . u + n_w . u = -(L / 6) (k_w - k_v) to third order, k the normal
+  // curvatures along the chord, and the plain equations leave residuals of 1e-2 that tilt the
+  // normals by degrees. So a second pass adds that term, with the curvatures of the vertices'
+  // LSF fits, along the edges between two vertices whose ring residual exceeds kCurvedResidual
+  // and whose rings are not fans or zippers (kUneven: their fits, one-sided, are the least
+  // reliable). Elsewhere the plain equations stay.
+  std::vector<QuadricFit> fits(relaxed.size());
+  std::vector<std::uint8_t> curved(relaxed.size(), 0);
+  parallel_for_each_index(relaxed.size(), [&](std::size_t k) {
+    const VertexId v(relaxed[k]);
+    if (!curvature_terms || (guard[v.idx].spokes & GuardVertex::kUneven) ||
+        f.kind(v) > VertexKind::Dart)
+      return;
+    const Vec3 p = m.position(v), n = current[k];
+    double sum = 0, count = 0;
+    for_each_outgoing(m, v, [&](HalfedgeId s) {
+      const Vec3 c = m.position(m.to(s)) - p;
+      const double l2 = dot(c, c);
+      if (!(l2 > 0)) return;
+      const VertexId w = m.to(s);
+      const std::uint32_t j = slot[w.idx];
+      const Vec3 nw = j != kNone                ? current[j]
+                      : guard[w.idx].one_sector ? guard[w.idx].normal
+                                                : sector_normal(m, f, m.twin(s));
+      const double r = dot(n + nw, c) / std::sqrt(l2);
+      sum += r * r, count += 1;
+    });
+    if (!(count > 0) || sum <= (kCurvedResidual * kCurvedResidual) * count) return;
+    fits[k] = vertex_fit(m, f, v);
+    curved[k] = fits[k].valid;
+  });
+  // The right-hand side of n_v . u + n_w . u = term along spoke s of relaxed vertex k (unit u,
+  // length l): zero unless both ends are curved.
+  auto curvature_term = [&](std::uint32_t k, HalfedgeId s, const Vec3& u, double l) {
+    const std::uint32_t j = slot[m.to(s).idx];
+    if (!curved[k] || j == kNone || !curved[j]) return 0.0;
+    const double kappa_v = fit_normal_curvature(fits[k], current[k], u);
+    const double kappa_w = fit_normal_curvature(fits[j], current[j], u);
+    return -(l / 6.0) * (kappa_w - kappa_v);
+  };
+  if (curvature_terms && std::find(curved.begin(), curved.end(), 1) != curved.end()) {
+    curvature.assign(relaxed.size(), Vec3());
+    parallel_for_each_index(relaxed.size(), [&](std::size_t k) {
+      if (!curved[k]) return;
+      const Vec3 p = m.position(VertexId(relaxed[k]));
+      for_each_outgoing(m, VertexId(relaxed[k]), [&](HalfedgeId s) {
+        const Vec3 c = m.position(m.to(s)) - p;
+        const double l2 = dot(c, c);
+        if (!(l2 > 0)) return;
+        const double l = std::sqrt(l2);
+        const Vec3 u = (1.0 / l) * c;
+        curvature[k] += curvature_term(static_cast<std::uint32_t>(k), s, u, l) * u;
+      });
+    });
+    run_rounds(active_all);
   }
   for (std::uint32_t k = 0; k < relaxed.size(); ++k) guard[relaxed[k]].normal = current[k];
   // Trusted where the equations now hold along the ring (kRelaxTrusted). Elsewhere (a scan's
@@ -893,7 +985,9 @@ void relax_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guar
       const VertexId w = m.to(s);
       const Vec3 nw =
           guard[w.idx].one_sector ? guard[w.idx].normal : sector_normal(m, f, m.twin(s));
-      const double r = dot(n + nw, c) / std::sqrt(l2);
+      const double l = std::sqrt(l2);
+      const double r =
+          dot(n + nw, c) / l - curvature_term(static_cast<std::uint32_t>(k), s, (1.0 / l) * c, l);
       sum += r * r, count += 1;
     });
     if (count > 0 && sum <= (kRelaxTrusted * kRelaxTrusted) * count &&
@@ -905,6 +999,7 @@ void relax_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guar
   for (std::uint32_t k = 0; k < relaxed.size(); ++k) {
     GuardVertex& g = guard[relaxed[k]];
     g.relaxed = dot(next[k], next[k]) > 0;
+    g.curved = curved[k];
     if (!g.relaxed) g.normal = initial[k];
   }
 }
@@ -965,6 +1060,20 @@ bool two_curve_normal(const Mesh& m, VertexId v, const Vec3& face_sum, Vec3& nor
   normal = normalized(cross(along, middle_tangent(spoke[w0] + p, p, spoke[w1] + p)));
   if (dot(normal, face_sum) < 0) normal = -normal;
   return dot(normal, face_sum) >= kRuledTurnCosine;
+}
+
+void fit_guard_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guard) {
+  const double min_cosine = std::cos(kFitNormalDegrees * std::numbers::pi / 180.0);
+  parallel_for_each_index(m.num_vertices(), [&](std::size_t i) {
+    GuardVertex& g = guard[i];
+    const VertexId v(static_cast<std::uint32_t>(i));
+    if (!g.relaxed || !g.curved || g.two_curves || f.kind(v) != VertexKind::Smooth) return;
+    const QuadricFit q = vertex_fit(m, f, v);
+    if (!q.valid) return;
+    Vec3 n = normalized(cross(q.c[0], q.c[1]));
+    if (dot(n, g.normal) < 0) n = -1.0 * n;
+    if (dot(n, g.normal) >= min_cosine) g.normal = n;
+  });
 }
 
 void two_curve_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guard) {

@@ -107,6 +107,9 @@ struct alignas(32) GuardVertex {
   std::uint8_t relaxed = 0;
   //! Its normal is the two-curve normal (two_curve_normal): relax_normals leaves it.
   std::uint8_t two_curves = 0;
+  //! relax_normals with curvature terms: the plain chord symmetry did not hold along its ring
+  //! (kCurvedResidual), so its equations got the curvature terms.
+  std::uint8_t curved = 0;
 };
 
 //! Crease vertices' sector normals that replace sector_normal (relax_sliver_normals), per
@@ -169,7 +172,14 @@ struct GuardNormals {
 //! 17's rounded box, fillets and sphere corners: 5.6 and 4.2 -> 0.04 deg RMS). Those whose
 //! equations then hold along their ring are marked GuardVertex::relaxed; the others get their
 //! face sums back.
-void relax_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guard, int rounds);
+//! With `curvature_terms` (lsf's own guard; sqrt3's guard keeps the plain equations), a second
+//! pass adds the equations' third-order terms -(L / 6) (k_w - k_v) (k the normal curvatures
+//! along the chord, from the LSF fits) along the edges between two vertices whose ring residual
+//! stays above kCurvedResidual and whose rings are not fans or zippers (issue 17's torus: the
+//! normal curvature changes by 0.05 / mm between neighbouring rings, and the plain equations
+//! tilted its normals by 2 degrees).
+void relax_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guard, int rounds,
+                   bool curvature_terms = false);
 //! The most rounds LsfStencil runs: Jacobi rounds carry a correction one ring per round, and
 //! the rounded box's fillets and corners need most of 100 to agree (issue 17, seeds 6000-6005,
 //! L2 RMS / ideal: 30 rounds 2.6, 100 rounds 1.7).
@@ -210,11 +220,26 @@ inline constexpr double kTwoCurvesRatio = 4.0;
 //! (rings that are not even, GuardVertex::kUneven), marked two_curves and relaxed (trusted).
 void two_curve_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guard);
 
-//! The guard normals LsfStencil uses: two_curve_normals, relax_normals, relax_sliver_normals.
+//! At a relaxed smooth vertex where the plain chord symmetry did not hold (GuardVertex::curved:
+//! its ring is not a fan or zipper, and the curvature changes along its edges), the
+//! normal of its LSF fit (the whole ring's quadric, c1 x c2) when it lies within
+//! kFitNormalDegrees of the relaxed normal (issue 17, the torus: the Hermite midpoints of the
+//! fits' normals were 9 um RMS off the truth at the first level, of the relaxed ones 13-15;
+//! the hulls alike). The fit's normal errors vary smoothly from vertex to vertex, which the
+//! Hermite midpoint (it reads the normals' difference) mostly cancels. Where the symmetry holds
+//! (the rounded box's pieces, cylinders, cones), and at fits far from the relaxed normal, the
+//! relaxed normal stays (the fits there made the cone's L2 10% and the rounded box's L3 17%
+//! worse).
+void fit_guard_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guard);
+inline constexpr double kFitNormalDegrees = 5.0;
+
+//! The guard normals: two_curve_normals, relax_normals, relax_sliver_normals; with `lsf_terms`
+//! (LsfStencil's) relax_normals' curvature terms and then fit_guard_normals.
 inline void relax_guard_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guard,
-                                SectorNormals& sectors) {
+                                SectorNormals& sectors, bool lsf_terms = false) {
   two_curve_normals(m, f, guard);
-  relax_normals(m, f, guard, kRelaxRounds);
+  relax_normals(m, f, guard, kRelaxRounds, lsf_terms);
+  if (lsf_terms) fit_guard_normals(m, f, guard);
   relax_sliver_normals(m, f, guard, sectors);
 }
 

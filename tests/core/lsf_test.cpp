@@ -543,7 +543,7 @@ void expect_batched_equal_one_vertex(Level level, std::size_t min_vertices, LsfK
       guard[v].spokes = lsf::ring_spoke_flags(m, VertexId(v));
     }
     lsf::SectorNormals sectors;
-    lsf::relax_guard_normals(m, level.features, guard, sectors);
+    lsf::relax_guard_normals(m, level.features, guard, sectors, /*lsf_terms=*/true);
     const lsf::GuardNormals normal_of{m, level.features, guard.data(), &sectors};
     std::vector<Vec3> expected(m.num_edges());
     for (std::uint32_t e = 0; e < m.num_edges(); ++e) {
