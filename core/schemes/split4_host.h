@@ -119,6 +119,17 @@ struct NormalCheckParams {
   //! checked, [1, 1000]: the butterfly's lattice weights are the paper's elsewhere. 3 is lsf's
   //! kEvenSpokes (a fan or a zipper).
   double uneven_spokes = 3.0;
+  //! The normals are trusted for at most this many times the bulge of an arc across the
+  //! wider face's height turning by the angle between them, [1, 1000]: on a sliver the
+  //! normals cannot tell whether they turn along its length (curvature the Hermite midpoint
+  //! follows) or at one end (a kink the vertex normal averages over, as on a flat wall
+  //! meeting another at a few degrees). Past it, a point between the chord and the Hermite
+  //! midpoint is kept.
+  double sliver_trust = 2.0;
+  //! That bound holds for end normals less than this many degrees apart, [0, 180] (0: never):
+  //! a kink a vertex normal averages over stays below the crease angle; a larger turn (a rim
+  //! left smooth, 45 degrees and more) is the surface's.
+  double sliver_turn_deg = 10.0;
   //! \throw std::invalid_argument when a value is outside its range.
   void validate() const;
 };
@@ -128,17 +139,19 @@ struct NormalCheckParams {
 //! isolated vertices. The normal checks of split4 and sqrt3 start from it.
 std::vector<std::uint8_t> uneven_spoke_vertices(const Mesh& m, double ratio);
 
-//! Normal check (issue 17 item 3), ours: the butterfly stencil runs it on its edge points
+//! Normal check (issue 17 item 3), ours: the butterfly stencils run it on their edge points
 //! (indexed by EdgeId), so every host (split4, the adaptive ones) has it before its plane rule
-//! and fold guard. The
-//! butterfly's weights assume a lattice; on CAD tessellations (fans, zipped slivers, hull
-//! rings of uneven spokes) its point is off the surface by about the input's own chordal
-//! error, and the fold guard's flat midpoint keeps that error. So the point of a smooth
-//! interior edge a-b with an uneven end (NormalCheckParams::uneven_spokes) becomes the edge's
-//! Hermite midpoint H (hermite_midpoint_offset from lsf's guard normals at a and b on this
-//! level: exact on circular arcs) when it is farther from H along their mean normal than
-//! slack |H - mid| + width_fraction (the narrower face's height). On a plane H is the midpoint
-//! and the stencil's point is on the plane: nothing moves. Returns how many moved.
+//! and fold guard. The butterfly's weights assume a lattice; on CAD tessellations (fans,
+//! zipped slivers, hull rings of uneven spokes) its point is off the surface by about the
+//! input's own chordal error, and the fold guard's flat midpoint keeps that error. So at a
+//! smooth interior edge a-b with an uneven end (NormalCheckParams::uneven_spokes) the point
+//! becomes the edge's Hermite midpoint H (hermite_midpoint_offset from lsf's guard normals at
+//! a and b on this level: exact on circular arcs) when its offset from the chord midpoint
+//! along their mean normal is farther from H's than slack |H - mid| + width_fraction (the
+//! narrower face's height). Where H bulges more than the normals can be trusted for across
+//! the strip (sliver_trust), H is only a bound: a point between the chord and H stays, one
+//! beyond goes to H, one behind the chord to the chord's midpoint. On a plane H is the
+//! midpoint and the stencil's point is on the plane: nothing moves. Returns how many moved.
 std::size_t check_edge_points_against_normals(const Mesh& coarse, const Features& features,
                                               std::span<Vec3> edge_points,
                                               const NormalCheckParams& params = {});
