@@ -921,6 +921,22 @@ void relax_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guar
   // LSF fits, along the edges between two vertices whose ring residual exceeds kCurvedResidual
   // and whose rings are not fans or zippers (kUneven: their fits, one-sided, are the least
   // reliable). Elsewhere the plain equations stay.
+  // The sum of the squared residuals of n . u + n_w . u = term(s, u, l) over v's spokes s
+  // (unit u, length l; n_w the normal at the spoke's far end), and the number of spokes.
+  auto ring_residual = [&](VertexId v, const Vec3& n, auto&& far_normal, auto&& term) {
+    const Vec3 p = m.position(v);
+    double sum = 0, count = 0;
+    for_each_outgoing(m, v, [&](HalfedgeId s) {
+      const Vec3 c = m.position(m.to(s)) - p;
+      const double l2 = dot(c, c);
+      if (!(l2 > 0)) return;
+      const double l = std::sqrt(l2);
+      const double r = dot(n + far_normal(s), c) / l - term(s, (1.0 / l) * c, l);
+      sum += r * r, count += 1;
+    });
+    return std::pair{sum, count};
+  };
+  auto no_term = [](HalfedgeId, const Vec3&, double) { return 0.0; };
   std::vector<QuadricFit> fits(relaxed.size());
   std::vector<std::uint8_t> curved(relaxed.size(), 0);
   parallel_for_each_index(relaxed.size(), [&](std::size_t k) {
@@ -928,20 +944,14 @@ void relax_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guar
     if (!curvature_terms || (guard[v.idx].spokes & GuardVertex::kUneven) ||
         f.kind(v) > VertexKind::Dart)
       return;
-    const Vec3 p = m.position(v), n = current[k];
-    double sum = 0, count = 0;
-    for_each_outgoing(m, v, [&](HalfedgeId s) {
-      const Vec3 c = m.position(m.to(s)) - p;
-      const double l2 = dot(c, c);
-      if (!(l2 > 0)) return;
+    auto far_normal = [&](HalfedgeId s) {
       const VertexId w = m.to(s);
       const std::uint32_t j = slot[w.idx];
-      const Vec3 nw = j != kNone                ? current[j]
-                      : guard[w.idx].one_sector ? guard[w.idx].normal
-                                                : sector_normal(m, f, m.twin(s));
-      const double r = dot(n + nw, c) / std::sqrt(l2);
-      sum += r * r, count += 1;
-    });
+      return j != kNone                ? current[j]
+             : guard[w.idx].one_sector ? guard[w.idx].normal
+                                       : sector_normal(m, f, m.twin(s));
+    };
+    const auto [sum, count] = ring_residual(v, current[k], far_normal, no_term);
     if (!(count > 0) || sum <= (kCurvedResidual * kCurvedResidual) * count) return;
     fits[k] = vertex_fit(m, f, v);
     curved[k] = fits[k].valid;
@@ -976,20 +986,15 @@ void relax_normals(const Mesh& m, const Features& f, std::span<GuardVertex> guar
   // folded or needle rings, where the rounds need not converge) the face sums come back.
   parallel_for_each_index(relaxed.size(), [&](std::size_t k) {
     const VertexId v(relaxed[k]);
-    const Vec3 p = m.position(v), n = guard[v.idx].normal;
-    double sum = 0, count = 0;
-    for_each_outgoing(m, v, [&](HalfedgeId s) {
-      const Vec3 c = m.position(m.to(s)) - p;
-      const double l2 = dot(c, c);
-      if (!(l2 > 0)) return;
+    const Vec3 n = guard[v.idx].normal;
+    auto far_normal = [&](HalfedgeId s) {
       const VertexId w = m.to(s);
-      const Vec3 nw =
-          guard[w.idx].one_sector ? guard[w.idx].normal : sector_normal(m, f, m.twin(s));
-      const double l = std::sqrt(l2);
-      const double r =
-          dot(n + nw, c) / l - curvature_term(static_cast<std::uint32_t>(k), s, (1.0 / l) * c, l);
-      sum += r * r, count += 1;
-    });
+      return guard[w.idx].one_sector ? guard[w.idx].normal : sector_normal(m, f, m.twin(s));
+    };
+    auto term = [&](HalfedgeId s, const Vec3& u, double l) {
+      return curvature_term(static_cast<std::uint32_t>(k), s, u, l);
+    };
+    const auto [sum, count] = ring_residual(v, n, far_normal, term);
     if (count > 0 && sum <= (kRelaxTrusted * kRelaxTrusted) * count &&
         dot(n, initial[k]) >= kRelaxTurnCosine)
       next[k] = n;

@@ -156,13 +156,6 @@ TEST(AdaptiveSqrt3Guard, ToleranceTowardsZeroComesNearTheGuardedUniformLevel) {
   }
 }
 
-// Positions rounded to float, as a binary STL stores them.
-Mesh float_rounded(Mesh m) {
-  for (Vec3& p : m.mutable_positions())
-    p = {double(float(p.x)), double(float(p.y)), double(float(p.z))};
-  return m;
-}
-
 TEST(AdaptiveSqrt3Guard, PlateSliversSurviveTheFloatOutput) {
   // The adaptive counterpart of Sqrt3Cad.PlateSliversSurviveTheFloatOutput: the plate read
   // from its STL, refined by adaptive sqrt3-interp at a fine tolerance (1e-6 of the

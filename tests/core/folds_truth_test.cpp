@@ -30,14 +30,6 @@ namespace {
 constexpr std::uint64_t kSeeds[] = {1, 2};
 constexpr double kCoarseness = 1.0;
 
-// A mesh as a bureau's STL holds it: float positions.
-Mesh float_mesh(const CadShape& s) {
-  IndexedSoup soup = s.soup;
-  for (Vec3& p : soup.positions)
-    p = Vec3{static_cast<float>(p.x), static_cast<float>(p.y), static_cast<float>(p.z)};
-  return build_mesh(soup).mesh;
-}
-
 // Every family, every seed, every level of `scheme` (`steps_per_level` steps a level): no
 // face past kFoldAngleDeg from the truth, input vertices kept when interpolatory, closed.
 // The families by how long six sqrt3 steps take to measure (the hull families are the
@@ -73,14 +65,7 @@ void expect_no_face_past_60(const char* scheme, int steps_per_level, bool interp
           for (std::uint32_t v = 0; v < input.num_vertices(); ++v)
             ASSERT_EQ(r.mesh.position(VertexId(v)), input.position(VertexId(v)));
         }
-        std::size_t off = 0;
-        for (std::uint32_t f = 0; f < r.mesh.num_faces(); ++f) {
-          const Vec3 n = normalized(r.mesh.face_normal(FaceId(f)));
-          if (n == Vec3{}) continue;
-          const auto [a, b, c] = r.mesh.face_vertices(FaceId(f));
-          off += face_truth_angle_deg(*s.surface, n, r.mesh.position(a), r.mesh.position(b),
-                                      r.mesh.position(c), crease_snap) > kFoldAngleDeg;
-        }
+        const std::size_t off = faces_off_truth(r.mesh, *s.surface, kFoldAngleDeg, crease_snap);
         EXPECT_LE(off, allowed) << "of " << r.mesh.num_faces() << " faces";
       }
     }

@@ -87,13 +87,6 @@ TEST(Sqrt3NormalCheck, SliverFacePointsOfACylinderGoNearTheSurface) {
   EXPECT_LE(std::sqrt(checked_sq), 0.2 * std::sqrt(raw_sq));
 }
 
-// Positions rounded to float, as a binary STL stores them.
-Mesh float_rounded(Mesh m) {
-  for (Vec3& p : m.mutable_positions())
-    p = {double(float(p.x)), double(float(p.y)), double(float(p.z))};
-  return m;
-}
-
 // Issue 17 item 2 in the file a bureau gets: the plate refined 6 sqrt3 steps (level 3),
 // written as float coordinates. On main, sqrt3-interp made slivers 1e-6 mm high on the flat
 // end faces (near-flat flips beside trisected creases, face points the fold guard left almost

@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "core/mesh/build_mesh.h"
 #include "tests/support/convex_hull.h"
 #include "tests/support/random.h"
 
@@ -578,6 +579,19 @@ CadShape make_cad_shape(CadFamily family, const CadParams& params) {
       return plate(b);
   }
   throw std::invalid_argument("make_cad_shape: unknown family");
+}
+
+Mesh float_rounded(Mesh mesh) {
+  for (Vec3& p : mesh.mutable_positions())
+    p = {double(float(p.x)), double(float(p.y)), double(float(p.z))};
+  return mesh;
+}
+
+Mesh float_mesh(const CadShape& shape) {
+  IndexedSoup soup = shape.soup;
+  for (Vec3& p : soup.positions)
+    p = Vec3{static_cast<float>(p.x), static_cast<float>(p.y), static_cast<float>(p.z)};
+  return build_mesh(soup).mesh;
 }
 
 }  // namespace stlrefine::test

@@ -89,4 +89,9 @@ struct CadShape {
 //! \throw std::invalid_argument when params.coarseness is outside [0.25, 4].
 CadShape make_cad_shape(CadFamily family, const CadParams& params);
 
+//! `mesh` with its positions rounded to float, as a binary STL stores them.
+Mesh float_rounded(Mesh mesh);
+//! The shape's mesh as a bureau's STL holds it: float positions.
+Mesh float_mesh(const CadShape& shape);
+
 }  // namespace stlrefine::test

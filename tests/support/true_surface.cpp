@@ -796,13 +796,15 @@ double sampled_rms_distance(const Mesh& m, const TrueSurface& surface, int k) {
   return std::sqrt(sum / area);
 }
 
-std::size_t faces_off_truth(const Mesh& m, const TrueSurface& surface, double limit) {
+std::size_t faces_off_truth(const Mesh& m, const TrueSurface& surface, double limit,
+                            double crease_snap) {
   std::size_t off = 0;
   for (std::uint32_t f = 0; f < m.num_faces(); ++f) {
     const Vec3 n = normalized(m.face_normal(FaceId(f)));
     if (n == Vec3{}) continue;
     const auto [a, b, c] = m.face_vertices(FaceId(f));
-    off += face_truth_angle_deg(surface, n, m.position(a), m.position(b), m.position(c)) > limit;
+    off += face_truth_angle_deg(surface, n, m.position(a), m.position(b), m.position(c),
+                                crease_snap) > limit;
   }
   return off;
 }

@@ -145,9 +145,10 @@ std::shared_ptr<const TrueSurface> rounded_box_surface(Vec3 half_extent, double 
 double face_truth_angle_deg(const TrueSurface& surface, const Vec3& n, const Vec3& a, const Vec3& b,
                             const Vec3& c, double crease_snap = 0);
 
-//! Faces of m more than `limit` degrees from the true normal (face_truth_angle_deg);
-//! degenerate faces are not counted.
-std::size_t faces_off_truth(const Mesh& m, const TrueSurface& surface, double limit);
+//! Faces of m more than `limit` degrees from the true normal (face_truth_angle_deg, with
+//! its crease_snap); degenerate faces are not counted.
+std::size_t faces_off_truth(const Mesh& m, const TrueSurface& surface, double limit,
+                            double crease_snap = 0);
 
 //! Area-weighted RMS distance to the surface over the centroids of a k x k split of every
 //! face (coarse meshes take a larger k, so that every level is sampled about as densely).
