@@ -167,7 +167,6 @@ TEST(AdaptiveSqrt3Guard, PlateSliversSurviveTheFloatOutput) {
   // in the end face's plane a hair outside the rounded side (the crease curve past the true
   // rim; their closest points are all on the side), not folds: counted past 90 as the
   // uniform test does.
-  const double eps = std::numeric_limits<float>::epsilon();
   std::size_t off60 = 0;
   for (const std::uint64_t seed : {9002, 9006, 9008, 9501, 9502}) {
     const CadShape shape = make_cad_shape(CadFamily::Plate, {seed, 1.0});
@@ -178,18 +177,7 @@ TEST(AdaptiveSqrt3Guard, PlateSliversSurviveTheFloatOutput) {
     params.max_level = 6;
     const Mesh out = refine(Mesh(input), params).mesh;
     const Mesh stl = float_rounded(out);
-    std::size_t reversed = 0, below_grid = 0;
-    for (std::uint32_t f = 0; f < out.num_faces(); ++f) {
-      const auto [a, b, c] = out.face_vertices(FaceId(f));
-      const std::array<Vec3, 3> p = {out.position(a), out.position(b), out.position(c)};
-      reversed += dot(out.face_normal(FaceId(f)), stl.face_normal(FaceId(f))) <= 0;
-      double longest = 0, largest = 0;
-      for (int k = 0; k < 3; ++k) {
-        longest = std::max(longest, distance(p[k], p[(k + 1) % 3]));
-        largest = std::max({largest, std::abs(p[k].x), std::abs(p[k].y), std::abs(p[k].z)});
-      }
-      below_grid += norm(out.face_normal(FaceId(f))) / longest < 2 * eps * largest;
-    }
+    const auto [reversed, below_grid] = float_rounding(out);
     const std::size_t off = faces_off_truth(stl, *shape.surface, 60);
     std::printf("adaptive plate seed %d: faces %zu reversed %zu below grid %zu off 60 %zu\n",
                 int(seed), out.num_faces(), reversed, below_grid, off);

@@ -96,7 +96,6 @@ TEST(Sqrt3NormalCheck, SliverFacePointsOfACylinderGoNearTheSurface) {
 // the opposite edge by up to sqrt 3 ulps). The host's fold guard counts such degenerate faces
 // as folds (sqrt3_degenerate.h, kSqrt3ThinFloatUlps, kSqrt3ThinParentFraction).
 TEST(Sqrt3Cad, PlateSliversSurviveTheFloatOutput) {
-  const double eps = std::numeric_limits<float>::epsilon();
   for (const std::uint64_t seed : {9002, 9006, 9008, 9501, 9502}) {
     const CadShape shape = make_cad_shape(CadFamily::Plate, {seed, 1.0});
     const Mesh input = float_rounded(to_mesh(shape.soup));  // as read from its STL
@@ -105,19 +104,7 @@ TEST(Sqrt3Cad, PlateSliversSurviveTheFloatOutput) {
     params.levels = 6;
     const Mesh out = refine(Mesh(input), params).mesh;
     const Mesh stl = float_rounded(out);
-    std::size_t reversed = 0, below_grid = 0;
-    for (std::uint32_t f = 0; f < out.num_faces(); ++f) {
-      const auto [a, b, c] = out.face_vertices(FaceId(f));
-      const std::array<Vec3, 3> p = {out.position(a), out.position(b), out.position(c)};
-      reversed += dot(out.face_normal(FaceId(f)), stl.face_normal(FaceId(f))) <= 0;
-      double longest = 0, largest = 0;
-      for (int k = 0; k < 3; ++k) {
-        longest = std::max(longest, distance(p[k], p[(k + 1) % 3]));
-        largest = std::max({largest, std::abs(p[k].x), std::abs(p[k].y), std::abs(p[k].z)});
-      }
-      // Float ulps are eps times the largest coordinate or up to half of it.
-      below_grid += norm(out.face_normal(FaceId(f))) / longest < 2 * eps * largest;
-    }
+    const auto [reversed, below_grid] = float_rounding(out);
     EXPECT_EQ(reversed, 0u) << "seed " << seed;
     EXPECT_EQ(below_grid, 0u) << "seed " << seed;
     EXPECT_EQ(faces_off_truth(stl, *shape.surface, 90), 0u) << "seed " << seed;

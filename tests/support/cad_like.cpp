@@ -3,9 +3,11 @@
 #include "tests/support/cad_like.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <initializer_list>
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 #include <utility>
@@ -585,6 +587,24 @@ Mesh float_rounded(Mesh mesh) {
   for (Vec3& p : mesh.mutable_positions())
     p = {double(float(p.x)), double(float(p.y)), double(float(p.z))};
   return mesh;
+}
+
+FloatRounding float_rounding(const Mesh& mesh) {
+  const double eps = std::numeric_limits<float>::epsilon();
+  const Mesh stl = float_rounded(mesh);
+  FloatRounding r;
+  for (std::uint32_t f = 0; f < mesh.num_faces(); ++f) {
+    const auto [a, b, c] = mesh.face_vertices(FaceId(f));
+    const std::array<Vec3, 3> p = {mesh.position(a), mesh.position(b), mesh.position(c)};
+    r.reversed += dot(mesh.face_normal(FaceId(f)), stl.face_normal(FaceId(f))) <= 0;
+    double longest = 0, largest = 0;
+    for (int k = 0; k < 3; ++k) {
+      longest = std::max(longest, distance(p[k], p[(k + 1) % 3]));
+      largest = std::max({largest, std::abs(p[k].x), std::abs(p[k].y), std::abs(p[k].z)});
+    }
+    r.below_grid += norm(mesh.face_normal(FaceId(f))) / longest < 2 * eps * largest;
+  }
+  return r;
 }
 
 Mesh float_mesh(const CadShape& shape) {

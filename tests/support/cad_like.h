@@ -91,6 +91,14 @@ CadShape make_cad_shape(CadFamily family, const CadParams& params);
 
 //! `mesh` with its positions rounded to float, as a binary STL stores them.
 Mesh float_rounded(Mesh mesh);
+//! What writing `mesh` as a float STL does to its faces: `reversed` turn over (their normal
+//! against the double one), `below_grid` are lower than 2 float ulps of their largest
+//! coordinate (a corner's distance to the opposite edge moves by up to sqrt 3 ulps).
+struct FloatRounding {
+  std::size_t reversed = 0;
+  std::size_t below_grid = 0;
+};
+FloatRounding float_rounding(const Mesh& mesh);
 //! The shape's mesh as a bureau's STL holds it: float positions.
 Mesh float_mesh(const CadShape& shape);
 
