@@ -294,8 +294,9 @@ std::size_t check_edge_points_against_normals(const Mesh& m, const Features& fea
     // What the normals cannot resolve: a fraction of the narrower face's height across the
     // edge (a 305 mm sliver's length would allow ten times the sagitta of its arc).
     const Vec3 c = m.position(m.opposite(h)), d = m.position(m.opposite(m.twin(h)));
-    const double narrow = std::min(norm(cross(b - a, c - a)), norm(cross(b - a, d - a))) / length;
-    const double wide = std::max(norm(cross(b - a, c - a)), norm(cross(b - a, d - a))) / length;
+    const double twice_area_c = norm(cross(b - a, c - a)), twice_area_d = norm(cross(b - a, d - a));
+    const double narrow = std::min(twice_area_c, twice_area_d) / length;
+    const double wide = std::max(twice_area_c, twice_area_d) / length;
     const double allowed = params.slack * norm(offset) + params.width_fraction * narrow;
     const Vec3 mid = 0.5 * (a + b);
     const double have = dot(q - mid, n), hermite = dot(offset, n);
