@@ -135,17 +135,17 @@ RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRe
 
   phase = Clock::now();
   const std::size_t input_faces = in.result.mesh.num_faces();
-  // An approximating scheme moves the input vertices on purpose (loop, sqrt3 with alpha < 1):
-  // the default post-pass would undo that, so it runs there only when max_deviation is given.
-  // There it only measures (no snap, no bound), for the report's figures. Decided on the
-  // scheme's refinement (max_input_displacement), so the same for both runs below.
-  bool measure_only = false;
   // One refinement of `mesh` and its post-pass against `surf` (null: none); with `snaps`,
   // the new vertices of the surface's recognised regions go onto their primitives. `held`: bytes
   // held beside it for the whole run (the body, the surface, a result kept for comparison).
   struct Refined {
     RefineResult result;
     std::optional<primitives::PostPassReport> post;
+    // An approximating scheme moves the input vertices on purpose (loop, sqrt3 with
+    // alpha < 1): the default post-pass would undo that, so it runs there only when
+    // max_deviation is given; otherwise it only measures (no snap, no bound), for the
+    // report's figures.
+    bool measure_only = false;
   };
   auto refine_and_pass = [&](Mesh mesh, std::optional<Features> mesh_features,
                              primitives::InputSurface* surf, bool snaps,
@@ -215,7 +215,9 @@ RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRe
         throw MemoryBudgetError(e.field(), e.level(), held + e.needed_bytes());
       }
     }();
-    measure_only = made.result.report.max_input_displacement > 0 && !prim.max_deviation_given;
+    const bool measure_only =
+        made.result.report.max_input_displacement > 0 && !prim.max_deviation_given;
+    made.measure_only = measure_only;
     if (surf) {
       const CancelScope cancel_scope(cancel);  // a disconnect or deadline stops the pass too
       primitives::PostPassParams pp;
@@ -247,7 +249,7 @@ RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRe
   // part is refined again without them, as primitives=off would. The answer is the run
   // without them unless the one with them turned fewer faces and kept its snaps.
   std::size_t withdrawn_turned = 0;
-  if (input_copy && refined.post && !measure_only &&
+  if (input_copy && refined.post && !refined.measure_only &&
       (refined.post->faces_turned_over_60_deg > 0 || refined.post->withdrawn_turned_faces > 0)) {
     const std::size_t turned = refined.post->faces_turned_over_60_deg;
     const bool snaps_kept = refined.post->withdrawn_turned_faces == 0;
@@ -274,6 +276,7 @@ RefineOutcome refine_outcome(std::span<const std::uint8_t> bytes, const RefineRe
   }
   input_copy.reset();
   std::optional<primitives::PostPassReport>& post = refined.post;
+  const bool measure_only = refined.measure_only;
   if (post) post->detect_seconds = detect_seconds;
   PrimitiveOptions reported = prim;
   if (measure_only) reported.max_deviation = 0;
